@@ -1,0 +1,199 @@
+"""Biofilm density phi: one implicit step of paper Eq. 34.
+
+    dphi/dt + v . grad(phi) = beta lap(phi) + k_alpha alpha,
+    v = r c/(k+c) grad(c)/|grad(c)|                  (SPEC 1; Eq. 34 with Eqs. 22-23)
+
+The growth term is advection in *non-conservative* form: the interface moves
+toward the nutrient, mass is created, not carried.  On a face f between a
+lower cell a and an upper cell b with face-normal velocity w_f, the finite-
+volume form of v . grad(phi) in a cell P is sum_f (v.n_f)(phi_f - phi_P)/h;
+FiPy writes the same operator as ``UpwindConvectionTerm(v) -
+ImplicitSourceTerm(div v)`` (tests compare the two matrices).
+
+Face velocity: w_f = r c_f/(k+c_f) (dc/dn)_f / max(|grad c|_f, floor), with
+(dc/dn)_f = (c_b - c_a)/h, the tangential gradient from the mean of the two
+cells' central differences (mirror values at walls and obstacles), and
+floor = gradient_floor * max_f |grad c|_f: where the nutrient is flat the
+direction is undefined and the velocity fades out linearly instead.
+
+Schemes, both written in positive-coefficient form sum_N a_PN (phi_P - phi_N)
+with a_PN >= 0 so that, with implicit Euler, the matrix is an M-matrix with
+zero-row-sum advection: phi^{n+1} lies within [min phi^n, max(phi^n + dt
+k_alpha alpha^n)] whatever the step (bounded by construction):
+* "upwind": only inflow faces contribute, a = |w|/h.  Numerical diffusion
+  ~ |v| h / 2, reported as `numerical_diffusion`.
+* "tvd": van Leer limited face values phi_f = phi_U + psi(r)/2 (phi_D - phi_U),
+  r = (phi_U - phi_UU)/(phi_D - phi_U), limiter lagged at phi^n.  The inflow
+  face gives a = |w|(1 - psi/2)/h on (phi_D - phi_U); the outflow face's
+  correction |w| psi/2 (phi_D - phi_U) = |w| (psi/r)/2 (phi_U - phi_UU) goes
+  onto the upwind pair.  0 <= psi, psi/r <= 2 keep every a >= 0.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import StepFailure
+from .finite_volume import FiniteVolumeGrid
+from .linear import jacobi_bicgstab
+from .problem import Numerics, Parameters
+
+ROUNDOFF = 1e-9
+
+
+class Velocity:
+    """Face-normal growth velocity w (µm/T*) per axis from the nutrient field."""
+
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, gradient_floor: float):
+        self.fv = fv
+        self.r, self.k = params.r, params.k
+        self.floor = gradient_floor
+        self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
+
+    def cell_gradient(self, c: np.ndarray) -> list[np.ndarray]:
+        """Central differences per axis; a missing neighbour takes the cell's own value (zero flux)."""
+        h2 = 2.0 * self.fv.grid.spacing
+        return [(c[above] - c[below]) / h2 for below, above in self.neighbours]
+
+    def __call__(self, c: np.ndarray) -> list[np.ndarray]:
+        fv, h = self.fv, self.fv.grid.spacing
+        if self.r == 0.0:
+            return [np.zeros(f.lower.size) for f in fv.faces]
+        cell_grad = self.cell_gradient(c)
+        normal, magnitude = [], []
+        for f in fv.faces:
+            dn = (c[f.upper] - c[f.lower]) / h
+            squared = dn * dn
+            for axis, g in enumerate(cell_grad):
+                if axis != f.axis:
+                    t = 0.5 * (g[f.lower] + g[f.upper])
+                    squared += t * t
+            normal.append(dn)
+            magnitude.append(np.sqrt(squared))
+        largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
+        if largest == 0.0:
+            return [np.zeros_like(dn) for dn in normal]
+        floor = self.floor * largest
+        velocities = []
+        for f, dn, m in zip(fv.faces, normal, magnitude):
+            cf = 0.5 * (c[f.lower] + c[f.upper])
+            velocities.append(self.r * cf / (self.k + cf) * dn / np.maximum(m, floor))
+        return velocities
+
+
+class _Pattern:
+    """Fixed CSR sparsity of the biofilm matrix and where each face's entries live in it."""
+
+    def __init__(self, fv: FiniteVolumeGrid, laplacian: sp.csr_matrix, tvd: bool):
+        n = fv.n
+        rows, cols = [laplacian.tocoo().row, np.arange(n)], [laplacian.tocoo().col, np.arange(n)]
+        if tvd:
+            for f in fv.faces:
+                for cell, out in ((f.lower, f.lower_out), (f.upper, f.upper_out)):
+                    ok = out >= 0
+                    rows += [cell[ok], out[ok]]
+                    cols += [out[ok], cell[ok]]
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        pattern = sp.csr_matrix((np.zeros(r.size), (r, c)), shape=(n, n))
+        pattern.sum_duplicates()
+        pattern.sort_indices()
+        self.matrix = pattern
+        self.keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(pattern.indptr)) * n + pattern.indices
+        self.n = n
+        self.diagonal = self.position(np.arange(n), np.arange(n))
+        lap = laplacian.tocoo()
+        self.laplacian_positions = self.position(lap.row, lap.col)
+        self.laplacian_values = lap.data
+
+    def position(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+        """Index into the CSR data array of entries (row, col), which must be in the pattern."""
+        return np.searchsorted(self.keys, np.asarray(row, np.int64) * self.n + col)
+
+
+class Biofilm:
+    """Implicit Euler step of Eq. 34 on the active cells, matrix filled in place."""
+
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics):
+        self.fv = fv
+        self.params = params
+        self.tvd = numerics.advection == "tvd"
+        self.tolerance = numerics.biofilm_tolerance
+        self.velocity = Velocity(fv, params, numerics.gradient_floor)
+        self.pattern = _Pattern(fv, fv.laplacian, self.tvd)
+        p = self.pattern
+        self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
+                                     minlength=p.keys.size)
+        self.face_positions = []
+        for f in fv.faces:
+            same = lambda cell: p.position(cell, cell)
+            out_lower = np.where(f.lower_out >= 0, f.lower_out, f.lower)
+            out_upper = np.where(f.upper_out >= 0, f.upper_out, f.upper)
+            self.face_positions.append(dict(
+                lower=same(f.lower), upper=same(f.upper),
+                upper_lower=p.position(f.upper, f.lower), lower_upper=p.position(f.lower, f.upper),
+                lower_out=p.position(f.lower, out_lower) if self.tvd else None,
+                upper_out=p.position(f.upper, out_upper) if self.tvd else None,
+            ))
+        self.iterations = 0
+
+    def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
+        """CSR data of the advection operator (per unit volume) for face velocities w."""
+        h = self.fv.grid.spacing
+        positions, values = [], []
+        for f, wf, pos in zip(self.fv.faces, w, self.face_positions):
+            forward = wf > 0  # flow from lower to upper
+            a = np.abs(wf) / h
+            if self.tvd:
+                up = np.where(forward, f.lower, f.upper)
+                down = np.where(forward, f.upper, f.lower)
+                far = np.where(forward, f.lower_out, f.upper_out)
+                num = np.where(far >= 0, phi[up] - phi[np.maximum(far, 0)], 0.0)
+                den = phi[down] - phi[up]
+                smooth = num * den > 0
+                total = np.where(smooth, num + den, 1.0)
+                psi = np.where(smooth, 2.0 * num / total, 0.0)
+                psi_over_r = np.where(smooth, 2.0 * den / total, 0.0)
+                inflow = a * (1.0 - 0.5 * psi)
+                outflow = a * 0.5 * psi_over_r
+            else:
+                inflow, outflow = a, None
+            # inflow: row `down` gets inflow * (phi_down - phi_up)
+            positions += [np.where(forward, pos["upper"], pos["lower"]),
+                          np.where(forward, pos["upper_lower"], pos["lower_upper"])]
+            values += [inflow, -inflow]
+            if outflow is not None:
+                # outflow correction: row `up` gets outflow * (phi_up - phi_far)
+                positions += [np.where(forward, pos["lower"], pos["upper"]),
+                              np.where(forward, pos["lower_out"], pos["upper_out"])]
+                values += [outflow, -outflow]
+        return np.bincount(np.concatenate(positions), weights=np.concatenate(values),
+                           minlength=self.pattern.keys.size)
+
+    def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
+        """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
+        source = self.params.k_alpha * alpha
+        data = self.diffusion + self.advection(w, phi)
+        data[self.pattern.diagonal] += 1.0 / dt
+        matrix = sp.csr_matrix((data, self.pattern.matrix.indices, self.pattern.matrix.indptr),
+                               shape=self.pattern.matrix.shape)
+        rhs = phi / dt + source
+        new, its = jacobi_bicgstab(matrix, rhs, phi, self.tolerance, data[self.pattern.diagonal])
+        self.iterations += its
+        return self._checked(new, upper=float(np.max(phi + dt * source, initial=0.0)))
+
+    def _checked(self, phi: np.ndarray, upper: float) -> np.ndarray:
+        """NaN and maximum-principle check; round-off within ROUNDOFF is projected onto the bounds."""
+        bad = ~np.isfinite(phi)
+        if bad.any():
+            raise StepFailure("biofilm phi is not finite", self.fv.describe(int(np.argmax(bad))))
+        outside = (phi < -ROUNDOFF) | (phi > upper + ROUNDOFF)
+        if outside.any():
+            where = int(np.argmax(outside))
+            raise StepFailure(f"biofilm phi = {phi[where]:.6g} outside [0, {upper:.6g}]",
+                              self.fv.describe(where))
+        return np.clip(phi, 0.0, upper)
+
+    def numerical_diffusion(self, w: list[np.ndarray]) -> float:
+        """Upwind's artificial diffusivity max |w| h / 2 (µm²/T*), to set beside beta."""
+        largest = max((np.abs(x).max(initial=0.0) for x in w), default=0.0)
+        return 0.5 * largest * self.fv.grid.spacing

@@ -1,0 +1,39 @@
+"""Failures the solver reports instead of returning garbage.
+
+Every error names the simulated time, the cause and, where it has one, the
+place (cell index in ``(z, y, x)`` order and its centre in µm).  A
+`StepFailure` is recoverable (the time loop bisects the step); a
+`SimulationError` ends the run.
+"""
+from __future__ import annotations
+
+
+class StepFailure(Exception):
+    """One time step could not be taken at this step size (NaN, bounds, no convergence)."""
+
+    def __init__(self, cause: str, where: str = ""):
+        self.cause = cause
+        self.where = where
+        super().__init__(f"{cause}{' at ' + where if where else ''}")
+
+
+class SimulationError(RuntimeError):
+    """The run cannot continue: says when, what and where."""
+
+    def __init__(self, time: float, cause: str, where: str = ""):
+        self.time = float(time)
+        self.cause = cause
+        self.where = where
+        place = f" at {where}" if where else ""
+        super().__init__(f"t = {self.time:.6g}: {cause}{place}")
+
+
+class MechanicsError(SimulationError):
+    """Growth mechanics failed: det F <= 0 or Newton not converged after its safeguards."""
+
+
+def describe_cell(index: tuple[int, ...], spacing: float) -> str:
+    """'cell (z, y, x) = (..) at x = .. µm, ...' for messages."""
+    names = "zyx"[3 - len(index):]
+    centre = ", ".join(f"{a} = {(i + 0.5) * spacing:g} µm" for a, i in zip(names, index))
+    return f"cell ({', '.join(names)}) = {tuple(int(i) for i in index)} ({centre})"

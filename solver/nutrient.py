@@ -1,0 +1,114 @@
+"""Quasi-steady nutrient concentration c (paper Eq. 35 with time homogenisation).
+
+The nutrient diffuses orders of magnitude faster than the biofilm grows
+(eta_c << eta_phi), so at every step c solves the steady problem
+
+    first-order:  d lap(c) = g phi c                     (SPEC 1, default)
+    zero-order:   d lap(c) = g phi  where c > 0,  c >= 0  (paper Eq. 35)
+
+with zero flux on walls and obstacles and c held in the source cells.
+Divided by d, with K = -lap restricted to the free cells and gamma = g/d:
+
+    first-order:  (K + gamma diag(phi)) c = b                 an SPD M-matrix:
+                  0 <= c <= max(held values) by the discrete maximum principle;
+    zero-order:   c >= 0,  lambda = K c - b + gamma phi >= 0,  c lambda = 0,
+                  the complementarity (obstacle) problem of minimising
+                  1/2 c.K c - (b - gamma phi).c over c >= 0: consumption stops
+                  where the nutrient is exhausted (lambda is the unmet demand).
+                  Solved by a primal-dual active-set iteration, which ends in
+                  finitely many steps for an M-matrix; never by clipping.
+
+Cells in a region no source can reach (walled off by obstacles) have c = 0.
+Solver round-off within `ROUNDOFF` of a bound is projected onto it; anything
+beyond is a failed step, reported with its place.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .errors import StepFailure
+from .finite_volume import FiniteVolumeGrid
+from .linear import ReusedAMG
+from .problem import Consumption, Parameters
+
+ROUNDOFF = 1e-8
+MAX_ACTIVE_SET_ITERATIONS = 100
+
+
+class Nutrient:
+    """Solves for c on the active cells given phi; keeps its AMG hierarchy between calls."""
+
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, consumption: Consumption,
+                 fixed: np.ndarray, value: np.ndarray, tolerance: float = 1e-10):
+        self.fv = fv
+        self.consumption = consumption
+        self.gamma = params.g / params.d
+        laplacian = fv.laplacian
+        fixed = fv.to_active(fixed).astype(bool)
+        held_value = np.where(fixed, fv.to_active(value), 0.0)
+        held = fixed | self._unreachable(laplacian, fixed)
+        self.free = np.flatnonzero(~held)
+        self.upper = float(held_value[fixed].max()) if fixed.any() else 0.0
+        self.c_held = held_value
+        lap_free = laplacian[self.free]
+        self.stiffness = sp.csr_matrix(-lap_free[:, self.free])  # K, SPD on the free cells
+        self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held]  # b: inflow from held cells
+        self.amg = ReusedAMG(tolerance)
+        self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
+        self.active_set_iterations = 0
+        self._diag = self.stiffness.diagonal()
+
+    @staticmethod
+    def _unreachable(laplacian: sp.csr_matrix, fixed: np.ndarray) -> np.ndarray:
+        """Cells in connected regions that contain no source cell."""
+        count, label = connected_components(laplacian, directed=False)
+        fed = np.zeros(count, bool)
+        fed[label[fixed]] = True
+        return ~fed[label]
+
+    def solve(self, phi: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+        """c on the active cells for biofilm density `phi` (active cells); `guess` warm-starts."""
+        c = self.c_held.copy()
+        if self.free.size:
+            x0 = None if guess is None else guess[self.free]
+            demand = self.gamma * phi[self.free]
+            if self.consumption == "first-order":
+                matrix = self.stiffness + sp.diags(demand)
+                c[self.free] = self.amg.solve(sp.csr_matrix(matrix), self.rhs, x0)
+            else:
+                c[self.free] = self._complementarity(demand, x0)
+        return self._checked(c)
+
+    def _complementarity(self, demand: np.ndarray, x0: np.ndarray | None) -> np.ndarray:
+        """Primal-dual active set for c >= 0, K c - b + demand >= 0, complementary."""
+        K, b = self.stiffness, self.rhs
+        scale = max(float(np.abs(b).max(initial=0.0)), float(demand.max(initial=0.0)), 1e-300)
+        active = self.active_set.copy()
+        for iteration in range(1, MAX_ACTIVE_SET_ITERATIONS + 1):
+            keep = (~active).astype(float)
+            reduced = sp.diags(keep) @ K @ sp.diags(keep) + sp.diags(1.0 - keep)
+            rhs = keep * (b - demand)
+            c = self.amg.solve(sp.csr_matrix(reduced), rhs, None if x0 is None else keep * x0)
+            c[active] = 0.0
+            unmet = K @ c - b + demand
+            new = np.where(active, unmet > -ROUNDOFF * scale, c < -ROUNDOFF * max(self.upper, 1e-300))
+            if np.array_equal(new, active):
+                self.active_set = active
+                self.active_set_iterations += iteration
+                return c
+            active, x0 = new, c
+        raise StepFailure(f"zero-order nutrient active set did not settle in {MAX_ACTIVE_SET_ITERATIONS} iterations")
+
+    def _checked(self, c: np.ndarray) -> np.ndarray:
+        """NaN and bounds check; round-off within ROUNDOFF is projected onto [0, upper]."""
+        bad = ~np.isfinite(c)
+        if bad.any():
+            raise StepFailure("nutrient c is not finite", self.fv.describe(int(np.argmax(bad))))
+        tolerance = ROUNDOFF * max(self.upper, 1.0)
+        low, high = c < -tolerance, c > self.upper + tolerance
+        if low.any() or high.any():
+            where = int(np.argmax(low | high))
+            raise StepFailure(f"nutrient c = {c[where]:.6g} outside [0, {self.upper:g}]", self.fv.describe(where))
+        return np.clip(c, 0.0, self.upper)

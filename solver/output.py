@@ -1,0 +1,160 @@
+"""Snapshots -> xarray.Dataset in the layout of SPEC 5.
+
+Dimensions time, [z,] y, x (cell centres, µm) and [z_node,] y_node, x_node,
+component for the displacement.  Units and long names travel with every
+variable and coordinate; the attributes carry every parameter, the numerics,
+the counters and where the wall time went, so a result says what it cost and
+how it was computed.  Variables a scene does not ask for (u, p without
+mechanics) are absent, not filled.
+"""
+from __future__ import annotations
+
+import importlib.metadata as metadata
+import platform
+
+import numpy as np
+import xarray as xr
+
+from .problem import AXES, Problem
+
+BIOFILM_THRESHOLD = 0.5
+
+FIELDS = {
+    "phi": ("1", "biofilm density phi (0 void, 1 dense biofilm)"),
+    "c": ("1", "nutrient concentration c"),
+    "alpha": ("1", "local expansion alpha (growth deformation Fg = (1 + alpha) I)"),
+    "p": ("Pa", "hydrostatic Cauchy stress tr(sigma)/3 (negative = compression)"),
+}
+PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem", "xarray")
+
+
+def _versions() -> dict:
+    versions = {"version_python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            versions[f"version_{name.replace('-', '_')}"] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def _coordinates(problem: Problem) -> dict:
+    grid = problem.grid
+    coords = {}
+    for axis in grid.axes:
+        coords[axis] = (axis, grid.centres(axis), {"units": "um", "long_name": f"{axis} of cell centre",
+                                                   "axis": axis.upper()})
+        coords[f"{axis}_node"] = (f"{axis}_node", grid.nodes(axis), {"units": "um",
+                                                                   "long_name": f"{axis} of grid node"})
+    return coords
+
+
+def _attributes(problem: Problem, report: dict, snapshots) -> dict:
+    p, n = problem.params, problem.numerics
+    attrs = {
+        "Conventions": "CF-1.10",
+        "title": f"biofilm growth: {problem.name}",
+        "source": "biostudy solver (FiPy transport, scikit-fem growth mechanics)",
+        "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, SPEC 1)",
+        "grid_shape": np.array(problem.grid.shape, dtype=np.int32),
+        "grid_spacing": problem.grid.spacing,
+        **{name: float(getattr(p, name)) for name in ("mu", "nu", "d", "beta", "k_alpha", "k", "g", "r")},
+        "kappa": p.kappa,
+        "consumption": problem.consumption,
+        "advection": n.advection,
+        "gradient_floor": n.gradient_floor,
+        "nutrient_tolerance": n.nutrient_tolerance,
+        "biofilm_tolerance": n.biofilm_tolerance,
+        "max_substeps": n.max_substeps,
+        "time_stepping": "fixed nominal steps, bisected on failure" if n.time_tolerance is None
+        else f"step doubling, local error in phi (max norm) <= {n.time_tolerance:g} per step",
+        "time_tolerance": n.time_tolerance if n.time_tolerance is not None else 0.0,
+        "t_end": problem.t_end,
+        "steps_nominal": problem.steps,
+        "biofilm_threshold": BIOFILM_THRESHOLD,
+        "mechanics": "on" if problem.mechanics is not None else "off",
+        "wall_time": report["wall_time"],
+        "steps_taken": report["steps_taken"],
+        "steps_bisected": report["steps_bisected"],
+        "steps_rejected": report["steps_rejected"],
+        "nutrient_cg_iterations": report["nutrient_cg_iterations"],
+        "nutrient_amg_rebuilds": report["nutrient_amg_rebuilds"],
+        "biofilm_iterations": report["biofilm_iterations"],
+        "numerical_diffusion_max": report["numerical_diffusion_max"],
+        "largest_step_error": report["largest_step_error"],
+        **{f"wall_time_{stage}": seconds for stage, seconds in report["timings"].items()},
+        **_versions(),
+    }
+    if problem.grid.ndim == 2:
+        attrs["slab_thickness"] = problem.grid.spacing
+    if problem.mechanics is not None:
+        m = problem.mechanics
+        attrs.update({
+            "mechanics_clamp": ",".join(m.clamp), "mechanics_slide": ",".join(m.slide),
+            "mechanics_residual_stiffness": m.residual_stiffness, "mechanics_every": m.every,
+            "mechanics_newton_tolerance": m.newton_tolerance,
+        })
+        solved = [s.mechanics for s in snapshots if s.mechanics]
+        for key, value in (solved[-1] if solved else {}).items():
+            if isinstance(value, (int, float, str)) and not isinstance(value, bool):
+                attrs[f"mechanics_{key}"] = value
+    return attrs
+
+
+def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
+    """The run as a Dataset (SPEC 5): fields, time series, static masks, attributes."""
+    grid = problem.grid
+    cell_dims = tuple(reversed(grid.axes))
+    node_dims = tuple(f"{a}_node" for a in cell_dims)
+    active = ~problem.obstacle
+    volume = grid.cell_volume * (grid.spacing if grid.ndim == 2 else 1.0)
+    times = np.array([s.time for s in snapshots])
+
+    data = {}
+    for name in ("phi", "c", "alpha"):
+        units, long_name = FIELDS[name]
+        data[name] = (("time", *cell_dims), np.stack([getattr(s, name) for s in snapshots]),
+                      {"units": units, "long_name": long_name})
+    if problem.mechanics is not None:
+        nan_cells = np.full(grid.cells_shape, np.nan)
+        nan_nodes = np.full((*grid.nodes_shape, grid.ndim), np.nan)
+        units, long_name = FIELDS["p"]
+        data["p"] = (("time", *cell_dims), np.stack([nan_cells if s.p is None else s.p for s in snapshots]),
+                     {"units": units, "long_name": long_name})
+        data["u"] = (("time", *node_dims, "component"),
+                     np.stack([nan_nodes if s.u is None else s.u for s in snapshots]),
+                     {"units": "um", "long_name": "displacement of grid node"})
+        data["newton_iterations"] = ("time", np.array([s.mechanics.get("newton_iterations", -1)
+                                                       for s in snapshots], dtype=np.int32),
+                                     {"units": "1", "long_name": "Newton iterations of the mechanics "
+                                                                 "(-1: not solved at this output)"})
+    phi = data["phi"][1]
+    data["phi_mean"] = ("time", np.array([f[active].mean() for f in phi]),
+                        {"units": "1", "long_name": "mean biofilm density over non-obstacle cells"})
+    data["c_mean"] = ("time", np.array([s.c[active].mean() for s in snapshots]),
+                      {"units": "1", "long_name": "mean nutrient concentration over non-obstacle cells"})
+    data["biofilm_volume"] = ("time", np.array([np.count_nonzero(f[active] >= BIOFILM_THRESHOLD) * volume
+                                                for f in phi]),
+                              {"units": "um3", "long_name": "volume of cells with phi >= 0.5"
+                               + (" (2-D: one cell thick)" if grid.ndim == 2 else "")})
+    for name, long_name in (("steps", "accepted steps so far"), ("bisections", "bisected (failed) steps so far"),
+                            ("rejected", "steps rejected by the error control so far")):
+        data[f"steps_{'taken' if name == 'steps' else name}"] = (
+            "time", np.array([getattr(s, name) for s in snapshots], dtype=np.int64),
+            {"units": "1", "long_name": long_name})
+    data["elapsed"] = ("time", np.array([s.elapsed for s in snapshots]),
+                       {"units": "s", "long_name": "wall time since the start of the run"})
+    data["obstacle"] = (cell_dims, problem.obstacle.astype(np.int8),
+                        {"units": "1", "long_name": "rigid obstacle cell", "flag_values": np.int8([0, 1]),
+                         "flag_meanings": "open obstacle"})
+    data["nutrient_source"] = (cell_dims, problem.nutrient_fixed.astype(np.int8),
+                               {"units": "1", "long_name": "cell where c is held (nutrient source)",
+                                "flag_values": np.int8([0, 1]), "flag_meanings": "free held"})
+    coords = _coordinates(problem)
+    coords["time"] = ("time", times, {"units": "1", "long_name": "normalised time T* = t / t_ref"})
+    if problem.mechanics is not None:
+        coords["component"] = ("component", list(AXES[: grid.ndim]),
+                               {"long_name": "displacement component", "units": "1"})
+    else:
+        coords = {k: v for k, v in coords.items() if not k.endswith("_node")}
+    return xr.Dataset(data, coords=coords, attrs=_attributes(problem, report, snapshots))

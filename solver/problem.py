@@ -1,0 +1,219 @@
+"""The plain description of one simulation: grid, parameters, masks, clocks.
+
+Everything the solver needs and nothing it does not: numpy arrays and frozen
+dataclasses, no files, no validation framework.  The study service
+(`biostudy.scene`) compiles a validated scene into a `Problem`; tests build
+problems directly.
+
+Array convention: every per-cell array has shape ``grid.cells_shape``, i.e.
+``(nz, ny, nx)`` in 3-D and ``(ny, nx)`` in 2-D, so that the C-order
+flattening is FiPy's cell order (x fastest).  Per-node arrays have shape
+``grid.nodes_shape`` = ``(nz+1, ny+1, nx+1)`` / ``(ny+1, nx+1)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+AXES = ("x", "y", "z")
+FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
+Consumption = Literal["first-order", "zero-order"]
+Advection = Literal["upwind", "tvd"]
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Structured grid of cubic cells, origin at 0.
+
+    shape: cells along x, y[, z] (two entries: a 2-D scene).
+    spacing: cell edge h in µm.
+    """
+
+    shape: tuple[int, ...]
+    spacing: float = 1.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "shape", tuple(int(n) for n in self.shape))
+        if len(self.shape) not in (2, 3) or min(self.shape) < 1:
+            raise ValueError(f"grid shape must have 2 or 3 positive entries, got {self.shape}")
+        if not self.spacing > 0:
+            raise ValueError(f"grid spacing must be positive, got {self.spacing}")
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axis names in scene order, e.g. ('x', 'y', 'z')."""
+        return AXES[: self.ndim]
+
+    @property
+    def cells_shape(self) -> tuple[int, ...]:
+        """Shape of per-cell arrays: (nz, ny, nx) or (ny, nx)."""
+        return tuple(reversed(self.shape))
+
+    @property
+    def nodes_shape(self) -> tuple[int, ...]:
+        return tuple(n + 1 for n in self.cells_shape)
+
+    @property
+    def n_cells(self) -> int:
+        return int(np.prod(self.shape))
+
+    @property
+    def cell_volume(self) -> float:
+        """µm³ in 3-D, µm² in 2-D (per unit thickness)."""
+        return self.spacing**self.ndim
+
+    @property
+    def extent(self) -> tuple[float, ...]:
+        """Physical size along x, y[, z] in µm."""
+        return tuple(n * self.spacing for n in self.shape)
+
+    def centres(self, axis: str) -> np.ndarray:
+        """Cell-centre coordinates along one axis (µm)."""
+        n = self.shape[AXES.index(axis)]
+        return (np.arange(n) + 0.5) * self.spacing
+
+    def nodes(self, axis: str) -> np.ndarray:
+        """Node coordinates along one axis (µm)."""
+        n = self.shape[AXES.index(axis)]
+        return np.arange(n + 1) * self.spacing
+
+    def cell_coordinates(self) -> tuple[np.ndarray, ...]:
+        """Broadcastable centre coordinates (x, y[, z]), each of ``cells_shape``."""
+        grids = np.meshgrid(*(self.centres(a) for a in reversed(self.axes)), indexing="ij")
+        return tuple(reversed(grids))
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Model parameters, paper Table 2 (defaults) in µm and normalised time T*."""
+
+    mu: float = 3.3557  # shear modulus, Pa
+    nu: float = 0.49  # Poisson ratio
+    d: float = 1e10  # nutrient diffusivity, µm²/T*
+    beta: float = 2.0  # phase-field regularisation, µm²/T*
+    k_alpha: float = 1e-3  # growth factor, 1/T*
+    k: float = 1.0  # half-velocity constant
+    g: float = 1e8  # consumption, 1/T*
+    r: float = 100.0  # growth parameter, µm/T*
+
+    @property
+    def kappa(self) -> float:
+        """Bulk modulus kappa = 2 mu (1 + nu) / (3 (1 - 2 nu)), Pa."""
+        return 2.0 * self.mu * (1.0 + self.nu) / (3.0 * (1.0 - 2.0 * self.nu))
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """How the equations are discretised and solved; defaults are the robust choice.
+
+    advection: "upwind" (monotone, first order, numerical diffusion ~ |v| h / 2)
+        or "tvd" (van Leer limited, second order where smooth, still bounded).
+    gradient_floor: the nutrient direction grad(c)/|grad(c)| uses
+        max(|grad c|, gradient_floor * max|grad c|) in the denominator, so the
+        growth velocity fades out linearly where the nutrient is flat.
+    nutrient_tolerance, biofilm_tolerance: relative residual of the linear solves.
+    max_substeps: smallest step is t_end / max_substeps (paper: 1e6).
+    time_tolerance: None = fixed nominal steps (bisected on failure); a number =
+        error-controlled steps by step doubling, local error in phi (max norm)
+        per step kept below it.
+    """
+
+    advection: Advection = "upwind"
+    gradient_floor: float = 1e-3
+    nutrient_tolerance: float = 1e-10
+    biofilm_tolerance: float = 1e-12
+    max_substeps: int = 1_000_000
+    time_tolerance: float | None = None
+
+
+@dataclass(frozen=True)
+class MechanicsSetup:
+    """Growth mechanics (paper 2.1, 2.3.1, 3); solved only at output times.
+
+    clamp: faces with all displacement components zero ("x-", ..., "z+").
+    slide: faces with zero normal displacement.
+    residual_stiffness: relative stiffness of void (phi = 0) cells, weight
+        w = eps + (1 - eps) phi^2 on shear and bulk energy.
+    every: solve at every n-th output time (and always the last one).
+    """
+
+    clamp: tuple[str, ...] = ()
+    slide: tuple[str, ...] = ()
+    residual_stiffness: float = 1e-4
+    every: int = 1
+    newton_tolerance: float = 1e-8
+    max_newton_iterations: int = 25
+
+    def __post_init__(self):
+        for face in (*self.clamp, *self.slide):
+            if face not in FACES:
+                raise ValueError(f"unknown face {face!r}; faces are {FACES}")
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """One simulation (SPEC 1): initial state, sources, obstacles, clocks.
+
+    phi0: initial biofilm density per cell (0 in obstacles).
+    nutrient_fixed: cells where c is held at ``nutrient_value`` at all times.
+    nutrient_value: held concentration per cell (read where nutrient_fixed).
+    obstacle: rigid solid cells: no phi, no c, no flux across their faces.
+    output_times: the output clock, increasing, within [0, t_end].
+    steps: nominal number of steps over [0, t_end] (the model clock).
+    mechanics: None leaves the mechanics out entirely.
+    """
+
+    grid: Grid
+    phi0: np.ndarray
+    nutrient_fixed: np.ndarray
+    t_end: float
+    steps: int
+    output_times: np.ndarray
+    params: Parameters = field(default_factory=Parameters)
+    consumption: Consumption = "first-order"
+    nutrient_value: np.ndarray | None = None
+    obstacle: np.ndarray | None = None
+    numerics: Numerics = field(default_factory=Numerics)
+    mechanics: MechanicsSetup | None = None
+    name: str = "unnamed"
+
+    def __post_init__(self):
+        shape = self.grid.cells_shape
+        fix = object.__setattr__
+        fix(self, "phi0", np.asarray(self.phi0, dtype=float).reshape(shape))
+        fix(self, "nutrient_fixed", np.asarray(self.nutrient_fixed, dtype=bool).reshape(shape))
+        value = np.ones(shape) if self.nutrient_value is None else self.nutrient_value
+        fix(self, "nutrient_value", np.broadcast_to(np.asarray(value, dtype=float), shape).copy())
+        obstacle = np.zeros(shape, bool) if self.obstacle is None else self.obstacle
+        fix(self, "obstacle", np.asarray(obstacle, dtype=bool).reshape(shape))
+        fix(self, "output_times", np.asarray(self.output_times, dtype=float).ravel())
+        self._check()
+
+    def _check(self):
+        if self.consumption not in ("first-order", "zero-order"):
+            raise ValueError(f"unknown consumption law {self.consumption!r}")
+        if not (self.t_end > 0 and self.steps >= 1):
+            raise ValueError("t_end must be positive and steps at least 1")
+        times = self.output_times
+        if times.size == 0 or np.any(np.diff(times) <= 0) or times[0] < 0 or times[-1] > self.t_end:
+            raise ValueError("output_times must increase strictly within [0, t_end]")
+        values = self.nutrient_value[self.nutrient_fixed]
+        if np.any((values < 0) | (values > 1)):
+            raise ValueError("held nutrient values must lie in [0, 1]")
+        if np.any(self.nutrient_fixed & self.obstacle):
+            raise ValueError("nutrient sources must not lie inside obstacles")
+        if np.any((self.phi0 < 0) | (self.phi0 > 1)):
+            raise ValueError("initial phi must lie in [0, 1]")
+        if np.all(self.obstacle):
+            raise ValueError("every cell is an obstacle")
+
+    @property
+    def dt(self) -> float:
+        """Nominal step of the model clock."""
+        return self.t_end / self.steps

@@ -1,0 +1,198 @@
+"""The time loop: two clocks, failures bisected, snapshots yielded.
+
+The model clock takes nominal steps dt = t_end / steps (or error-controlled
+steps, see `numerics.time_tolerance`); the output clock is the list of
+output times, which steps land on exactly.  A step that fails (linear solver
+not converged, NaN, bounds) is bisected, as in the paper, until the step
+would fall below t_end / max_substeps (paper: 1e6); then the run stops with a
+`SimulationError` naming time, cause and place.  After a bisection the step
+grows back by doubling.
+
+`evolve` is a generator of `Snapshot`s (one per output time) that tests can
+step with ``next()``; `simulate` runs it to the end and returns the dataset.
+Mechanics (if the problem asks for it) is solved only at output times:
+nothing feeds back from it into phi or c.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+
+from .errors import SimulationError, StepFailure
+from .problem import Problem
+from .transport import State, Transport
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Reported after every accepted step."""
+
+    time: float
+    t_end: float
+    steps: int
+    bisections: int
+    rejected: int
+
+
+@dataclass
+class Snapshot:
+    """Fields at one output time, as grid arrays (NaN in obstacles), with the run's counters so far."""
+
+    time: float
+    phi: np.ndarray
+    c: np.ndarray
+    alpha: np.ndarray
+    steps: int
+    bisections: int
+    rejected: int
+    elapsed: float
+    u: np.ndarray | None = None
+    p: np.ndarray | None = None
+    mechanics: dict = field(default_factory=dict)
+
+
+class _Rejected(Exception):
+    """Step-doubling error above tolerance (not a failure: the controller shrinks the step)."""
+
+    def __init__(self, error: float):
+        self.error = error
+
+
+class Clock:
+    """Advances a `Transport` to given times with nominal or error-controlled steps."""
+
+    GROW, SHRINK, SAFETY = 4.0, 0.2, 0.9
+
+    def __init__(self, transport: Transport, progress: Callable[[Progress], None] | None = None):
+        problem = transport.problem
+        self.transport = transport
+        self.progress = progress
+        self.t_end = problem.t_end
+        self.nominal = problem.dt
+        self.smallest = problem.t_end / problem.numerics.max_substeps
+        self.tolerance = problem.numerics.time_tolerance
+        self.dt = self.nominal
+        self.steps = self.bisections = self.rejected = 0
+        self.largest_error = 0.0
+
+    def advance(self, state: State, until: float) -> State:
+        """Step from state.t to exactly `until`."""
+        eps = 1e-12 * self.t_end
+        while state.t < until - eps:
+            dt = min(self.dt, until - state.t)
+            if until - (state.t + dt) < 1e-6 * dt:
+                dt = until - state.t
+            try:
+                new = self._attempt(state, dt)
+            except _Rejected as rejection:
+                self.rejected += 1
+                self.dt = dt * max(self.SHRINK, self.SAFETY * np.sqrt(self.tolerance / rejection.error))
+                self._check_smallest(state, self.dt, f"error estimate {rejection.error:.3g} above "
+                                                     f"time_tolerance {self.tolerance:g}", "")
+                continue
+            except StepFailure as failure:
+                self.bisections += 1
+                self.dt = 0.5 * dt
+                self._check_smallest(state, self.dt, failure.cause, failure.where)
+                continue
+            state = new if abs(new.t - until) > eps else State(until, new.phi, new.alpha, new.c)
+            self.steps += 1
+            if self.progress is not None:
+                self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected))
+        return state
+
+    def _check_smallest(self, state: State, dt: float, cause: str, where: str):
+        if dt < self.smallest * (1 - 1e-9):
+            raise SimulationError(state.t, f"{cause} (step bisected below t_end/max_substeps = "
+                                           f"{self.smallest:.3g})", where)
+
+    def _attempt(self, state: State, dt: float) -> State:
+        if self.tolerance is None:
+            new = self.transport.step(state, dt)
+            if dt >= self.dt * (1 - 1e-9):
+                self.dt = min(2.0 * self.dt, self.nominal)
+            return new
+        full = self.transport.step(state, dt, with_nutrient=False)
+        half = self.transport.step(state, 0.5 * dt)
+        two = self.transport.step(half, 0.5 * dt)
+        error = float(np.max(np.abs(two.phi - full.phi), initial=0.0))
+        if error > self.tolerance:
+            raise _Rejected(error)
+        self.largest_error = max(self.largest_error, error)
+        factor = self.GROW if error == 0 else min(self.GROW, self.SAFETY * np.sqrt(self.tolerance / error))
+        if dt >= self.dt * (1 - 1e-9):
+            self.dt = dt * factor
+        return two
+
+
+def _mechanics(problem: Problem):
+    if problem.mechanics is None:
+        return None
+    from .mechanics import GrowthMechanics
+
+    return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle)
+
+
+class Run:
+    """One simulation: iterate it for a `Snapshot` at every output time; its cost stays readable."""
+
+    def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
+        self.started = time.perf_counter()
+        self.problem = problem
+        self.transport = Transport(problem)
+        self.clock = Clock(self.transport, progress)
+        self.mechanics = _mechanics(problem)
+
+    def __iter__(self) -> Iterator[Snapshot]:
+        problem, transport, clock = self.problem, self.transport, self.clock
+        state = transport.initial()
+        last = len(problem.output_times) - 1
+        for index, when in enumerate(problem.output_times):
+            state = clock.advance(state, float(when))
+            snapshot = Snapshot(
+                time=float(when), phi=transport.full(state.phi), c=transport.full(state.c),
+                alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
+                rejected=clock.rejected, elapsed=0.0,
+            )
+            if self.mechanics is not None and (index % problem.mechanics.every == 0 or index == last):
+                self._solve_mechanics(snapshot)
+            snapshot.elapsed = time.perf_counter() - self.started
+            yield snapshot
+
+    def _solve_mechanics(self, snapshot: Snapshot):
+        began = time.perf_counter()
+        result = self.mechanics.solve(np.nan_to_num(snapshot.phi), np.nan_to_num(snapshot.alpha), snapshot.time)
+        self.transport.timings["mechanics"] += time.perf_counter() - began
+        snapshot.u, snapshot.p = result.u, result.p
+        snapshot.mechanics = {"newton_iterations": result.newton_iterations, **result.info}
+
+    def report(self) -> dict:
+        """What the run cost: wall time, counters, where the time went."""
+        t, c = self.transport, self.clock
+        return {
+            "wall_time": time.perf_counter() - self.started,
+            "steps_taken": c.steps, "steps_bisected": c.bisections, "steps_rejected": c.rejected,
+            "timings": dict(t.timings),
+            "nutrient_cg_iterations": t.nutrient.amg.iterations,
+            "nutrient_amg_rebuilds": t.nutrient.amg.rebuilds,
+            "biofilm_iterations": t.biofilm.iterations,
+            "numerical_diffusion_max": t.largest_numerical_diffusion,
+            "largest_step_error": c.largest_error,
+        }
+
+
+def evolve(problem: Problem, progress: Callable[[Progress], None] | None = None) -> Iterator[Snapshot]:
+    """Yield a `Snapshot` at every output time; ``next()`` steps it in tests."""
+    return iter(Run(problem, progress))
+
+
+def simulate(problem: Problem, progress: Callable[[Progress], None] | None = None):
+    """Run `problem` to t_end and return the dataset of SPEC 5 (see `output.to_dataset`)."""
+    from .output import to_dataset
+
+    run = Run(problem, progress)
+    snapshots = list(run)
+    return to_dataset(problem, snapshots, run.report())

@@ -1,0 +1,78 @@
+"""phi, c and alpha together: the state of the transport and one step of it.
+
+A step of length dt (paper Eqs. 34-36, time homogenised):
+  1. the growth velocity from c^n (the nutrient is quasi-steady in phi^n);
+  2. phi^{n+1} by implicit Euler with alpha^n as source;
+  3. alpha^{n+1} from phi^{n+1};
+  4. c^{n+1} for phi^{n+1}, which the next step starts from.
+Every stage checks for NaN and bounds and raises `StepFailure`; the clock
+(`timeloop`) decides what to do about it.  Wall time per stage is kept in
+`timings` so that a run can say where its time went.
+"""
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+
+from .biofilm import Biofilm
+from .expansion import grow
+from .finite_volume import FiniteVolumeGrid
+from .nutrient import Nutrient
+from .problem import Problem
+
+
+@dataclass(frozen=True)
+class State:
+    """Transport fields on the active cells at time t."""
+
+    t: float
+    phi: np.ndarray
+    alpha: np.ndarray
+    c: np.ndarray | None
+
+
+class Transport:
+    """Owns the cached operators of one problem and advances its state."""
+
+    def __init__(self, problem: Problem):
+        self.problem = problem
+        self.fv = FiniteVolumeGrid(problem.grid, problem.obstacle)
+        self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_fixed,
+                                 problem.nutrient_value, problem.numerics.nutrient_tolerance)
+        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics)
+        self.timings = defaultdict(float)
+        self.largest_numerical_diffusion = 0.0
+
+    def initial(self) -> State:
+        phi = self.fv.to_active(self.problem.phi0)
+        return State(0.0, phi, np.zeros_like(phi), self._nutrient(phi, None))
+
+    def _nutrient(self, phi, guess):
+        start = time.perf_counter()
+        c = self.nutrient.solve(phi, guess)
+        self.timings["nutrient"] += time.perf_counter() - start
+        return c
+
+    def step(self, state: State, dt: float, with_nutrient: bool = True) -> State:
+        """State after dt; c at the end only if `with_nutrient` (step doubling skips it)."""
+        clock = time.perf_counter
+        start = clock()
+        w = self.biofilm.velocity(state.c)
+        self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
+                                               self.biofilm.numerical_diffusion(w))
+        after_velocity = clock()
+        phi = self.biofilm.step(state.phi, state.alpha, w, dt)
+        after_biofilm = clock()
+        alpha = grow(state.alpha, phi, self.problem.params.k_alpha, dt)
+        self.timings["velocity"] += after_velocity - start
+        self.timings["biofilm"] += after_biofilm - after_velocity
+        self.timings["expansion"] += clock() - after_biofilm
+        c = self._nutrient(phi, state.c) if with_nutrient else None
+        return State(state.t + dt, phi, alpha, c)
+
+    def full(self, values: np.ndarray) -> np.ndarray:
+        """Active-cell values as a grid array, NaN in obstacles."""
+        return self.fv.to_full(values)
