@@ -41,9 +41,7 @@ class FipyTransport:
         # held cells by a stiff implicit source: FiPy's c.constrain(where=cell mask) decouples the
         # held cells from their neighbours (measured: c = 0 beside a held c = 1 with FiPy 4.0.3)
         stiff = HOLD * max(p.d / problem.grid.spacing**2, p.g)
-        held = fipy.CellVariable(mesh=mesh, value=stiff * problem.nutrient_fixed.ravel())
-        self.nutrient_equation = (fipy.DiffusionTerm(coeff=p.d) == fipy.ImplicitSourceTerm(coeff=p.g * self.phi)
-                                  + fipy.ImplicitSourceTerm(coeff=held) - held * problem.nutrient_value.ravel())
+        self.held = fipy.CellVariable(mesh=mesh, value=stiff * problem.nutrient_fixed.ravel())
         if solvers == "default":
             self.nutrient_solver = self.biofilm_solver = None
         else:
@@ -71,8 +69,19 @@ class FipyTransport:
                 - fipy.ImplicitSourceTerm(coeff=v.divergence)
                 == fipy.DiffusionTerm(coeff=p.beta) + p.k_alpha * self.alpha)
 
+    def nutrient_equation(self):
+        fipy, p = self.fipy, self.problem.params
+        return (fipy.DiffusionTerm(coeff=p.d) == fipy.ImplicitSourceTerm(coeff=p.g * self.phi)
+                + fipy.ImplicitSourceTerm(coeff=self.held) - self.held * self.problem.nutrient_value.ravel())
+
     def solve_nutrient(self):
-        self.nutrient_equation.solve(var=self.c, solver=self.nutrient_solver)
+        """FiPy's default criterion is relative to |b|, which the held rows dominate: warm-started
+        from the previous c, the default (LU) solver judged itself converged after zero iterations
+        and returned the previous step's c (FiPy 4.0.3).  So LU starts from zero; CG uses an
+        absolute criterion (see __init__) and may start warm."""
+        if self.nutrient_solver is None:
+            self.c.setValue(0.0)
+        self.nutrient_equation().solve(var=self.c, solver=self.nutrient_solver)
 
     def step(self, dt: float):
         """One step in the order of `Transport.step`: velocity from c^n, phi, alpha, then c."""

@@ -1,0 +1,102 @@
+"""The time loop: output clock, bisection of failed steps, error-controlled steps."""
+import numpy as np
+import pytest
+
+from solver import Grid, Numerics, Parameters, Problem, SimulationError, evolve, simulate
+from solver.errors import StepFailure
+from solver.timeloop import Clock
+from solver.transport import State
+
+
+def sphere_problem(n=10, t_end=0.2, steps=20, outputs=(0.0, 0.2), **kw):
+    grid = Grid((n, n, n), 20.0 / n)
+    x, y, z = grid.cell_coordinates()
+    phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
+    held = (x > 16) & (y > 16) & (z > 16)
+    return Problem(grid=grid, phi0=phi0, nutrient_fixed=held, t_end=t_end, steps=steps,
+                   output_times=np.asarray(outputs), **kw)
+
+
+def test_evolve_is_a_generator_landing_exactly_on_output_times():
+    """Output times need not be multiples of the step: steps are shortened to land on them."""
+    outputs = [0.0, 0.033, 0.1, 0.2]
+    run = evolve(sphere_problem(outputs=outputs))
+    first = next(run)
+    assert first.time == 0.0 and first.steps == 0
+    rest = list(run)
+    assert [s.time for s in rest] == outputs[1:]
+    assert rest[-1].steps == 21  # 20 nominal steps, one of them split at t = 0.033
+    assert all(b.steps > a.steps for a, b in zip(rest, rest[1:]))
+
+
+class FlakyTransport:
+    """Fails every step longer than `limit`; otherwise advances t (tests the clock alone)."""
+
+    def __init__(self, problem, limit):
+        self.problem, self.limit, self.attempts = problem, limit, []
+
+    def step(self, state, dt, with_nutrient=True):
+        self.attempts.append(dt)
+        if dt > self.limit:
+            raise StepFailure("linear solver did not converge", "cell (z, y, x) = (1, 2, 3)")
+        return State(state.t + dt, state.phi, state.alpha, state.c)
+
+
+def test_failed_steps_are_bisected_and_grow_back():
+    problem = sphere_problem(t_end=1.0, steps=10)
+    transport = FlakyTransport(problem, limit=0.03)
+    clock = Clock(transport)
+    state = clock.advance(State(0.0, None, None, None), 0.5)
+    assert state.t == 0.5
+    assert clock.bisections >= 2  # 0.1 -> 0.05 -> 0.025
+    assert min(transport.attempts) == pytest.approx(0.025)
+    assert clock.steps == 20  # 0.5 / 0.025: never back above the limit, never below
+
+
+def test_persistent_failure_stops_with_time_cause_and_place():
+    problem = sphere_problem(t_end=1.0, steps=10, numerics=Numerics(max_substeps=80))
+    clock = Clock(FlakyTransport(problem, limit=0.0))
+    with pytest.raises(SimulationError) as error:
+        clock.advance(State(0.0, None, None, None), 1.0)
+    message = str(error.value)
+    assert message.startswith("t = 0: linear solver did not converge")
+    assert "cell (z, y, x) = (1, 2, 3)" in message and "max_substeps" in message
+    assert clock.bisections == 4  # 0.1 / 2^4 = 0.00625 < 1/80
+
+
+def test_unreachable_solver_tolerance_fails_the_run_with_its_diagnosis():
+    """A real failure through the whole loop: BiCGSTAB cannot reach 1e-30, bisection cannot help."""
+    problem = sphere_problem(n=6, numerics=Numerics(biofilm_tolerance=1e-30, max_substeps=200))
+    with pytest.raises(SimulationError, match="biofilm BiCGSTAB did not converge"):
+        simulate(problem)
+
+
+def test_error_control_meets_tolerance_and_spends_steps_where_needed():
+    """Step doubling: final-time error against a fine fixed-step reference falls with the tolerance."""
+    reference = simulate(sphere_problem(steps=800)).phi.values[-1]
+    errors, steps = [], []
+    for tolerance in (1e-2, 1e-3, 1e-4):
+        ds = simulate(sphere_problem(steps=4, numerics=Numerics(time_tolerance=tolerance)))
+        errors.append(np.nanmax(np.abs(ds.phi.values[-1] - reference)))
+        steps.append(ds.attrs["steps_taken"])
+        assert ds.attrs["largest_step_error"] <= tolerance
+    assert errors[0] > errors[1] > errors[2], errors
+    assert steps[0] < steps[1] < steps[2], steps
+    assert errors[-1] < 0.01
+
+
+def test_progress_reports_every_accepted_step():
+    seen = []
+    simulate(sphere_problem(n=6), progress=seen.append)
+    assert [p.steps for p in seen] == list(range(1, 21))
+    assert seen[-1].time == pytest.approx(0.2) and seen[-1].t_end == 0.2
+
+
+def test_two_dimensional_scene_is_solved_in_two_dimensions():
+    grid = Grid((12, 8), 1.0)
+    x, y = grid.cell_coordinates()
+    phi0 = ((x - 6) ** 2 + (y - 4) ** 2 <= 4).astype(float)
+    ds = simulate(Problem(grid=grid, phi0=phi0, nutrient_fixed=x > 11, t_end=0.1, steps=10, output_times=[0, 0.1]))
+    assert ds.phi.dims == ("time", "y", "x") and "z" not in ds.dims
+    assert ds.phi.shape == (2, 8, 12)
+    assert float(ds.phi_mean[-1]) > float(ds.phi_mean[0])
