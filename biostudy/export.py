@@ -1,0 +1,131 @@
+"""ParaView files of a run (`biostudy export`): one VTU per snapshot and a PVD that lists them in time.
+
+Each output time becomes `snapshot_NNNN.vtu` (meshio, XML unstructured grid,
+zlib-compressed): hexahedra in 3-D, quadrilaterals in the z = 0 plane in 2-D,
+with
+- cell data phi, c, alpha and p (where the run has them) and the int8 mask
+  `nutrient_source` (1 where c is held);
+- point data u, the displacement (µm) as a 3-vector (2-D: z component 0), so
+  ParaView's "Warp By Vector" shows the deformed body.
+`series.pvd` lists the snapshots with their times (T*): opening it in ParaView
+loads the whole series with a working time slider.  (meshio's VTU writer drops
+field data, so the PVD is where the times live.)
+
+Obstacles are left out of the mesh: their cells are removed, and the nodes
+that only obstacle cells use with them.  ParaView then shows the obstacles
+as holes with real faces instead of NaN cells that break colour ranges and
+filters; the cell count of each file is the number of open cells.
+p and u are written at the times the mechanics was solved; at other times
+(all NaN) they are left out of that file rather than written as NaN.
+"""
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import meshio
+import numpy as np
+import xarray as xr
+
+CELL_FIELDS = ("phi", "c", "alpha", "p")
+SNAPSHOT = "snapshot_{:04d}.vtu"
+COLLECTION = "series.pvd"
+
+
+def _node_axes(ds: xr.Dataset, axes: tuple[str, ...]) -> list[np.ndarray]:
+    """Node coordinates along each axis: stored, or the faces between the cell centres."""
+    nodes = []
+    for a in axes:
+        if f"{a}_node" in ds.coords:
+            nodes.append(np.asarray(ds[f"{a}_node"].values, dtype=float))
+            continue
+        centres = np.asarray(ds[a].values, dtype=float)
+        h = centres[1] - centres[0] if centres.size > 1 else float(ds.attrs.get("grid_spacing", 1.0))
+        nodes.append(np.append(centres - 0.5 * h, centres[-1] + 0.5 * h))
+    return nodes
+
+
+def _lattice(ds: xr.Dataset):
+    """All grid nodes (n, 3) and every cell's node indices, cells in the (z, y, x) C order of the fields."""
+    axes = ("x", "y", "z") if "z" in ds.dims else ("x", "y")
+    nodes = _node_axes(ds, axes)
+    shape = tuple(len(n) for n in reversed(nodes))  # node array shape (z, y, x) or (y, x)
+    grids = np.meshgrid(*reversed(nodes), indexing="ij")
+    points = np.zeros((grids[0].size, 3))
+    for k, g in enumerate(reversed(grids)):  # x, y[, z]
+        points[:, k] = g.ravel()
+    n = np.arange(points.shape[0]).reshape(shape)  # node number at (k, j, i)
+    if len(axes) == 3:
+        # VTK hexahedron: bottom face counter-clockwise, then the top face
+        corners = [n[:-1, :-1, :-1], n[:-1, :-1, 1:], n[:-1, 1:, 1:], n[:-1, 1:, :-1],
+                   n[1:, :-1, :-1], n[1:, :-1, 1:], n[1:, 1:, 1:], n[1:, 1:, :-1]]
+        kind = "hexahedron"
+    else:
+        corners = [n[:-1, :-1], n[:-1, 1:], n[1:, 1:], n[1:, :-1]]
+        kind = "quad"
+    cells = np.stack([c.ravel() for c in corners], axis=1)
+    return points, cells, kind
+
+
+def _check(ds: xr.Dataset):
+    if "phi" not in ds or "x" not in ds.dims:
+        raise ValueError("export needs a run's dataset with cell fields (phi on time, [z,] y, x)")
+    extra = set(ds["phi"].dims) - {"time", "z", "y", "x"}
+    if extra:
+        raise ValueError(f"export takes one run, not a sweep (dimensions {', '.join(sorted(extra))}); "
+                         "export a case file from the sweep's cases/ directory")
+
+
+def export(ds: xr.Dataset, directory: Path) -> list[Path]:
+    """Write one VTU per snapshot and `series.pvd` into `directory`; return the paths (PVD last)."""
+    _check(ds)
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    cell_dims = ("z", "y", "x") if "z" in ds.dims else ("y", "x")
+    points, cells, kind = _lattice(ds)
+    open_cells = (np.ones(cells.shape[0], bool) if "obstacle" not in ds
+                  else ~ds["obstacle"].transpose(*cell_dims).values.astype(bool).ravel())
+    cells = cells[open_cells]
+    used = np.unique(cells)  # nodes of open cells, renumbered compactly
+    renumber = np.full(points.shape[0], -1)
+    renumber[used] = np.arange(used.size)
+    points, cells = points[used], renumber[cells]
+
+    static = {}
+    if "nutrient_source" in ds:
+        source = ds["nutrient_source"].transpose(*cell_dims).values.astype(np.int8)
+        static["nutrient_source"] = source.ravel()[open_cells]
+    fields = {n: ds[n].transpose("time", *cell_dims).values.reshape(ds.sizes["time"], -1)[:, open_cells]
+              for n in CELL_FIELDS if n in ds}
+    u = None
+    if "u" in ds:
+        u = ds["u"].transpose("time", *(f"{d}_node" for d in cell_dims), "component").values
+        u = u.reshape(u.shape[0], -1, u.shape[-1])[:, used]
+
+    written = []
+    for t in range(ds.sizes["time"]):
+        cell_data = {name: [values] for name, values in static.items()}
+        for name, values in ((n, f[t]) for n, f in fields.items()):
+            if name == "p" and not np.isfinite(values).any():
+                continue  # mechanics not solved at this output
+            cell_data[name] = [values.astype(float)]
+        point_data = {}
+        if u is not None and np.isfinite(u[t]).any():
+            point_data["u"] = np.pad(u[t].astype(float), ((0, 0), (0, 3 - u.shape[-1])))
+        mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
+        path = directory / SNAPSHOT.format(t)
+        meshio.write(path, mesh, file_format="vtu")
+        written.append(path)
+    written.append(_write_collection(directory / COLLECTION, written, ds["time"].values))
+    return written
+
+
+def _write_collection(path: Path, files: list[Path], times: np.ndarray) -> Path:
+    """The PVD file: every snapshot with its time, file names relative to the PVD."""
+    root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
+    collection = ET.SubElement(root, "Collection")
+    for file, when in zip(files, times):
+        ET.SubElement(collection, "DataSet", timestep=repr(float(when)), group="", part="0", file=file.name)
+    ET.indent(root)
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    return path

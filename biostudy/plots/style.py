@@ -1,0 +1,135 @@
+"""What every figure shares: the headless backend, names and units, colour scales, times, file names.
+
+Colour scales are shared by all times of a figure so that growth and depletion
+read across it: phi on [0, 1] (its physical range); c logarithmic from its
+smallest shown value (at least 1e-3) to 1, because the nutrient is depleted to
+~0.1-0.3 almost everywhere and a linear scale shows one flat colour; alpha
+from 0 to its largest shown value; p on a diverging map centred at 0 (blue
+compression, red tension, as the paper's stress pictures).  Obstacle cells
+(NaN in the fields) are drawn grey.
+"""
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only, never a screen
+
+import matplotlib.colors as mcolors  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+
+OBSTACLE_GREY = "0.6"
+SOURCE_GREEN = "#2ca02c"
+FIELD_NAMES = ("phi", "c", "alpha", "p")
+SERIES_NAMES = ("phi_mean", "c_mean", "biofilm_volume")
+SYMBOLS = {"phi": "φ", "c": "c", "alpha": "α", "p": "p", "phi_mean": "mean φ", "c_mean": "mean c",
+           "biofilm_volume": "biofilm volume"}
+CMAPS = {"phi": "viridis", "c": "plasma", "alpha": "magma", "p": "RdBu_r"}
+UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "Pa": "Pa", "s": "s"}
+DPI = 110
+C_FLOOR = 1e-3  # lowest nutrient concentration the log colour scale resolves
+
+
+def units(var: xr.DataArray) -> str:
+    """Display form of a variable's `units` attribute ('' for dimensionless)."""
+    raw = str(var.attrs.get("units", ""))
+    return UNITS.get(raw, raw)
+
+
+def label(var: xr.DataArray, name: str | None = None) -> str:
+    """Short axis/colourbar label: symbol and units, e.g. 'p (Pa)', 'φ'."""
+    name = name or str(var.name)
+    text, unit = SYMBOLS.get(name, name), units(var)
+    return f"{text} ({unit})" if unit else text
+
+
+def colour_scale(name: str, values: np.ndarray) -> tuple[mcolors.Colormap, mcolors.Normalize]:
+    """Colour map (obstacles grey) and normalisation of one field over all shown panels."""
+    cmap = plt.get_cmap(CMAPS.get(name, "viridis")).with_extremes(bad=OBSTACLE_GREY)
+    finite = values[np.isfinite(values)]
+    if name == "phi":
+        return cmap, mcolors.Normalize(0.0, 1.0)
+    if name == "c":  # logarithmic: depletion (c ~ 0.1) and the gradient toward the source both show
+        low = max(float(np.min(finite[finite > 0], initial=1.0)), C_FLOOR)
+        top = max(float(np.max(finite, initial=1.0)), 1.0)
+        return cmap, mcolors.LogNorm(min(low, 0.5 * top), top, clip=True)
+    if name == "p":
+        bound = float(np.max(np.abs(finite), initial=0.0)) or 1.0
+        return cmap, mcolors.TwoSlopeNorm(0.0, -bound, bound)
+    top = float(np.max(finite, initial=0.0))
+    low = min(0.0, float(np.min(finite, initial=0.0)))
+    return cmap, mcolors.Normalize(low, top if top > low else low + 1.0)
+
+
+def on_scale(image: np.ndarray, norm: mcolors.Normalize) -> np.ndarray:
+    """The image as drawn: NaN (obstacles) masked grey; on a log scale, c <= 0 (exhausted) at the bottom colour."""
+    if isinstance(norm, mcolors.LogNorm):
+        image = np.maximum(image, norm.vmin)  # NaN stays NaN
+    return np.ma.masked_invalid(image)
+
+
+def field_names(ds: xr.Dataset, variable: str | None) -> list[str]:
+    """Cell fields to draw: the one asked for, or phi, c and p (where the run has p)."""
+    present = [n for n in FIELD_NAMES if n in ds.data_vars]
+    if variable is None:
+        return [n for n in ("phi", "c", "p") if n in present]
+    if variable not in present:
+        raise ValueError(f"unknown variable {variable!r}; this dataset has {', '.join(present)}")
+    return [variable]
+
+
+def snapshot_indices(ds: xr.Dataset, time: float | None, count: int = 4) -> list[int]:
+    """Output indices to draw: `count` spread over the run, or the output nearest to `time`."""
+    times = ds["time"].values
+    if time is None:
+        return sorted({int(round(i)) for i in np.linspace(0, times.size - 1, min(count, times.size))})
+    slack = 1e-9 * max(1.0, abs(times[-1]))
+    if not times[0] - slack <= time <= times[-1] + slack:
+        raise ValueError(f"time {time:g} is outside the run (T* from {times[0]:g} to {times[-1]:g})")
+    return [int(np.argmin(np.abs(times - time)))]
+
+
+def time_title(ds: xr.Dataset, index: int) -> str:
+    return f"T* = {float(ds['time'].values[index]):.3g}"
+
+
+def number(value: float) -> str:
+    """1e+08 -> 1e8: a parameter value as a physicist writes it."""
+    return f"{value:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
+
+
+def run_title(ds: xr.Dataset) -> str:
+    """One line naming the run, for figure titles."""
+    title = str(ds.attrs.get("title", "biofilm growth"))
+    keys = [k for k in ("g", "r", "k_alpha") if k in ds.attrs]
+    params = ", ".join(f"{k} = {number(float(ds.attrs[k]))}" for k in keys)
+    return f"{title}  ({params})" if params else title
+
+
+def suptitle(fig, *lines: str):
+    """Figure title, each line wrapped to the figure's width (narrow figures of one time included)."""
+    width = max(30, int(fig.get_figwidth() * 13))
+    fig.suptitle("\n".join(textwrap.fill(line, width) for line in lines), fontsize=9)
+
+
+def output_paths(out: Path, tags: list[str]) -> list[Path]:
+    """`out` itself for one figure; `stem_tag.suffix` beside it for several (PNG unless a suffix says else)."""
+    out = Path(out)
+    if out.is_dir():
+        out = out / "biostudy.png"
+    if not out.suffix:
+        out = out.with_suffix(".png")
+    if len(tags) == 1:
+        return [out]
+    return [out.with_name(f"{out.stem}_{tag}{out.suffix}") for tag in tags]
+
+
+def save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path

@@ -1,0 +1,245 @@
+"""Pictures (`biostudy.plots`): the files a call makes, the cut sampler and the isosurface, exactly."""
+from pathlib import Path
+
+import matplotlib.image
+import numpy as np
+import pytest
+import xarray as xr
+
+from biostudy.plots import plot
+from biostudy.plots.cuts import axis_plane, cell_axes, diagonal_plane, plane_for, sample
+from biostudy.plots.isosurface import isosurface, surface_area
+from biostudy.plots.style import colour_scale, on_scale
+from biostudy.plots.sweep import cases, roles
+from solver import Grid, Problem, simulate
+
+
+def tiny_run(shape, obstacle=True):
+    """A few steps of a sphere growing toward a corner source, with a small obstacle column."""
+    grid = Grid(shape, 1.0)
+    coords = grid.cell_coordinates()
+    centre = [n / 2 for n in shape]
+    phi0 = (sum((q - m) ** 2 for q, m in zip(coords, centre)) <= 2.5**2).astype(float)
+    held = np.logical_and.reduce([q > n - 2 for q, n in zip(coords, shape)])
+    blocked = np.zeros(grid.cells_shape, bool)
+    if obstacle:
+        blocked[..., 0:2, 0:2] = True  # a column along z (3-D) or a square (2-D) in the far corner
+    problem = Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_fixed=held, obstacle=blocked,
+                      t_end=0.02, steps=4, output_times=[0, 0.01, 0.02], name="tiny")
+    return simulate(problem)
+
+
+def with_mechanics(ds):
+    """Test data in the layout of SPEC 5: p (Pa) on cells, u (µm) on nodes; p not solved at the middle output."""
+    ds = ds.copy()
+    cell_dims = [d for d in ("z", "y", "x") if d in ds.dims]
+    p = -10.0 * ds["phi"] + 2.0
+    p[dict(time=1)] = np.nan
+    ds["p"] = p.assign_attrs(units="Pa", long_name="hydrostatic Cauchy stress tr(sigma)/3")
+    nodes = {f"{d}_node": np.append(ds[d].values - 0.5, ds[d].values[-1] + 0.5) for d in cell_dims}
+    shape = (ds.sizes["time"], *(v.size for v in nodes.values()), len(cell_dims))
+    ds["u"] = (("time", *nodes, "component"), np.full(shape, 0.01), {"units": "um", "long_name": "displacement"})
+    return ds.assign_coords(nodes).assign_coords(component=list("xyz"[: len(cell_dims)]))
+
+
+@pytest.fixture(scope="module")
+def run3d():
+    return tiny_run((8, 8, 8))
+
+
+@pytest.fixture(scope="module")
+def run2d():
+    return tiny_run((16, 12))
+
+
+def assert_pictures(paths, tags):
+    assert [p.stem.rsplit("_", 1)[1] for p in paths] == tags
+    for path in paths:
+        image = matplotlib.image.imread(path)
+        assert path.suffix == ".png" and image.shape[0] > 200 and image.shape[1] > 200
+        assert image[..., :3].std() > 0.05, f"{path.name} is blank"
+
+
+@pytest.mark.parametrize("mechanics", [False, True])
+def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, tmp_path, mechanics):
+    ds = with_mechanics(run3d) if mechanics else run3d
+    paths = plot(ds, tmp_path / "run.png")
+    assert_pictures(paths, ["series", "cut", "isosurface"])
+
+
+@pytest.mark.parametrize("mechanics", [False, True])
+def test_two_dimensional_run_gives_series_and_maps(run2d, tmp_path, mechanics):
+    ds = with_mechanics(run2d) if mechanics else run2d
+    assert_pictures(plot(ds, tmp_path / "run"), ["series", "maps"])
+
+
+def test_options_choose_variable_time_and_cut(run3d, tmp_path):
+    ds = with_mechanics(run3d)
+    assert_pictures(plot(ds, tmp_path / "p.png", variable="p", time=0.02, cut="z=5.5"), ["series", "cut"])
+    assert_pictures(plot(ds, tmp_path / "phi.png", variable="phi", time=0.004, cut="x=1"),
+                    ["series", "cut", "isosurface"])
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(variable="u"), "unknown variable"),
+    (dict(variable="pressure"), "unknown variable"),
+    (dict(time=0.5), "outside the run"),
+    (dict(time=-0.1), "outside the run"),
+    (dict(cut="w=3"), "unknown cut"),
+    (dict(cut="x=9"), "outside the domain"),
+])
+def test_bad_options_are_one_line_value_errors(run3d, tmp_path, options, message):
+    with pytest.raises(ValueError, match=message) as error:
+        plot(run3d, tmp_path / "bad.png", **options)
+    assert "\n" not in str(error.value)
+    assert not list(tmp_path.iterdir()), "nothing is drawn before the options are checked"
+
+
+def test_a_cut_of_a_two_dimensional_run_is_refused(run2d, tmp_path):
+    with pytest.raises(ValueError, match="3-D"):
+        plot(run2d, tmp_path / "bad.png", cut="x=3")
+
+
+def test_exhausted_nutrient_is_drawn_dark_not_grey_like_an_obstacle():
+    c = np.array([[0.0, 0.02], [1.0, np.nan]])
+    cmap, norm = colour_scale("c", c)
+    shown = on_scale(c, norm)
+    assert shown.mask.tolist() == [[False, False], [False, True]]  # only the obstacle is grey
+    assert shown[0, 0] == norm.vmin and norm.vmax == 1.0
+    cmap, norm = colour_scale("p", np.array([-3.0, 1.0, np.nan]))
+    assert norm(0.0) == 0.5 and norm(-3.0) == 0.0 and norm(3.0) == 1.0  # centred: blue < 0 < red
+
+
+def sweep_dataset(zip_mode=False):
+    """A combined dataset as a sweep writes it: dims (g, r, time) or (case, time); one case failed."""
+    time = np.linspace(0, 1, 6)
+    g, r = np.array([1e8, 1e9, 1e10]), np.array([50.0, 100.0])
+    G, R, T = np.meshgrid(g, r, time, indexing="ij")
+    phi = 0.1 + 0.3 * (1 - np.exp(-R / 50 * T)) * (1e8 / G) ** 0.1
+    c = 0.6 * np.exp(-3 * T) + 0.05 * np.log10(G / 1e7)
+    phi[2, 1, 3:] = c[2, 1, 3:] = np.nan
+    status = np.array([["ok", "ok"], ["ok", "ok"], ["ok", "failed"]])
+    ds = xr.Dataset(
+        {"phi_mean": (("g", "r", "time"), phi, {"units": "1", "long_name": "mean biofilm density"}),
+         "c_mean": (("g", "r", "time"), c, {"units": "1", "long_name": "mean nutrient concentration"}),
+         "biofilm_volume": (("g", "r", "time"), 8000 * phi,
+                            {"units": "um3", "long_name": "volume with phi >= 0.5"}),
+         "status": (("g", "r"), status)},
+        coords={"g": ("g", g, {"units": "1/T*"}), "r": ("r", r, {"units": "um/T*"}), "time": time})
+    if zip_mode:
+        ds = ds.stack(case=("g", "r")).reset_index("case").transpose("case", "time")
+        ds = ds.assign_coords(case=[f"case-{i}" for i in range(ds.sizes["case"])])
+    return ds
+
+
+@pytest.mark.parametrize("zip_mode", [False, True])
+def test_sweep_gives_outputs_against_parameters_and_every_series(tmp_path, zip_mode):
+    paths = plot(sweep_dataset(zip_mode), tmp_path / "study.png")
+    assert_pictures(paths, ["sweep", "series"])
+    one = plot(sweep_dataset(zip_mode), tmp_path / "volume.png", variable="biofilm_volume", time=0.4)
+    assert_pictures(one, ["sweep", "series"])
+    with pytest.raises(ValueError, match="unknown variable"):
+        plot(sweep_dataset(zip_mode), tmp_path / "bad.png", variable="phi")
+    with pytest.raises(ValueError, match="no fields"):
+        plot(sweep_dataset(zip_mode), tmp_path / "bad.png", cut="diagonal")
+
+
+def test_zip_parameters_that_change_together_are_one_line_not_many():
+    found, varying = cases(sweep_dataset(zip_mode=True).isel(case=[0, 3, 5]), ["phi_mean"])
+    assert varying == ["g", "r"] and [c.params for c in found][1] == {"g": 1e9, "r": 100.0}
+    assert roles(found, varying) == ("g", [], ["r"])  # r follows g: named on the axis
+    found, varying = cases(sweep_dataset(zip_mode=True), ["phi_mean"])
+    assert roles(found, varying) == ("g", ["r"], [])  # every (g, r): one line per r
+    assert [c.ok for c in found] == [True] * 5 + [False]
+
+
+def linear_field_dataset(shape=(9, 7, 5), h=0.5, source=None):
+    """Cell centres of a (nx, ny, nz) grid with f = 1 + 2x - 3y + 0.5z, and a nutrient source mask."""
+    x, y, z = ((np.arange(n) + 0.5) * h for n in shape)
+    Z, Y, X = np.meshgrid(z, y, x, indexing="ij")
+    mask = np.zeros(Z.shape, np.int8) if source is None else source(X, Y, Z).astype(np.int8)
+    cells = ("z", "y", "x")
+    return xr.Dataset({"f": (cells, 1 + 2 * X - 3 * Y + 0.5 * Z), "nutrient_source": (cells, mask)},
+                      coords={"x": x, "y": y, "z": z})
+
+
+def exact(points):
+    return 1 + 2 * points[..., 0] - 3 * points[..., 1] + 0.5 * points[..., 2]
+
+
+def test_diagonal_cut_points_toward_the_source_and_samples_a_linear_field_exactly():
+    ds = linear_field_dataset(source=lambda X, Y, Z: (X > 3.6) & (Y < 0.6) & (Z > 1.9))
+    plane = diagonal_plane(ds)
+    centre = np.array([2.25, 1.75, 1.25])
+    source = np.array([np.mean([3.75, 4.25]), 0.25, 2.25])  # centroid of the source cells
+    direction = (source - centre)[:2] / np.linalg.norm((source - centre)[:2])
+    assert np.allclose(plane.along[:2], direction) and plane.along[2] == 0 and plane.up.tolist() == [0, 0, 1]
+    assert np.allclose(plane.origin[:2], centre[:2])
+    assert not plane.flip_up  # the source is above the centre: top right as drawn
+    ends = [plane.origin + s * plane.along for s in plane.s_range]  # both ends on the box
+    assert all(np.isclose(e[0], 0) or np.isclose(e[0], 4.5) or np.isclose(e[1], 0) or np.isclose(e[1], 3.5)
+               for e in ends)
+    assert plane.s_range[0] < 0 < plane.s_range[1] and plane.t_range == (0.0, 2.5)
+
+    s, t, points = plane.grid(0.05)
+    values = sample(ds["f"].values, cell_axes(ds), points)
+    x, y, z = cell_axes(ds)
+    inside = ((points[..., 0] >= x[0]) & (points[..., 0] <= x[-1]) & (points[..., 1] >= y[0])
+              & (points[..., 1] <= y[-1]) & (points[..., 2] >= z[0]) & (points[..., 2] <= z[-1]))
+    assert inside.sum() > 100
+    assert np.allclose(values[inside], exact(points[inside]), rtol=0, atol=1e-12)
+    # between the outermost centres and the wall the field is held (zero flux): the nearest centre's plane
+    clamped = np.stack([np.clip(points[..., k], c[0], c[-1]) for k, c in enumerate((x, y, z))], axis=-1)
+    assert np.allclose(values, exact(clamped), rtol=0, atol=1e-12)
+
+
+def test_cut_falls_back_to_the_xy_diagonal_and_flips_for_a_source_below():
+    centred = diagonal_plane(linear_field_dataset(source=lambda X, Y, Z: Z < 0.3))  # a bottom layer
+    assert np.allclose(centred.along[:2], np.array([4.5, 3.5]) / np.hypot(4.5, 3.5)) and not centred.flip_up
+    low = diagonal_plane(linear_field_dataset(source=lambda X, Y, Z: (X < 0.3) & (Z < 0.3)))
+    assert np.allclose(low.along, [-1, 0, 0]) and low.flip_up
+    assert np.allclose(plane_for(linear_field_dataset(), "xy-diagonal").along, centred.along)
+
+
+def test_axis_cut_is_exact_and_obstacles_are_not_interpolated():
+    ds = linear_field_dataset()
+    plane = axis_plane(ds, "z", 1.1)
+    _, _, points = plane.grid(0.25)
+    values = sample(ds["f"].values, cell_axes(ds), points)
+    assert np.allclose(points[..., 2], 1.1)
+    x, y = points[..., 0], points[..., 1]
+    inner = (x >= 0.25) & (x <= 4.25) & (y >= 0.25) & (y <= 3.25)  # within the outermost centres
+    assert np.allclose(values[inner], exact(points[inner]), atol=1e-12)
+    field = ds["f"].values.copy()
+    field[:, :, :3] = np.nan  # obstacle cells x < 1.5
+    values = sample(field, cell_axes(ds), points)
+    assert np.isnan(values[points[..., 0] < 1.2]).all()
+    far = points[..., 0] >= 1.75  # weights entirely on open cells: still exact
+    assert np.allclose(values[far & inner], exact(points[far & inner]), atol=1e-12)
+
+
+def test_isosurface_of_a_sphere_has_its_radius_area_and_centre():
+    h, shape, centre, radius = 0.5, (30, 26, 22), np.array([7.3, 6.4, 5.6]), 4.0
+    x, y, z = ((np.arange(n) + 0.5) * h for n in shape)
+    Z, Y, X = np.meshgrid(z, y, x, indexing="ij")
+    r = np.sqrt((X - centre[0]) ** 2 + (Y - centre[1]) ** 2 + (Z - centre[2]) ** 2)
+    phi = np.clip(0.8 + (radius - r) / 4, 0, 1)  # phi = 0.8 exactly on the sphere
+    verts, faces = isosurface(phi, 0.8, (x, y, z))
+    distance = np.linalg.norm(verts - centre, axis=1)
+    assert abs(distance.mean() - radius) < 0.01 * radius and distance.std() < 0.01 * radius
+    assert abs(verts.mean(axis=0) - centre).max() < 0.05  # an axis mix-up would be off by >= 0.8 µm
+    assert surface_area(verts, faces) == pytest.approx(4 * np.pi * radius**2, rel=0.03)
+
+
+def test_isosurface_of_a_body_on_a_wall_is_closed_on_the_wall():
+    x, y, z = ((np.arange(n) + 0.5) for n in (6, 5, 4))
+    phi = np.zeros((4, 5, 6))
+    phi[:, :, :3] = 1.0  # biofilm fills x < 3 and touches five walls
+    verts, faces = isosurface(phi, 0.8, (x, y, z))
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, count = np.unique(edges, axis=0, return_counts=True)
+    assert (count == 2).all(), "every edge between exactly two triangles: a closed surface"
+    on = dict(abs=1e-6)  # marching cubes works in single precision
+    assert verts[:, 0].min() == pytest.approx(0, **on) and verts[:, 0].max() == pytest.approx(2.7, **on)
+    assert verts[:, 1].max() == pytest.approx(5, **on) and verts[:, 2].min() == pytest.approx(0, **on)
+    assert isosurface(np.full((4, 5, 6), 0.5), 0.8, (x, y, z)) is None
