@@ -73,9 +73,10 @@ class ReusedAMG:
 
 
 def converged(matrix, x, rhs, tolerance: float) -> bool:
-    """True residual within tolerance (relative to |rhs|), and finite."""
-    residual = np.linalg.norm(rhs - matrix @ x)
-    return bool(np.isfinite(residual) and residual <= tolerance * np.linalg.norm(rhs))
+    """True residual within tolerance (relative to |rhs|), and finite (overflow counts as not converged)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        residual = np.linalg.norm(rhs - matrix @ x)
+        return bool(np.isfinite(residual) and residual <= tolerance * np.linalg.norm(rhs))
 
 
 def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tolerance: float,

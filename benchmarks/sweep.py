@@ -1,0 +1,149 @@
+"""What a sweep costs beyond its simulations, and how it scales on local processes: prints tables.
+
+    python benchmarks/sweep.py                      # defaults below, ~1.5 min on 2 cores
+    python benchmarks/sweep.py --steps 400 --cases 8
+
+1. Overhead per case: a serial sweep of small directional cases (12³, 21
+   outputs); its wall time minus the simulations' own wall time (the
+   solver's `wall_time` attribute), split into validating the study,
+   compiling and fingerprinting each case, writing each case file (stamp,
+   netCDF, fsync, rename) and combining study.nc.  Target: <= 0.5 s per case.
+2. Speed-up: a 4-case sweep of the directional scene (20³, a few seconds per
+   case) serially in this process and on 2 local worker processes
+   (`--workers 2`, process start-up included).  Target: >= 1.8x on 2 cores.
+   "simulation per case" shows what two simulations at once cost each other
+   (shared memory bandwidth), apart from the start-up of the workers.
+
+Asserts nothing.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import psutil
+import xarray as xr
+
+from biostudy import catalog, runner, store
+from biostudy.study import load_study
+
+
+def write_study(directory: Path, name: str, scene_overrides: dict, values: list[float]) -> Path:
+    """A study of the bundled directional scene sweeping r, with fixed overrides."""
+    scene = directory / "directional.toml"
+    shutil.copy(catalog.resolve("directional"), scene)
+    fixed = "\n".join(f'"{k}" = {v}' for k, v in scene_overrides.items())
+    path = directory / f"{name}.toml"
+    path.write_text(f'scene = "directional.toml"\n[set]\n{fixed}\n[sweep]\nr = {values}\n')
+    return path
+
+
+class Others:
+    """CPU seconds that processes other than this one and its children used during a block: on a
+    shared machine, a speed-up measured while they ran is not the sweep's own."""
+
+    def __enter__(self):
+        self.start = self._now()
+        return self
+
+    def __exit__(self, *exc):
+        self.seconds = self._now() - self.start
+
+    @staticmethod
+    def _now() -> float:
+        busy = psutil.cpu_times()
+        mine = os.times()
+        system = busy.user + busy.system + busy.nice + getattr(busy, "irq", 0) + getattr(busy, "softirq", 0)
+        return system - (mine.user + mine.system + mine.children_user + mine.children_system)
+
+
+def simulated_seconds(out: Path) -> float:
+    total = 0.0
+    for path in (out / "cases").glob("*.nc"):
+        with xr.open_dataset(path) as ds:
+            total += float(ds.attrs["wall_time"])
+    return total
+
+
+def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
+    values = [50.0 + 10 * i for i in range(cases)]
+    study = write_study(directory, "overhead", {"grid.shape": "[12, 12, 12]", "grid.spacing": 20 / 12,
+                                                "time.steps": 100, "time.outputs": 21,
+                                                "nutrient.0.lower": "[16.0, 16.0, 16.0]"}, values)
+    began = time.perf_counter()
+    plan = load_study(study)
+    validate = time.perf_counter() - began
+    out = directory / "overhead-out"
+    began = time.perf_counter()
+    runner.sweep(plan, out)
+    total = time.perf_counter() - began + validate
+    simulated = simulated_seconds(out)
+
+    # the parts, timed again one by one on the finished cases
+    began = time.perf_counter()
+    for case in plan.cases:
+        store.fingerprint(plan.scenes[case.id].problem())
+    compile_ = time.perf_counter() - began
+    began = time.perf_counter()
+    for case in plan.cases:
+        path = store.case_file(out, case.id)
+        ds = store.open_dataset(path)
+        store.write_atomic(ds, path)
+    write = time.perf_counter() - began
+    began = time.perf_counter()
+    store.write_study(plan, out)
+    combine = time.perf_counter() - began
+    n = len(plan.cases)
+    return [("cases", n), ("sweep wall time (s)", total), ("simulations' own wall time (s)", simulated),
+            ("overhead per case (s)", (total - simulated) / n),
+            ("  validate the study, per case (s)", validate / n),
+            ("  compile + fingerprint, per case (s)", compile_ / n),
+            ("  write one case file, per case (s)", write / n),
+            ("  combine study.nc, per case (s)", combine / n)]
+
+
+def speedup(directory: Path, steps: int) -> list[tuple[str, float]]:
+    study = write_study(directory, "speedup", {"time.steps": steps, "time.outputs": 11}, [50.0, 80.0, 120.0, 160.0])
+    plan = load_study(study)
+    rows = []
+    times = {}
+    for label, workers in (("serial", None), ("2 local workers", 2)):
+        out = directory / f"speedup-{workers}"
+        began = time.perf_counter()
+        with Others() as others:
+            runner.sweep(plan, out, workers=workers)
+        times[label] = time.perf_counter() - began
+        rows.append((f"{label}: sweep wall time (s)", times[label]))
+        rows.append((f"{label}: simulation per case (s)", simulated_seconds(out) / len(plan.cases)))
+        rows.append((f"{label}: CPU s used by other processes", others.seconds))
+    rows.append(("speed-up", times["serial"] / times["2 local workers"]))
+    return rows
+
+
+def table(title: str, rows: list[tuple[str, float]]) -> str:
+    width = max(len(title), *(len(r[0]) for r in rows))
+    lines = [f"| {title:<{width}} |   value |", f"|{'-' * (width + 2)}|--------:|"]
+    lines += [f"| {name:<{width}} | {value:>7.3g} |" for name, value in rows]
+    return "\n".join(lines)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=8, help="cases of the overhead sweep")
+    parser.add_argument("--steps", type=int, default=400, help="steps per case of the speed-up sweep (20³)")
+    args = parser.parse_args()
+    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
+          "(anything else running skews the speed-up)\n")
+    with tempfile.TemporaryDirectory() as tmp:
+        directory = Path(tmp)
+        print(table("overhead (12³, 100 steps, 21 outputs, serial)", overhead(directory, args.cases)))
+        print()
+        print(table(f"speed-up (20³, {args.steps} steps, 4 cases)", speedup(directory, args.steps)))
+
+
+if __name__ == "__main__":
+    main()

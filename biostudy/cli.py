@@ -1,0 +1,163 @@
+"""The `biostudy` command line (SPEC 4): load, validate, call; nothing else.
+
+Exit status: 0 done, 1 a simulation failed (the message says why), 2 bad
+input (one line: file, key, problem; no traceback), 130 interrupted (no
+file is left half-written).  Commands that come later (plot, export,
+convergence, stability) are added to `app` by their own modules.
+"""
+from __future__ import annotations
+
+import contextlib
+import re
+import signal
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from . import catalog
+from .errors import BadInput
+
+app = typer.Typer(name="biostudy", no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
+                  help="Parameter studies of biofilm growth: run scenes, sweep studies, inspect results.")
+err = Console(stderr=True)
+out = Console()
+
+SET_HELP = "override a scene key, KEY=VALUE with the value as TOML (params.g=1e10, grid.shape=[40,40,40]); repeatable"
+
+
+def _fail(message: str, status: int) -> typer.Exit:
+    typer.echo(message, err=True)  # plain echo: rich would wrap a long message over several lines
+    return typer.Exit(status)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt  # SIGTERM unwinds like Ctrl-C: temporary files are removed on the way out
+
+
+@contextlib.contextmanager
+def _guarded():
+    """Bad input -> exit 2 with one line; Ctrl-C / SIGTERM -> exit 130."""
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    except BadInput as error:
+        raise _fail(f"error: {error}", 2) from None
+    except KeyboardInterrupt:
+        raise _fail("interrupted: finished files are kept, nothing is left half-written", 130) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@app.command()
+def run(
+    scene: str = typer.Argument(..., help="scene file (TOML), or the name of a bundled scene"),
+    output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                          help="dataset to write (default: NAME.nc, the scene's name)"),
+    overrides: List[str] = typer.Option([], "--set", help=SET_HELP),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
+):
+    """Run one simulation and write its dataset (netCDF)."""
+    with _guarded():
+        from solver import SimulationError, simulate
+
+        from . import store, worker
+        from .scene import load_scene, overrides_text, parse_override
+
+        path = catalog.resolve(scene)
+        loaded = load_scene(path, overrides)
+        problem = loaded.problem()
+        target = output or Path(re.sub(r"[^\w.+-]", "-", loaded.name) + ".nc")
+        try:
+            with _simulation_progress(loaded.name, problem.t_end, quiet) as report:
+                ds = simulate(problem, progress=report)
+        except SimulationError as error:
+            raise _fail(f"simulation failed: {path}: {error}", 1) from None
+        text = overrides_text([parse_override(o) for o in overrides])
+        store.write_atomic(store.stamp(ds, loaded, path, text, **worker.provenance()), target)
+        err.print(f"wrote {target} (wall time {ds.attrs['wall_time']:.3g} s, {ds.attrs['steps_taken']} steps, "
+                  f"{ds.attrs['steps_bisected']} bisected)")
+
+
+@contextlib.contextmanager
+def _simulation_progress(name: str, t_end: float, quiet: bool):
+    """A rich progress bar of simulated time, steps and bisections; yields the solver's callback."""
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(),
+               TextColumn("T* = {task.completed:.4g} / {task.total:g}"), TextColumn("steps {task.fields[steps]}"),
+               TextColumn("bisections {task.fields[bisections]}"), TimeElapsedColumn())
+    with Progress(*columns, console=err, disable=quiet) as progress:
+        task = progress.add_task(name, total=t_end, steps=0, bisections=0)
+        yield lambda p: progress.update(task, completed=p.time, steps=p.steps, bisections=p.bisections)
+
+
+@app.command()
+def sweep(
+    study: str = typer.Argument(..., help="study file (TOML), or the name of a bundled study"),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="directory for cases/ and study.nc "
+                                                                     "(default: the study's name)"),
+    workers: Optional[int] = typer.Option(None, "--workers", min=1, help="run on N local processes"),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running Dask scheduler, "
+                                                                     "e.g. tcp://10.0.0.5:8786"),
+    overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to every case"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="run failed cases again (finished ones "
+                                                                    "are always skipped)"),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
+):
+    """Run every case of a study; re-running skips finished cases."""
+    with _guarded():
+        from . import runner
+        from .study import load_study
+
+        if workers and scheduler:
+            raise BadInput("give --workers or --scheduler, not both", "--workers")
+        plan = load_study(catalog.resolve(study), overrides)
+        directory = output or Path(plan.study.name)
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err,
+                      disable=quiet) as progress:
+            task = progress.add_task(plan.study.name, total=0, last="")
+
+            def notify(event: str, case_id: str, message: str):
+                if event == "start":
+                    progress.update(task, total=progress.tasks[0].total + 1)
+                elif event in ("done", "failed"):
+                    progress.update(task, advance=1, last=f"{case_id} {event}")
+                    if event == "failed":
+                        progress.console.print(f"case {case_id} failed: {message}", markup=False, highlight=False)
+
+            try:
+                report = runner.sweep(plan, directory, workers=workers, scheduler=scheduler,
+                                      retry_failed=retry_failed, notify=notify)
+            except runner.SweepError as error:
+                raise _fail(f"sweep stopped: {error}", 1) from None
+        err.print(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
+                  f"{len(report.failed)} failed; wrote {report.study}")
+        if report.failed:
+            raise _fail(f"{len(report.failed)} of {len(plan.cases)} cases failed: "
+                        + "; ".join(f"{k}: {v}" for k, v in list(report.failed.items())[:3]), 1)
+
+
+@app.command()
+def scenes():
+    """List the bundled scenes and studies with their descriptions."""
+    directory = catalog.studies_dir()
+    table = Table(title=f"bundled scenes and studies in {directory}", show_edge=False)
+    for column in ("file", "kind", "description"):
+        table.add_column(column)
+    for entry in catalog.entries(directory):
+        table.add_row(entry.path.name, entry.kind, entry.description)
+    out.print(table)
+
+
+@app.command()
+def show(path: Path = typer.Argument(..., help="dataset written by run or sweep (a case file, study.nc, or a "
+                                                  "sweep's directory)")):
+    """Print a readable summary: scene, parameters, run time, final averages."""
+    with _guarded():
+        from .show import summarize
+        from .store import open_dataset
+
+        summarize(open_dataset(path / "study.nc" if path.is_dir() else path), out)

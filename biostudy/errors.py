@@ -1,0 +1,147 @@
+"""Bad input, told in one line: the file, the key, what is wrong.
+
+Everything a user can fix by editing a file or a command line ends up as a
+`BadInput` (the CLI prints it and exits with status 2, no traceback).  The
+schema's validators raise `InvalidAt` to say which key a cross-field problem
+belongs to; `from_validation_error` and `from_toml_error` turn pydantic's and
+tomllib's multi-line reports into that one line.
+"""
+from __future__ import annotations
+
+import difflib
+import tomllib
+from pathlib import Path
+from typing import Iterable
+
+from pydantic import ValidationError
+
+# Tags of the shape union: pydantic puts them into error locations
+# (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.
+SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask"})
+
+
+class BadInput(Exception):
+    """Input a user can fix.  str() is 'file: key: problem' (parts that are known)."""
+
+    def __init__(self, problem: str, file: str | Path | None = None, key: str | None = None):
+        self.problem = problem
+        self.file = None if file is None else str(file)
+        self.key = key
+        super().__init__(problem)
+
+    def __str__(self) -> str:
+        return ": ".join(part for part in (self.file, self.key, self.problem) if part)
+
+    def within(self, file: str | Path) -> "BadInput":
+        """The same problem, attributed to `file` unless it already names one."""
+        return self if self.file else BadInput(self.problem, file, self.key)
+
+
+class InvalidAt(ValueError):
+    """Raised by a validator: `problem` belongs to `key`, relative to the model being validated."""
+
+    def __init__(self, key: str, problem: str):
+        self.key = key
+        self.problem = problem
+        super().__init__(problem)
+
+
+def key_path(loc: Iterable) -> str:
+    """('biofilm', 0, 'sphere', 'radius') -> 'biofilm[0].radius'."""
+    text, previous = "", None
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        elif isinstance(previous, int) and part in SHAPE_TAGS:
+            pass  # the union's tag, not a key the user wrote
+        else:
+            text += f".{part}" if text else str(part)
+        previous = part
+    return text
+
+
+def show(value) -> str:
+    """A value as a user wrote it in TOML (short)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(show(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{...}"
+    return str(value)
+
+
+_BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
+           "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
+
+
+def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
+    """(extra key path relative to the location, problem) for one pydantic error."""
+    kind, ctx, given = error["type"], error.get("ctx") or {}, error.get("input")
+    if kind == "value_error" and isinstance(ctx.get("error"), InvalidAt):
+        return ctx["error"].key, ctx["error"].problem
+    if kind in ("value_error", "assertion_error"):
+        return "", str(ctx.get("error", error["msg"]))
+    if kind == "extra_forbidden":
+        name = str(error["loc"][-1])
+        close = difflib.get_close_matches(name, sorted(set(known_keys)), n=1)
+        return "", "unknown key" + (f" (did you mean '{close[0]}'?)" if close else "")
+    if kind == "missing":
+        return "", "required key is missing"
+    if kind in _BOUNDS:
+        name, sign = _BOUNDS[kind]
+        return "", f"must be {sign} {show(ctx[name])} (got {show(given)})"
+    if kind == "union_tag_invalid":
+        return "", f"unknown shape {show(ctx.get('tag'))}; shapes are {ctx.get('expected_tags')}"
+    if kind in ("too_short", "too_long"):
+        bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
+        return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {show(given)})"
+    if kind == "union_tag_not_found":
+        return "", "needs a 'shape' key (box, sphere, cylinder or mask)"
+    message = error["msg"]
+    for before, after in (("Input should be", "must be"), ("List should have", "must have"),
+                          ("Value should have", "must have")):
+        if message.startswith(before):
+            message = after + message[len(before):]
+    if not isinstance(given, dict):
+        message += f" (got {show(given)})"
+    return "", message
+
+
+def from_validation_error(error: ValidationError, file: str | Path | None,
+                          prefix: str = "", known_keys: Iterable[str] = ()) -> BadInput:
+    """The first of pydantic's errors as one line; '(and N more)' if there were several."""
+    errors = error.errors()
+    first = errors[0]
+    extra, problem = _problem(first, known_keys)
+    key = key_path(first["loc"])
+    key = ".".join(part for part in (prefix, key, extra) if part)
+    if len(errors) > 1:
+        problem += f" (and {len(errors) - 1} more)"
+    return BadInput(problem, file, key or None)
+
+
+def from_toml_error(error: tomllib.TOMLDecodeError, file: str | Path) -> BadInput:
+    """tomllib's message, e.g. 'Expected '=' after a key (at line 3, column 5)', as one line."""
+    return BadInput(f"not valid TOML: {str(error).splitlines()[0]}", file)
+
+
+def read_toml(path: str | Path) -> dict:
+    """Parse a TOML file; a missing, unreadable or malformed file is `BadInput`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise BadInput("no such file", path) from None
+    except IsADirectoryError:
+        raise BadInput("is a directory, not a TOML file", path) from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise BadInput(f"cannot read: {error}", path) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise from_toml_error(error, path) from None

@@ -1,0 +1,184 @@
+"""Shapes of a scene (box, sphere, cylinder, mask) and the cells they cover.
+
+A cell belongs to a shape when its centre is inside (boundaries included).
+Coordinates are physical (µm) with the origin at the grid's corner, listed
+x, y[, z]: two entries in a 2-D scene, where a sphere is a disc and a
+cylinder along z is a disc too (along x or y it is a band of width
+2 radius and the given length).
+
+`cells(grid)` returns a boolean array in the solver's cell order,
+``grid.cells_shape`` = (nz, ny, nx) / (ny, nx).  A `mask` file is the
+exception a user writes in scene order: a ``.npy`` boolean array of shape
+[nx, ny(, nz)] (index [i, j, k] is the cell at x_i, y_j, z_k), transposed here.
+"""
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
+
+from solver import Grid
+
+from .errors import InvalidAt, show
+
+Point = Annotated[list[float], Field(min_length=2, max_length=3)]
+EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)
+
+
+def um(description: str, **kw):
+    """A length field (µm): unit recorded for docs and study coordinates."""
+    return Field(description=description, json_schema_extra={"units": "um"}, **kw)
+
+
+class Shape(BaseModel):
+    """A region of space; subclasses say which cells it covers."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+    def cells(self, grid: Grid) -> np.ndarray:
+        """Boolean array of ``grid.cells_shape``: cells whose centre is inside."""
+        raise NotImplementedError
+
+    def points(self) -> dict[str, list[float]]:
+        """Named coordinate lists, checked against the grid's dimension and extent."""
+        return {}
+
+    def check(self, grid: Grid) -> None:
+        """Raise `InvalidAt` if the shape does not fit the grid or covers no cell."""
+        for name, point in self.points().items():
+            if len(point) != grid.ndim:
+                raise InvalidAt(name, f"has {len(point)} coordinates; the grid is {grid.ndim}-D")
+            tol = EPS * grid.spacing
+            for axis, value, top in zip(grid.axes, point, grid.extent):
+                if not -tol <= value <= top + tol:
+                    raise InvalidAt(name, f"{axis} = {value:g} µm lies outside the grid [0, {top:g}] µm")
+        if not self.cells(grid).any():
+            raise InvalidAt("", "contains no cell centre (cells belong to a shape when their centre is inside)")
+
+
+class Box(Shape):
+    """Axis-aligned box between two corners."""
+
+    shape: Literal["box"] = Field(description="box: cells with lower <= centre <= upper")
+    lower: Point = um("lower corner x, y[, z], µm")
+    upper: Point = um("upper corner x, y[, z], µm")
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if len(self.lower) != len(self.upper):
+            raise InvalidAt("upper", f"has {len(self.upper)} coordinates, lower has {len(self.lower)}")
+        for axis, low, high in zip("xyz", self.lower, self.upper):
+            if not low < high:
+                raise InvalidAt("upper", f"{axis}: upper ({high:g}) must be greater than lower ({low:g})")
+        return self
+
+    def points(self):
+        return {"lower": self.lower, "upper": self.upper}
+
+    def cells(self, grid):
+        tol = EPS * grid.spacing
+        inside = np.ones(grid.cells_shape, bool)
+        for q, low, high in zip(grid.cell_coordinates(), self.lower, self.upper):
+            inside &= (q >= low - tol) & (q <= high + tol)
+        return inside
+
+
+class Sphere(Shape):
+    """Ball (3-D) or disc (2-D)."""
+
+    shape: Literal["sphere"] = Field(description="sphere (3-D) or disc (2-D)")
+    center: Point = um("centre x, y[, z], µm; must lie in the grid")
+    radius: float = um("radius, µm", gt=0)
+
+    def points(self):
+        return {"center": self.center}
+
+    def cells(self, grid):
+        squared = sum((q - c) ** 2 for q, c in zip(grid.cell_coordinates(), self.center))
+        return squared <= self.radius**2 * (1 + EPS)
+
+
+class Cylinder(Shape):
+    """Circular cylinder along a coordinate axis, centred at `center`."""
+
+    shape: Literal["cylinder"] = Field(description="circular cylinder along x, y or z")
+    center: Point = um("centre of the axis segment x, y[, z], µm; must lie in the grid")
+    radius: float = um("radius, µm", gt=0)
+    axis: Literal["x", "y", "z"] = Field("z", description="direction of the cylinder's axis")
+    length: float | None = um("length along the axis, µm (may reach beyond the grid); absent: unbounded",
+                              default=None, gt=0)
+
+    def points(self):
+        return {"center": self.center}
+
+    def check(self, grid):
+        if grid.ndim == 2 and self.axis == "z" and len(self.center) == 2:
+            pass  # a cylinder along z cut by the 2-D plane: a disc
+        elif "xyz".index(self.axis) >= grid.ndim:
+            raise InvalidAt("axis", f"'{self.axis}' is not an axis of a {grid.ndim}-D grid")
+        super().check(grid)
+
+    def cells(self, grid):
+        coords = grid.cell_coordinates()
+        along = "xyz".index(self.axis)
+        tol = EPS * grid.spacing
+        radial = sum((q - c) ** 2 for i, (q, c) in enumerate(zip(coords, self.center)) if i != along)
+        inside = radial <= self.radius**2 * (1 + EPS)
+        if along < grid.ndim and self.length is not None:
+            inside &= np.abs(coords[along] - self.center[along]) <= 0.5 * self.length + tol
+        return inside
+
+
+class Mask(Shape):
+    """Cells given by a boolean .npy array of the grid's shape [nx, ny(, nz)]."""
+
+    shape: Literal["mask"] = Field(description="cells listed in a .npy file")
+    path: str = Field(description="path to a .npy boolean array of shape [nx, ny(, nz)] (index [i, j, k] is the "
+                                  "cell at x_i, y_j, z_k); relative to the scene file")
+    _array: np.ndarray = PrivateAttr()
+
+    @field_validator("path")
+    @classmethod
+    def _resolve(cls, value: str, info: ValidationInfo) -> str:
+        base = Path((info.context or {}).get("base", "."))
+        path = (base / value).expanduser()
+        if not path.is_file():
+            raise ValueError(f"mask file {value!r} not found (looked for {path})")
+        return str(path.resolve())
+
+    @model_validator(mode="after")
+    def _load(self):
+        stat = Path(self.path).stat()
+        self._array = _read_mask(self.path, stat.st_mtime_ns, stat.st_size)
+        return self
+
+    def check(self, grid):
+        if self._array.shape != grid.shape:
+            raise InvalidAt("path", f"array has shape {show(list(self._array.shape))}; the grid is "
+                                    f"{show(list(grid.shape))} [nx, ny(, nz)]")
+        super().check(grid)
+
+    def cells(self, grid):
+        return np.ascontiguousarray(self._array.T)  # [x, y, z] -> (z, y, x)
+
+
+@functools.lru_cache(maxsize=8)
+def _read_mask(path: str, mtime_ns: int, size: int) -> np.ndarray:
+    """A mask file as a read-only boolean array, read once however many study cases use it."""
+    try:
+        array = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as error:
+        raise InvalidAt("path", f"cannot read {path} as a .npy array ({error})") from None
+    if array.dtype != bool:
+        if not (np.issubdtype(array.dtype, np.integer) and np.isin(array, (0, 1)).all()):
+            raise InvalidAt("path", f"{path} holds {array.dtype} values; a mask is boolean (or 0/1)")
+        array = array.astype(bool)
+    array.flags.writeable = False
+    return array
+
+
+AnyShape = Annotated[Union[Box, Sphere, Cylinder, Mask], Field(discriminator="shape")]
+SHAPES = (Box, Sphere, Cylinder, Mask)

@@ -1,0 +1,225 @@
+"""Running scenes: one case here, a sweep serially, on N local processes or on a Dask cluster.
+
+Workers only simulate: they receive a compiled `solver.Problem` (plain
+arrays, no files) and send back the dataset or the reason it failed.  This
+process alone writes files, each atomically (`store.write_atomic`), so a
+cluster needs no shared filesystem and an interruption (Ctrl-C, SIGTERM, a
+kill) never leaves a half-written file under a final name.
+
+A case that fails (the solver's `SimulationError`, or any other exception
+inside the simulation) is recorded as failed and the others go on.  Local
+worker processes start with ``OMP_NUM_THREADS=1`` (one simulation per core;
+FiPy's suite ran 40x slower with unrestricted threads) and
+``FIPY_SOLVERS=scipy``; Dask's nanny sets the thread variables for its
+workers itself.  What runs in a worker is in `biostudy.worker`.
+"""
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import uuid
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable, Iterator
+
+from . import store, worker
+from .errors import BadInput
+from .scene import overrides_text
+from .study import Plan
+from .worker import Outcome, solve
+
+if TYPE_CHECKING:
+    import solver
+
+CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+              "FIPY_SOLVERS": "scipy"}
+
+
+class SweepError(RuntimeError):
+    """The sweep cannot go on (its workers are gone); cases finished so far are kept."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Where cases run: each backend takes the case ids to run and a function compiling one case's
+# problem, and yields (case id, Outcome) as cases finish.  Problems are compiled just before they
+# are handed out and at most a few per worker are in flight, so a sweep of a thousand large cases
+# does not hold a thousand problems in memory.
+
+Compile = Callable[[str], "solver.Problem"]
+
+
+def _serial(ids: list[str], compile_: Compile) -> Iterator[tuple[str, Outcome]]:
+    for case_id in ids:
+        yield case_id, solve(compile_(case_id))
+
+
+@contextlib.contextmanager
+def _environment(values: dict[str, str]):
+    """Set environment variables for processes started inside the block (the parent's own libraries
+    are already loaded, so this changes nothing for this process)."""
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def _local(ids: list[str], compile_: Compile, workers: int) -> Iterator[tuple[str, Outcome]]:
+    context = multiprocessing.get_context("spawn")  # fresh interpreters: the environment applies
+    executor = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=worker.start)
+    waiting, running = list(reversed(ids)), {}
+    finished = False
+
+    def submit():
+        while waiting and len(running) < 2 * workers:
+            case_id = waiting.pop()
+            with _environment(WORKER_ENV):  # worker processes are spawned on submit
+                running[executor.submit(solve, compile_(case_id))] = case_id
+
+    try:
+        submit()
+        while running:
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                case_id = running.pop(future)
+                try:
+                    outcome = future.result()
+                except BrokenProcessPool:
+                    raise SweepError("a worker process died (out of memory?); finished cases are kept, run "
+                                     "the sweep again to resume") from None
+                yield case_id, outcome
+            submit()
+        finished = True
+    finally:
+        if finished:
+            executor.shutdown(wait=True)
+        else:  # interrupted or failed: running simulations cannot be cancelled, only ended
+            processes = list((getattr(executor, "_processes", None) or {}).values())
+            executor.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
+                process.terminate()
+
+
+def _dask(ids: list[str], compile_: Compile, address: str) -> Iterator[tuple[str, Outcome]]:
+    from distributed import Client
+    from distributed import as_completed as dask_completed
+
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as error:
+        raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", "--scheduler") from None
+    run = uuid.uuid4().hex[:8]
+    waiting, running = list(reversed(ids)), {}
+    window = max(4, 2 * sum(client.nthreads().values()))
+
+    def submit(case_id):
+        future = client.submit(solve, compile_(case_id), key=f"biostudy-{case_id}-{run}", pure=False)
+        running[future] = case_id
+        return future
+
+    try:
+        completed = dask_completed([submit(waiting.pop()) for _ in range(min(window, len(waiting)))])
+        for future in completed:
+            case_id = running.pop(future)
+            try:
+                outcome = future.result()
+            except Exception as error:  # e.g. KilledWorker: the case took its worker down
+                outcome = Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
+            if waiting:
+                completed.add(submit(waiting.pop()))
+            yield case_id, outcome
+    finally:
+        if running:
+            client.cancel(list(running))
+        client.close()
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class SweepReport:
+    """What a sweep did; `study` is the combined dataset's path."""
+
+    study: Path
+    ran: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+    removed: list[Path] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+
+def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
+          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
+    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc.
+
+    notify(event, case_id, message) is called with event "skip", "start" (once per case to run,
+    before any runs), "done" or "failed".  Without `workers` or `scheduler` cases run here, one
+    after another.
+    """
+    out_dir = Path(out_dir)
+    cases_dir = out_dir / "cases"
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    report = SweepReport(out_dir / "study.nc")
+    report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
+    notify = notify or (lambda *args: None)
+
+    ids, prints = [], {}
+    for case in plan.cases:
+        prints[case.id] = store.fingerprint(plan.scenes[case.id].problem())
+        record = store.recorded(store.case_file(out_dir, case.id))
+        if record and record.get("fingerprint") == prints[case.id] and (
+                record.get("status") == "done" or (record.get("status") == "failed" and not retry_failed)):
+            report.skipped.append(case.id)
+            if record.get("status") == "failed":
+                report.failed[case.id] = str(record.get("message", ""))
+            notify("skip", case.id, str(record.get("status")))
+            continue
+        ids.append(case.id)
+        notify("start", case.id, "")
+
+    def compile_(case_id: str) -> "solver.Problem":
+        return plan.scenes[case_id].problem()
+
+    if not ids:
+        results = _serial([], compile_)
+    elif scheduler:
+        results = _dask(ids, compile_, scheduler)
+    elif workers:
+        results = _local(ids, compile_, workers)
+    else:
+        results = _serial(ids, compile_)
+    cases = {case.id: case for case in plan.cases}
+    with contextlib.closing(results):
+        for case_id, outcome in results:
+            _record(plan, out_dir, cases[case_id], outcome, prints[case_id])
+            report.ran.append(case_id)
+            if outcome.status != "done":
+                report.failed[case_id] = outcome.message
+            notify(outcome.status, case_id, outcome.message)
+    store.write_study(plan, out_dir)
+    return report
+
+
+def _record(plan: Plan, out_dir: Path, case, outcome: Outcome, fingerprint: str) -> None:
+    """Write one case's file: its dataset, or the failure record."""
+    scene = plan.scenes[case.id]
+    overrides = overrides_text({**plan.fixed, **case.overrides()})
+    extra = {"case_id": case.id, "study_file": str(plan.file.resolve()), "fingerprint": fingerprint}
+    if outcome.status == "done":
+        ds = store.stamp(outcome.dataset, scene, plan.scene_file, overrides, status="done", message="", **extra)
+    else:
+        ds = store.failure_record(outcome.message, outcome.seconds, scene, plan.scene_file, overrides, **extra)
+    store.write_atomic(ds, store.case_file(out_dir, case.id))

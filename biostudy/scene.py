@@ -1,0 +1,390 @@
+"""A scene file (SPEC 2): one simulation, validated, then compiled to a `solver.Problem`.
+
+The pydantic models below are the schema: every key, its unit and meaning,
+its allowed range (SPEC 1 table for the parameters), and the cross-field
+rules (shapes inside the grid, nutrient sources not inside obstacles, output
+times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
+``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
+validates; `Scene.problem()` builds the solver's plain description.
+
+Keys beyond SPEC 2 that map onto the solver: ``[numerics]`` (advection,
+time_tolerance, gradient_floor, max_substeps), ``[mechanics]``
+residual_stiffness and every, ``[time] output_times`` (an explicit list
+instead of ``outputs = N``).
+"""
+from __future__ import annotations
+
+import copy
+import tomllib
+import typing
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
+
+import solver
+from solver.problem import FACES
+
+from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
+from .geometry import SHAPES, AnyShape, Shape
+from .tomltext import dumps as toml_dumps
+
+CONFIG = ConfigDict(extra="forbid", strict=True)
+DEFAULT_OUTPUTS = 11
+_PARAMS = solver.Parameters()
+_NUMERICS = solver.Numerics()
+_MECHANICS = solver.MechanicsSetup()
+
+
+def _field(default, description: str, units: str = "1", **kw):
+    return Field(default, description=description, json_schema_extra={"units": units}, **kw)
+
+
+class GridSpec(BaseModel):
+    """Structured grid of cubic cells, origin at 0."""
+
+    model_config = CONFIG
+    shape: list[Annotated[int, Field(ge=1)]] = Field(
+        min_length=2, max_length=3, description="cells along x, y[, z]; two entries make a 2-D scene")
+    spacing: float = _field(1.0, "edge of the cubic cells, µm", "um", gt=0)
+
+    def solver_grid(self) -> solver.Grid:
+        return solver.Grid(tuple(self.shape), self.spacing)
+
+
+class Params(BaseModel):
+    """Model parameters (SPEC 1, paper Table 2); unspecified keys take the paper's values."""
+
+    model_config = CONFIG
+    mu: float = _field(_PARAMS.mu, "shear modulus mu, Pa", "Pa", gt=0)
+    nu: float = _field(_PARAMS.nu, "Poisson ratio nu", "1", ge=0, lt=0.5)
+    d: float = _field(_PARAMS.d, "nutrient diffusivity d, µm²/T*", "um2/T*", gt=0)
+    beta: float = _field(_PARAMS.beta, "phase-field regularisation beta, µm²/T*", "um2/T*", ge=0)
+    k_alpha: float = _field(_PARAMS.k_alpha, "growth factor k_alpha, 1/T*", "1/T*", ge=0)
+    k: float = _field(_PARAMS.k, "half-velocity constant k (Monod)", "1", gt=0)
+    g: float = _field(_PARAMS.g, "consumption g, 1/T*; 0 switches consumption off", "1/T*", ge=0)
+    r: float = _field(_PARAMS.r, "growth parameter r, µm/T*; 0 switches directed growth off", "um/T*", ge=0)
+
+
+PARAMETER_NAMES = tuple(Params.model_fields)
+
+
+class Model(BaseModel):
+    """Which form of the model's laws."""
+
+    model_config = CONFIG
+    consumption: Literal["first-order", "zero-order"] = Field(
+        "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
+                                   "Eq. 35, with c held >= 0")
+
+
+class Time(BaseModel):
+    """The model clock (steps) and the output clock (snapshots)."""
+
+    model_config = CONFIG
+    t_end: float = _field(1.0, "end time, normalised time T*", "1", gt=0)
+    steps: int = _field(1000, "nominal steps over [0, t_end]; failed steps are bisected", "1", ge=1)
+    outputs: int | None = _field(None, f"evenly spaced snapshots, t = 0 and t_end included "
+                                       f"(default {DEFAULT_OUTPUTS})", "1", ge=2)
+    output_times: list[float] | None = _field(None, "explicit snapshot times within [0, t_end], increasing "
+                                                    "(t_end is added if missing); instead of outputs", "1",
+                                              min_length=1)
+
+    @model_validator(mode="after")
+    def _clock(self):
+        if self.outputs is not None and self.output_times is not None:
+            raise InvalidAt("output_times", "give either outputs or output_times, not both")
+        for i, t in enumerate(self.output_times or ()):
+            if not 0 <= t <= self.t_end:
+                raise InvalidAt(f"output_times[{i}]", f"{t:g} lies outside [0, t_end = {self.t_end:g}]")
+            if i and t <= self.output_times[i - 1]:
+                raise InvalidAt(f"output_times[{i}]", f"{t:g} does not come after {self.output_times[i - 1]:g}")
+        return self
+
+    def times(self) -> np.ndarray:
+        if self.output_times is None:
+            return np.linspace(0.0, self.t_end, self.outputs or DEFAULT_OUTPUTS)
+        times = list(self.output_times)
+        return np.array(times if times[-1] == self.t_end else [*times, self.t_end])
+
+
+class NumericsSpec(BaseModel):
+    """How the equations are discretised (solver.Numerics); the defaults are the robust choice."""
+
+    model_config = CONFIG
+    advection: Literal["upwind", "tvd"] = Field(
+        _NUMERICS.advection, description="upwind: monotone, first order; tvd: van Leer limited, second order "
+                                         "where smooth")
+    time_tolerance: float | None = _field(None, "adaptive steps: local error in phi per step kept below this "
+                                                "(absent: fixed nominal steps, bisected on failure)", "1", gt=0)
+    gradient_floor: float = _field(_NUMERICS.gradient_floor, "the nutrient direction grad c/|grad c| fades out "
+                                                             "where |grad c| < gradient_floor * max|grad c|",
+                                   "1", gt=0, lt=1)
+    max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
+                                                       "a run needing less stops with a diagnosis", "1", ge=1)
+
+    def solver_numerics(self) -> solver.Numerics:
+        return solver.Numerics(advection=self.advection, gradient_floor=self.gradient_floor,
+                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance)
+
+
+Face = Literal[FACES]
+
+
+class MechanicsSpec(BaseModel):
+    """Growth mechanics (paper 2.1, 2.3.1, 3), solved at output times; absent table = off."""
+
+    model_config = CONFIG
+    enabled: bool = Field(True, description="solve the growth mechanics (u and p in the dataset)")
+    clamp: list[Face] = Field([], description="faces (x-, x+, y-, y+, z-, z+) with all displacement zero")
+    slide: list[Face] = Field([], description="faces with zero normal displacement")
+    residual_stiffness: float = _field(_MECHANICS.residual_stiffness, "relative stiffness of void cells "
+                                                                      "(phi = 0)", "1", gt=0, lt=1)
+    every: int = _field(_MECHANICS.every, "solve at every n-th output time (and the last)", "1", ge=1)
+
+    @model_validator(mode="after")
+    def _faces(self):
+        for name in ("clamp", "slide"):
+            faces = getattr(self, name)
+            if len(set(faces)) != len(faces):
+                raise InvalidAt(name, f"lists a face twice ({show(faces)})")
+        both = sorted(set(self.clamp) & set(self.slide))
+        if both:
+            raise InvalidAt("slide", f"{show(both)} already clamped")
+        return self
+
+    def solver_setup(self) -> solver.MechanicsSetup | None:
+        if not self.enabled:
+            return None
+        return solver.MechanicsSetup(clamp=tuple(self.clamp), slide=tuple(self.slide),
+                                     residual_stiffness=self.residual_stiffness, every=self.every)
+
+
+def _valued(role: str, description: str):
+    """The shape union with a `value` key (0..1, default 1) for one kind of region."""
+    members = tuple(create_model(f"{role}{shape.__name__}", __base__=shape,
+                                 value=(float, Field(1.0, ge=0, le=1, description=description)))
+                    for shape in SHAPES)
+    return Annotated[Union[members], Field(discriminator="shape")]
+
+
+BiofilmRegion = _valued("Biofilm", "initial phi inside the shape, 0..1")
+NutrientRegion = _valued("Nutrient", "nutrient c held inside the shape at all times, 0..1")
+
+
+class Scene(BaseModel):
+    """One simulation (SPEC 2)."""
+
+    model_config = CONFIG
+    name: str = Field("", description="short name (default: the file's name without .toml)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    grid: GridSpec
+    params: Params = Field(default_factory=Params)
+    model: Model = Field(default_factory=Model)
+    time: Time = Field(default_factory=Time)
+    biofilm: list[BiofilmRegion] = Field([], description="regions of initial phi (later regions win)")
+    nutrient: list[NutrientRegion] = Field([], description="nutrient sources: c held at value at all times")
+    obstacle: list[AnyShape] = Field([], description="rigid solids: no phi, no c, no flux")
+    numerics: NumericsSpec = Field(default_factory=NumericsSpec)
+    mechanics: MechanicsSpec | None = Field(None, description="growth mechanics; absent = off")
+
+    @model_validator(mode="after")
+    def _fits_the_grid(self):
+        grid = self.grid.solver_grid()
+        for kind in ("biofilm", "nutrient", "obstacle"):
+            for i, region in enumerate(getattr(self, kind)):
+                try:
+                    region.check(grid)
+                except InvalidAt as error:
+                    raise InvalidAt(".".join(filter(None, (f"{kind}[{i}]", error.key))), error.problem) from None
+        blocked = self._union(self.obstacle, grid)
+        if blocked.all():
+            raise InvalidAt("obstacle", "covers every cell of the grid")
+        for i, source in enumerate(self.nutrient):
+            for j, solid in enumerate(self.obstacle):
+                overlap = np.count_nonzero(source.cells(grid) & solid.cells(grid))
+                if overlap:
+                    raise InvalidAt(f"nutrient[{i}]", f"lies inside obstacle[{j}] ({overlap} cells in common)")
+        if self.numerics.max_substeps < self.time.steps:
+            raise InvalidAt("numerics.max_substeps", f"must be >= time.steps = {self.time.steps} "
+                                                     f"(got {self.numerics.max_substeps})")
+        if self.mechanics is not None:
+            for name in ("clamp", "slide"):
+                for face in getattr(self.mechanics, name):
+                    if face[0] not in grid.axes:
+                        raise InvalidAt(f"mechanics.{name}", f"face '{face}' does not exist in a 2-D grid")
+        return self
+
+    @staticmethod
+    def _union(regions: list[Shape], grid: solver.Grid) -> np.ndarray:
+        cells = np.zeros(grid.cells_shape, bool)
+        for region in regions:
+            cells |= region.cells(grid)
+        return cells
+
+    def problem(self) -> solver.Problem:
+        """The solver's plain description of this scene (masks in the solver's (z, y, x) order)."""
+        grid = self.grid.solver_grid()
+        phi0 = np.zeros(grid.cells_shape)
+        for region in self.biofilm:
+            phi0[region.cells(grid)] = region.value
+        held = np.zeros(grid.cells_shape, bool)
+        value = np.ones(grid.cells_shape)
+        for region in self.nutrient:
+            cells = region.cells(grid)
+            held |= cells
+            value[cells] = region.value
+        blocked = self._union(self.obstacle, grid)
+        phi0[blocked] = 0.0  # biofilm does not live inside a solid
+        mechanics = self.mechanics.solver_setup() if self.mechanics is not None else None
+        return solver.Problem(
+            grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, obstacle=blocked,
+            t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
+            params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
+            numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)
+
+    def to_toml(self) -> str:
+        """The scene as TOML text (every key, defaults filled in): what the dataset records."""
+        return toml_dumps(self.model_dump(mode="json", exclude_none=True))
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading and overrides
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """'params.g=1e10' -> ('params.g', 1e10); the value is TOML, or a bare string if it is not."""
+    key, sep, raw = text.partition("=")
+    key, raw = key.strip(), raw.strip()
+    if not sep or not key:
+        raise BadInput(f"expected KEY=VALUE, e.g. params.g=1e10 (got {text!r})", "--set")
+    try:
+        value = tomllib.loads(f"value = {raw}")["value"]
+    except tomllib.TOMLDecodeError:
+        value = raw  # e.g. model.consumption=zero-order
+    return key, value
+
+
+def key_parts(key: str) -> list[str]:
+    """Dotted key -> parts; a bare parameter name (g, r, ...) means params.<name>."""
+    parts = key.split(".")
+    if not all(p.strip() for p in parts):
+        raise BadInput("empty part in a dotted key", key=key)
+    return ["params", *parts] if len(parts) == 1 and parts[0] in PARAMETER_NAMES else parts
+
+
+# Keys that exclude each other: setting one (an override, a swept value) removes the other.
+EXCLUSIVE = {("time", "outputs"): "output_times", ("time", "output_times"): "outputs"}
+
+
+def set_key(data: dict, key: str, value: Any) -> None:
+    """Set a dotted key in a scene's raw TOML data; `biofilm.0.radius` indexes a list of regions."""
+    parts = key_parts(key)
+    other = EXCLUSIVE.get(tuple(parts))
+    if other and isinstance(data.get(parts[0]), dict):
+        data[parts[0]].pop(other, None)
+    node: Any = data
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        if isinstance(node, list):
+            if not part.isdigit():
+                raise BadInput(f"{'.'.join(parts[:depth])} is a list: give an index, e.g. "
+                               f"{'.'.join(parts[:depth])}.0.{part}", key=key)
+            index = int(part)
+            if index >= len(node):
+                raise BadInput(f"there is no {'.'.join(parts[:depth])}[{index}] ({len(node)} given)", key=key)
+            if last:
+                node[index] = value
+            node = node[index]
+        elif isinstance(node, dict):
+            if last:
+                node[part] = value
+            else:
+                node = node.setdefault(part, {})
+        else:
+            raise BadInput(f"{'.'.join(parts[:depth])} is a value, not a table", key=key)
+
+
+def _submodels(annotation) -> list[type[BaseModel]]:
+    """Pydantic models inside a type annotation (list[...], X | None, Annotated[Union[...]])."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    found = []
+    for arg in typing.get_args(annotation):
+        found += _submodels(arg)
+    return found
+
+
+def _all_keys(model: type[BaseModel]) -> set[str]:
+    keys = set(model.model_fields)
+    for field in model.model_fields.values():
+        for sub in _submodels(field.annotation):
+            keys |= _all_keys(sub)
+    return keys
+
+
+SCENE_KEYS = frozenset(_all_keys(Scene))
+
+
+def key_info(key: str) -> tuple[str, str]:
+    """(long_name, units) of a dotted scene key, from the schema; for sweep coordinates."""
+    models: list[type[BaseModel]] = [Scene]
+    field = None
+    for part in key_parts(key):
+        if part.isdigit():
+            continue
+        field = next((m.model_fields[part] for m in models if part in m.model_fields), None)
+        if field is None:
+            return f"scene key {key}", "1"
+        models = _submodels(field.annotation)
+    extra = (field.json_schema_extra or {}) if field is not None else {}
+    return (field.description if field is not None and field.description else f"scene key {key}",
+            str(extra.get("units", "1")))
+
+
+def scene_from_data(data: dict, file: str | Path) -> Scene:
+    """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths."""
+    file = Path(file)
+    data = copy.deepcopy(data)
+    if isinstance(data.get("name", ""), str) and not data.get("name"):
+        data["name"] = file.stem
+    try:
+        return Scene.model_validate(data, context={"base": file.parent})
+    except ValidationError as error:
+        raise from_validation_error(error, file, known_keys=SCENE_KEYS) from None
+
+
+def read_scene_data(path: str | Path) -> dict:
+    """Raw TOML data of a scene file; a study file given here is bad input."""
+    data = read_toml(path)
+    if "scene" in data and "grid" not in data:
+        raise BadInput("this is a study file (it has scene = ...); run it with `biostudy sweep`", path)
+    return data
+
+
+def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...], file: str = "--set") -> list[tuple[str, Any]]:
+    """Apply 'KEY=VALUE' strings to raw data in order; returns the parsed (key, value) pairs."""
+    pairs = []
+    for text in overrides:
+        key, value = parse_override(text)
+        try:
+            set_key(data, key, value)
+        except BadInput as error:
+            raise error.within(file) from None
+        pairs.append((key, value))
+    return pairs
+
+
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    """Read, override and validate a scene file: the only way a scene file becomes a `Scene`."""
+    data = read_scene_data(path)
+    apply_overrides(data, overrides)
+    return scene_from_data(data, path)
+
+
+def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:
+    """Overrides as TOML text ('"params.g" = 1e10' lines) for the dataset's attributes."""
+    items = dict(pairs)
+    return toml_dumps(items).strip() if items else ""
+

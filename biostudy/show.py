@@ -1,0 +1,155 @@
+"""`biostudy show`: a readable summary of a run's dataset, a failed case's record or a study.nc.
+
+Everything shown comes from the file itself (attributes and time series),
+so a result can be understood without the scene file that produced it.
+"""
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import xarray as xr
+from rich.console import Console, Group
+from rich.table import Table
+from rich.text import Text
+
+PARAMETERS = (("mu", "Pa"), ("nu", ""), ("d", "µm²/T*"), ("beta", "µm²/T*"), ("k_alpha", "1/T*"),
+              ("k", ""), ("g", "1/T*"), ("r", "µm/T*"))
+AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")
+
+
+def _num(value) -> str:
+    try:
+        return f"{float(value):.4g}"
+    except (TypeError, ValueError):
+        return str(value)
+
+
+def _rows(rows: list[tuple[str, str]]) -> Table:
+    table = Table.grid(padding=(0, 2))
+    table.add_column(style="bold")
+    table.add_column()
+    for name, value in rows:
+        if value:
+            table.add_row(name, value)
+    return table
+
+
+def _scene_title(attrs: dict) -> tuple[str, str]:
+    try:
+        scene = tomllib.loads(str(attrs.get("scene", "")))
+    except tomllib.TOMLDecodeError:
+        scene = {}
+    return str(scene.get("name", "?")), str(scene.get("description", ""))
+
+
+def _from_scene(attrs: dict) -> dict:
+    """Grid, model and parameters from the recorded scene text, where the run left none (a failed case)."""
+    try:
+        scene = tomllib.loads(str(attrs.get("scene", "")))
+    except tomllib.TOMLDecodeError:
+        return {}
+    grid = scene.get("grid", {})
+    found = {"grid_shape": grid.get("shape"), "grid_spacing": grid.get("spacing"),
+             "consumption": scene.get("model", {}).get("consumption"),
+             "advection": scene.get("numerics", {}).get("advection"), **scene.get("params", {})}
+    return {k: v for k, v in found.items() if v is not None}
+
+
+def _header(attrs: dict) -> list[tuple[str, str]]:
+    attrs = {**_from_scene(attrs), **attrs} if "grid_shape" not in attrs else attrs
+    shape = np.atleast_1d(attrs.get("grid_shape", []))
+    grid = " × ".join(str(int(n)) for n in shape)
+    rows = [
+        ("scene file", str(attrs.get("scene_file", ""))),
+        ("overrides", str(attrs.get("overrides", "")).replace("\n", "; ")),
+    ]
+    if grid:
+        rows.append(("grid", f"{grid} cells of {_num(attrs.get('grid_spacing'))} µm"))
+    model = [f"{k} {attrs[k]}" for k in ("consumption", "advection", "mechanics") if k in attrs]
+    rows.append(("model", ", ".join(model)))
+    params = [f"{name} = {_num(attrs[name])}{' ' + unit if unit else ''}" for name, unit in PARAMETERS
+              if name in attrs]
+    rows.append(("parameters", ", ".join(params)))
+    return rows
+
+
+def _software(attrs: dict) -> str:
+    versions = [f"{k.removeprefix('version_').replace('_', '-')} {v}" for k, v in attrs.items()
+                if k.startswith("version_")]
+    return ", ".join([f"biostudy {attrs.get('biostudy_version', '?')}", *versions])
+
+
+def run_summary(ds: xr.Dataset) -> Group:
+    """One run: scene, parameters, cost, and the averages at the start and the end."""
+    attrs = ds.attrs
+    name, description = _scene_title(attrs)
+    status = str(attrs.get("status", "done"))
+    rows = _header(attrs)
+    if status != "done":
+        rows.append(("status", f"[red]{status}[/red]: {attrs.get('message', '')}"))
+    rows += [
+        ("run", f"wall time {_num(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
+                f"{attrs.get('steps_bisected', '-')} bisected" if "steps_taken" in attrs
+         else f"wall time {_num(attrs.get('wall_time'))} s"),
+        ("created", str(attrs.get("created", ""))),
+        ("software", _software(attrs)),
+    ]
+    parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
+    if "time" in ds.dims and all(v in ds for v in AVERAGES):
+        table = Table(title=None, show_edge=False)
+        table.add_column("")
+        table.add_column(f"T* = {_num(ds.time.values[0])}", justify="right")
+        table.add_column(f"T* = {_num(ds.time.values[-1])}", justify="right")
+        table.add_column("units")
+        for var in AVERAGES:
+            values = ds[var].values
+            table.add_row(var, _num(values[0]), _num(values[-1]), str(ds[var].attrs.get("units", "")))
+        parts.append(table)
+    return Group(*parts)
+
+
+def study_summary(ds: xr.Dataset) -> Group:
+    """A study.nc: what was swept, how many cases finished, one row per case."""
+    attrs = ds.attrs
+    dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
+    rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
+    names = [n.strip() for n in str(attrs.get("sweep_keys", "")).split(",") if n.strip()]
+    swept = [c for c in ds.coords if c not in ds.dims or c in dims]
+    values = [f"{c} = " + ", ".join(_num(v) for v in np.unique(ds[c].values)) for c in swept
+              if c not in ("case", "time", "x", "y", "z", "component") and not c.endswith("_node")]
+    rows += [
+        ("sweep", f"{attrs.get('sweep_mode')} over {', '.join(names)}"),
+        ("values", "; ".join(values)),
+        ("cases", f"{attrs.get('cases')} cases: {attrs.get('cases_done')} done, {attrs.get('cases_failed')} "
+                  f"failed, {attrs.get('cases_missing')} missing"),
+        ("created", str(attrs.get("created", ""))),
+        ("software", _software(attrs)),
+    ]
+    name = str(attrs.get("title", "study")).removeprefix("biofilm growth study: ")
+    table = Table(show_edge=False, caption="averages at the last output time")
+    table.add_column("case", no_wrap=True)
+    table.add_column("status", no_wrap=True)
+    for column in ("wall s", "steps", *AVERAGES):
+        table.add_column(column, justify="right")
+    table.add_column("message")
+
+    def flat(var: str) -> np.ndarray:
+        values = ds[var]
+        if "time" in values.dims:
+            values = values.isel(time=-1)
+        return values.transpose(*dims, ...).values.ravel()
+
+    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps", "message", *AVERAGES) if v in ds}
+    for i, case in enumerate(columns["case_id"]):
+        status = str(columns["status"][i])
+        colour = {"done": "green", "failed": "red"}.get(status, "yellow")
+        table.add_row(str(case), f"[{colour}]{status}[/{colour}]", _num(columns["wall_time"][i]),
+                      _num(columns["steps"][i]),
+                      *(_num(columns[v][i]) if v in columns else "-" for v in AVERAGES),
+                      str(columns["message"][i]))
+    return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
+
+
+def summarize(ds: xr.Dataset, console: Console) -> None:
+    console.print(study_summary(ds) if "sweep_mode" in ds.attrs else run_summary(ds))

@@ -1,0 +1,227 @@
+"""A study file (SPEC 3): a base scene and a sweep over dotted scene keys, expanded into cases.
+
+::
+
+    scene = "directional.toml"      # relative to the study file
+    [set]                           # optional: overrides for every case (like --set)
+    "grid.shape" = [10, 10, 10]
+    [sweep]
+    mode = "grid"                   # grid: every combination; zip: element-wise
+    g = [1e8, 1e10]                 # a bare parameter name means params.<name>
+    r = [50, 100]
+
+Every case is validated as a scene before anything runs, so a bad value in
+the fourth case stops the study at once (exit 2) instead of after hours.
+Case ids are built from the swept values (``g=1e+08_r=50``): stable across
+runs (resume relies on them) and readable as file names.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
+from .scene import Scene, apply_overrides, key_parts, read_scene_data, scene_from_data, set_key
+from .tomltext import number
+
+RESERVED_DIMS = frozenset({"time", "x", "y", "z", "x_node", "y_node", "z_node", "component", "case"})
+
+
+def flatten(table: dict, prefix: str = "") -> dict[str, Any]:
+    """{'grid': {'shape': [..]}} -> {'grid.shape': [..]}: TOML dotted keys and quoted ones alike."""
+    flat = {}
+    for k, v in table.items():
+        name = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, dict):
+            flat.update(flatten(v, name))
+        else:
+            flat[name] = v
+    return flat
+
+
+def dimension(key: str) -> str:
+    """Name of a swept key in study.nc: 'params.g' and 'g' -> 'g'; 'grid.shape' -> 'grid_shape'."""
+    parts = key_parts(key)
+    name = "_".join(parts[1:] if parts[0] == "params" else parts)
+    return f"sweep_{name}" if name in RESERVED_DIMS else name
+
+
+def label(value: Any) -> str:
+    """A swept value in a case id: 1e8 -> '1e+08', 50 -> '50', [20, 20, 20] -> '20x20x20'."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, float):
+        text = f"{value:g}" if float(f"{value:g}") == value else number(value)
+    elif isinstance(value, int):
+        text = str(value)
+    elif isinstance(value, (list, tuple)):
+        text = "x".join(label(v) for v in value)
+    elif isinstance(value, str):
+        text = value
+    else:
+        text = hashlib.sha1(json.dumps(value, sort_keys=True).encode()).hexdigest()[:8]
+    return re.sub(r"[^A-Za-z0-9.+-]", "-", text)
+
+
+class Sweep(BaseModel):
+    """Which scene keys vary and how they combine."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    mode: Literal["grid", "zip"] = Field("grid", description="grid: every combination; zip: element-wise")
+    values: dict[str, list[Any]] = Field(description="swept dotted scene key -> its values")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gather(cls, data: Any):
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        mode = data.pop("mode", "grid")
+        values = flatten(data)
+        if not values:
+            raise InvalidAt("", "sweeps no key: add e.g. g = [1e8, 1e10]")
+        for key, options in values.items():
+            if not isinstance(options, list) or not options:
+                raise InvalidAt(key, f"must be a non-empty list of values (got {show(options)})")
+        return {"mode": mode, "values": values}
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        lengths = {key: len(v) for key, v in self.values.items()}
+        first = next(iter(lengths))
+        for key, options in self.values.items():
+            if self.mode == "zip" and lengths[key] != lengths[first]:
+                raise InvalidAt(key, f"has {lengths[key]} values but {first} has {lengths[first]} "
+                                     f"(zip mode pairs them element-wise)")
+            labels = [label(v) for v in options]
+            repeated = next((v for v, n in zip(options, labels) if labels.count(n) > 1), None)
+            if repeated is not None and self.mode == "grid":
+                raise InvalidAt(key, f"lists {show(repeated)} twice")
+        seen: dict[str, str] = {}
+        for key in self.values:
+            try:
+                name = dimension(key)
+            except BadInput as error:
+                raise InvalidAt(key, error.problem) from None
+            if name in seen:
+                raise InvalidAt(key, f"is the same key as {seen[name]}")
+            seen[name] = key
+        return self
+
+
+class Study(BaseModel):
+    """Many cases of one base scene (SPEC 3)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    name: str = Field("", description="short name (default: the file's name without .toml)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    scene: str = Field(description="base scene file, relative to this study file")
+    set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
+    sweep: Sweep
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flatten_set(cls, data: Any):
+        if isinstance(data, dict) and isinstance(data.get("set"), dict):
+            data = {**data, "set": flatten(data["set"])}
+        return data
+
+
+@dataclass(frozen=True)
+class Case:
+    """One simulation of a study: its id, the swept values, its position in the sweep."""
+
+    id: str
+    values: dict[str, Any]
+    index: tuple[int, ...]
+
+    def overrides(self) -> dict[str, Any]:
+        return dict(self.values)
+
+
+def expand(sweep: Sweep) -> list[Case]:
+    """All cases, in a fixed order (grid: last key fastest; zip: list order)."""
+    keys = list(sweep.values)
+    names = [dimension(k) for k in keys]
+    lists = [sweep.values[k] for k in keys]
+    if sweep.mode == "grid":
+        positions = itertools.product(*(range(len(v)) for v in lists))
+        combos = [(idx, tuple(v[i] for v, i in zip(lists, idx))) for idx in positions]
+    else:
+        combos = [((i,), values) for i, values in enumerate(zip(*lists))]
+    cases = []
+    for index, values in combos:
+        case_id = "_".join(f"{n}={label(v)}" for n, v in zip(names, values))
+        cases.append(Case(case_id, dict(zip(keys, values)), index))
+    return cases
+
+
+@dataclass
+class Plan:
+    """A validated study: every case compiled to a `Scene`, nothing run yet."""
+
+    file: Path
+    study: Study
+    scene_file: Path
+    base: Scene
+    cases: list[Case]
+    scenes: dict[str, Scene]
+    fixed: dict[str, Any]  # [set] and --set overrides applied to every case
+
+    @property
+    def keys(self) -> list[str]:
+        return list(self.study.sweep.values)
+
+    @property
+    def mode(self) -> str:
+        return self.study.sweep.mode
+
+
+def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
+    """Read a study file, its base scene and every case; any bad input is a `BadInput`."""
+    path = Path(path)
+    data = read_toml(path)
+    if "grid" in data and "scene" not in data:
+        raise BadInput("this is a scene file (it has [grid]); run it with `biostudy run`", path)
+    data.setdefault("name", path.stem)
+    try:
+        study = Study.model_validate(data)
+    except ValidationError as error:
+        raise from_validation_error(error, path, known_keys=Study.model_fields) from None
+    scene_file = path.parent / study.scene
+    if not scene_file.is_file():
+        raise BadInput(f"scene file {study.scene!r} not found (looked for {scene_file})", path, "scene")
+    base_data = read_scene_data(scene_file)
+    fixed = {}
+    for key, value in study.set.items():
+        try:
+            set_key(base_data, key, value)
+        except BadInput as error:
+            raise BadInput(error.problem, path, f"set.{key}") from None
+        fixed[key] = value
+    fixed.update(apply_overrides(base_data, overrides))
+    base = scene_from_data(base_data, scene_file)
+    cases = expand(study.sweep)
+    ids = [case.id for case in cases]
+    repeated = next((i for i in ids if ids.count(i) > 1), None)
+    if repeated:
+        raise BadInput(f"case {repeated} comes twice", path, "sweep")
+    scenes = {}
+    for case in cases:
+        case_data = copy.deepcopy(base_data)
+        try:
+            for key, value in case.values.items():
+                set_key(case_data, key, value)
+            scenes[case.id] = scene_from_data(case_data, scene_file)
+        except BadInput as error:
+            where = ": ".join(filter(None, (f"case {case.id}", error.key)))
+            raise BadInput(error.problem, path, where) from None
+    return Plan(path, study, scene_file, base, cases, scenes, fixed)

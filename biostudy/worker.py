@@ -1,0 +1,63 @@
+"""What runs in a worker process: one simulation, its failure turned into a record.
+
+Kept apart from the rest of biostudy (no pydantic, no files) so a worker
+process starts by importing only the solver.  `solve` never raises for a
+failed simulation: a sweep records the failure and goes on.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import signal
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import solver
+    import xarray as xr
+
+
+@dataclass
+class Outcome:
+    """What a worker sends back for one case."""
+
+    status: str  # "done" or "failed"
+    dataset: "xr.Dataset | None"
+    message: str
+    seconds: float
+
+
+def start() -> None:
+    """Initializer of local worker processes: the parent handles Ctrl-C and ends the workers, so a
+    worker must not die mid-task on its own; the solver is imported while the parent prepares."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.environ.setdefault("FIPY_SOLVERS", "scipy")
+    import solver.output  # noqa: F401  (FiPy, xarray: a second of imports before the first case arrives)
+
+
+def provenance() -> dict[str, str]:
+    """Where and how a run was computed (thread settings change its speed, not its result)."""
+    return {"host": platform.node(), "omp_num_threads": os.environ.get("OMP_NUM_THREADS", "unset"),
+            "fipy_solvers": os.environ.get("FIPY_SOLVERS", "unset")}
+
+
+def solve(problem: "solver.Problem") -> Outcome:
+    """Simulate one problem; a failure becomes an `Outcome`, never an exception."""
+    os.environ.setdefault("FIPY_SOLVERS", "scipy")  # before FiPy is first imported (Dask workers)
+    from solver import SimulationError, simulate
+
+    began = time.perf_counter()
+    try:
+        ds = simulate(problem)
+    except SimulationError as error:
+        return Outcome("failed", None, str(error), time.perf_counter() - began)
+    except Exception as error:  # a bug or resource problem in this case must not sink the others
+        frame = traceback.extract_tb(error.__traceback__)[-1]
+        where = f" (at {Path(frame.filename).name}:{frame.lineno})"
+        message = f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}{where}"
+        return Outcome("failed", None, message, time.perf_counter() - began)
+    ds.attrs.update(provenance())
+    return Outcome("done", ds, "", time.perf_counter() - began)

@@ -1,0 +1,149 @@
+"""The `biostudy` command line: run, show, scenes; exit statuses; the catalogue of bad input."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+from typer.testing import CliRunner
+
+from biostudy.cli import app
+
+runner = CliRunner()
+
+
+def invoke(*args, env=None):
+    return runner.invoke(app, [str(a) for a in args], env=env)
+
+
+def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
+    out = tmp_path / "run.nc"
+    result = invoke("run", tiny_scene, "-o", out, "--set", "params.g=1e9", "--set", "grid.shape=[18,16]",
+                    "--set", "mechanics.enabled=false")
+    assert result.exit_code == 0, result.output
+    assert "wrote" in result.stderr and "20 steps" in result.stderr
+    ds = xr.open_dataset(out)
+    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18}
+    assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
+    assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
+
+
+def test_run_defaults_to_the_scene_name_in_the_working_directory(tiny_scene, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = invoke("run", "tiny.toml", "-q")
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "tiny.nc").is_file()
+
+
+def test_show_summarises_a_run(tiny_scene, tmp_path):
+    out = tmp_path / "run.nc"
+    assert invoke("run", tiny_scene, "-o", out, "-q").exit_code == 0
+    result = invoke("show", out)
+    assert result.exit_code == 0, result.output
+    text = result.stdout
+    for expected in ("tiny", "tiny test scene", "16 × 16 cells", "g = 1e+08", "wall time", "20 taken",
+                     "phi_mean", "c_mean", "biofilm_volume", "T* = 0.2", "fipy"):
+        assert expected in text, expected
+    ds = xr.open_dataset(out)
+    assert f"{ds.phi_mean.values[-1]:.4g}" in text
+
+
+def test_scenes_lists_the_bundled_files_with_descriptions(write_toml, tmp_path):
+    result = invoke("scenes")
+    assert result.exit_code == 0
+    assert "directional.toml" in result.stdout and "nutrient corner" in result.stdout
+    assert "directional-sweep.toml" in result.stdout
+    write_toml("mine.toml", 'description = "my own scene"\n[grid]\nshape = [4, 4]\n')
+    mine = invoke("scenes", env={"BIOSTUDY_STUDIES": str(tmp_path)})
+    assert "mine.toml" in mine.stdout and "my own scene" in mine.stdout and "directional" not in mine.stdout
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
+def test_a_failed_simulation_exits_1_and_writes_nothing(tiny_scene, tmp_path):
+    out = tmp_path / "fail.nc"
+    result = invoke("run", tiny_scene, "-o", out, "-q", "--set", "params.k_alpha=1e100",
+                    "--set", "numerics.max_substeps=40")
+    assert result.exit_code == 1
+    assert result.stderr.startswith(f"simulation failed: {tiny_scene}: t = ")
+    assert "Traceback" not in result.output
+    assert not out.exists() and sorted(os.listdir(tmp_path)) == ["tiny.toml"]
+
+
+def _write_mask(tmp_path, shape):
+    np.save(tmp_path / "mask.npy", np.ones(shape, bool))
+
+
+# Each entry: id, command line (with {scene}, {study}, {dir} placeholders), what the one line must contain.
+BAD_INPUT = [
+    ("unknown key", ["run", "{scene}", "--set", "params.gamma=1"], ["{scene}", "params.gamma", "unknown key"]),
+    ("wrong type", ["run", "{scene}", "--set", "grid.spacing='one'"], ["{scene}", "grid.spacing", "valid number"]),
+    ("negative diffusivity", ["run", "{scene}", "--set", "params.d=-1"], ["{scene}", "params.d: must be > 0 (got -1)"]),
+    ("Poisson ratio 0.5", ["run", "{scene}", "--set", "params.nu=0.5"], ["params.nu: must be < 0.5"]),
+    ("shape outside the grid", ["run", "{scene}", "--set", "biofilm.0.center=[30.0, 8.0]"],
+     ["{scene}", "biofilm[0].center", "outside the grid"]),
+    ("source inside an obstacle", ["run", "{scene}", "--set", "obstacle.0.upper=[16.0, 16.0]"],
+     ["{scene}", "nutrient[0]", "inside obstacle[0]"]),
+    ("missing mask file", ["run", "{scene}", "--set", "obstacle.0={shape='mask', path='gone.npy'}"],
+     ["{scene}", "obstacle[0].path", "not found"]),
+    ("mask of the wrong shape", ["run", "{scene}", "--set", "obstacle.0={shape='mask', path='mask.npy'}"],
+     ["{scene}", "obstacle[0].path", "array has shape [4, 4]"]),
+    ("output time after t_end", ["run", "{scene}", "--set", "time.output_times=[0.0, 5.0]"],
+     ["time.output_times[1]", "outside [0, t_end = 0.2]"]),
+    ("zero steps", ["run", "{scene}", "--set", "time.steps=0"], ["time.steps: must be >= 1 (got 0)"]),
+    ("unknown shape", ["run", "{scene}", "--set", "biofilm.0.shape='cone'"], ["biofilm[0]", "unknown shape 'cone'"]),
+    ("unknown consumption law", ["run", "{scene}", "--set", "model.consumption=second-order"],
+     ["model.consumption: must be 'first-order' or 'zero-order'"]),
+    ("malformed --set", ["run", "{scene}", "--set", "params.g"], ["--set", "expected KEY=VALUE"]),
+    ("missing scene file", ["run", "{dir}/nowhere.toml"], ["nowhere.toml: no such file"]),
+    ("TOML syntax error", ["run", "{dir}/broken.toml"], ["broken.toml: not valid TOML", "line 2"]),
+    ("study given to run", ["run", "{study}"], ["{study}", "this is a study file"]),
+    ("scene given to sweep", ["sweep", "{scene}"], ["{scene}", "this is a scene file"]),
+    ("sweep value not a list", ["sweep", "{dir}/notlist.toml"], ["notlist.toml: sweep.g: must be a non-empty list"]),
+    ("invalid case in a sweep", ["sweep", "{dir}/negative.toml"],
+     ["negative.toml: case r=-5: params.r: must be >= 0 (got -5)"]),
+    ("both --workers and --scheduler", ["sweep", "{study}", "--workers", "2", "--scheduler", "tcp://x:1"],
+     ["--workers", "not both"]),
+    ("show a file that is not netCDF", ["show", "{scene}"], ["{scene}", "not a netCDF dataset"]),
+]
+
+
+@pytest.mark.parametrize("args, expected", [(a, e) for _, a, e in BAD_INPUT], ids=[k for k, _, _ in BAD_INPUT])
+def test_bad_input_is_one_line_exit_2_no_traceback(tiny_scene, tiny_study, write_toml, tmp_path, args, expected):
+    _write_mask(tmp_path, (4, 4))
+    write_toml("broken.toml", "[grid]\nshape = = [4, 4]\n")
+    write_toml("notlist.toml", 'scene = "tiny.toml"\n[sweep]\ng = 1e8\n')
+    write_toml("negative.toml", 'scene = "tiny.toml"\n[sweep]\nr = [5.0, -5.0]\n')
+    fill = {"{scene}": str(tiny_scene), "{study}": str(tiny_study), "{dir}": str(tmp_path)}
+
+    def filled(text):
+        for k, v in fill.items():
+            text = text.replace(k, v)
+        return text
+
+    output = [] if args[0] == "show" else ["-o", tmp_path / "out"]
+    result = invoke(*(filled(a) for a in args), *output)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: ")
+    for part in expected:
+        assert filled(part) in lines[0], lines[0]
+    assert "Traceback" not in result.output and result.stdout == ""
+    assert not (tmp_path / "out").exists()
+
+
+def test_sigterm_during_a_run_leaves_no_file(tmp_path):
+    """SIGTERM mid-run: exit 130, no dataset and no temporary left (a file is complete or absent)."""
+    out = tmp_path / "directional.nc"
+    process = subprocess.Popen([sys.executable, "-m", "biostudy", "run", "directional", "-o", str(out), "-q",
+                                "--set", "time.steps=3000"], cwd=tmp_path, stderr=subprocess.PIPE, text=True)
+    time.sleep(6)
+    assert process.poll() is None, process.stderr.read()
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=30)
+    assert process.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    assert os.listdir(tmp_path) == []

@@ -1,0 +1,170 @@
+"""Scene schema: defaults, overrides, cross-field rules, compilation to solver.Problem, bundled files."""
+import tomllib
+
+import numpy as np
+import pytest
+
+import solver
+from biostudy import catalog
+from biostudy.errors import BadInput
+from biostudy.scene import Scene, key_info, load_scene, parse_override
+from biostudy.study import load_study
+from biostudy.tomltext import dumps
+
+
+def test_defaults_are_the_solvers_and_the_papers(tiny_scene):
+    scene = load_scene(tiny_scene)
+    problem = scene.problem()
+    assert problem.params == solver.Parameters(g=1e8)
+    assert problem.numerics == solver.Numerics()
+    assert problem.mechanics is None and problem.consumption == "first-order"
+    assert problem.name == "tiny"
+    assert np.allclose(problem.output_times, [0, 0.1, 0.2])
+
+
+def test_problem_has_the_scenes_masks_in_solver_order(tiny_scene):
+    problem = load_scene(tiny_scene, ["biofilm.0.value=0.5", "nutrient.0.value=0.8"]).problem()
+    grid = problem.grid
+    assert grid.shape == (16, 16) and problem.phi0.shape == (16, 16)
+    x, y = grid.cell_coordinates()
+    disc = (x - 8) ** 2 + (y - 8) ** 2 <= 9
+    assert np.array_equal(problem.phi0, np.where(disc, 0.5, 0.0))
+    corner = (x > 14) & (y > 14)
+    assert np.array_equal(problem.nutrient_fixed, corner)
+    assert np.all(problem.nutrient_value[corner] == 0.8)
+    # the obstacle box x in [0, 3], y in [12, 16]: 3 x 4 cells, the row index is y
+    assert problem.obstacle.sum() == 12 and problem.obstacle[15, 0] and not problem.obstacle[0, 15]
+
+
+def test_biofilm_inside_an_obstacle_is_removed(tiny_scene):
+    problem = load_scene(tiny_scene, ["biofilm.0.center=[2.0, 14.0]"]).problem()
+    assert problem.phi0.sum() > 0 and not problem.phi0[problem.obstacle].any()
+
+
+def test_overrides_are_toml_values_on_dotted_keys(tiny_scene):
+    scene = load_scene(tiny_scene, ["grid.shape=[16,18]", "params.g=1e10", "r=0", "mechanics.enabled=false",
+                                    "model.consumption=zero-order", "time.output_times=[0, 0.05]",
+                                    "numerics.advection='tvd'", "biofilm.0.radius=2"])
+    assert scene.grid.shape == [16, 18] and scene.params.g == 1e10 and scene.params.r == 0
+    assert scene.mechanics is not None and not scene.mechanics.enabled
+    problem = scene.problem()
+    assert problem.mechanics is None and problem.consumption == "zero-order"
+    assert problem.numerics.advection == "tvd"
+    assert list(problem.output_times) == [0, 0.05, 0.2]  # t_end added
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("params.g=1e10", ("params.g", 1e10)),
+    ("grid.shape=[40, 40, 40]", ("grid.shape", [40, 40, 40])),
+    ("mechanics.enabled=false", ("mechanics.enabled", False)),
+    ("model.consumption=zero-order", ("model.consumption", "zero-order")),
+    ("model.consumption=\"zero-order\"", ("model.consumption", "zero-order")),
+    (" time.steps = 10 ", ("time.steps", 10)),
+])
+def test_parse_override(text, expected):
+    assert parse_override(text) == expected
+
+
+def test_mechanics_table_switches_it_on(tiny_scene):
+    problem = load_scene(tiny_scene, ["mechanics.clamp=['y-']", "mechanics.every=2"]).problem()
+    assert problem.mechanics == solver.MechanicsSetup(clamp=("y-",), every=2)
+
+
+def test_scene_toml_text_reads_back_to_the_same_scene(tiny_scene, tmp_path):
+    scene = load_scene(tiny_scene, ["params.k_alpha=2.5e-3", "time.output_times=[0, 0.05, 0.2]"])
+    text = scene.to_toml()
+    assert "k_alpha = 0.0025" in text and "g = 1e+08" in text
+    again = tmp_path / "again.toml"
+    again.write_text(text)
+    assert load_scene(again) == scene
+
+
+def test_toml_writer_round_trips():
+    data = {"a": 1, "b": 1e-300, "c": [1.5, 2.0], "s": 'quote " and \\ and µ', "t": True,
+            "nested": {"x": [[1, 2], [3, 4]], "deep": {"y": -0.0}}, "aot": [{"k": 1}, {"k": 2, "v": "w"}]}
+    assert tomllib.loads(dumps(data)) == data
+
+
+@pytest.mark.parametrize("override, key, problem", [
+    ("params.d=-1", "params.d", "must be > 0 (got -1)"),
+    ("params.nu=0.5", "params.nu", "must be < 0.5 (got 0.5)"),
+    ("params.gg=1", "params.gg", "unknown key (did you mean 'g'?)"),
+    ("time.steps=0", "time.steps", "must be >= 1"),
+    ("time.output_times=[0, 0.3]", "time.output_times[1]", "outside [0, t_end = 0.2]"),
+    ("time.output_times=[0.1, 0.05]", "time.output_times[1]", "does not come after"),
+    ("grid.spacing=0", "grid.spacing", "must be > 0"),
+    ("biofilm.0.center=[20.0, 8.0]", "biofilm[0].center", "outside the grid"),
+    ("nutrient.0.lower=[0.0, 12.0]", "nutrient[0]", "lies inside obstacle[0]"),
+    ("obstacle.0.upper=[3.0, 30.0]", "obstacle[0].upper", "y = 30 µm lies outside the grid [0, 16] µm"),
+    ("numerics.max_substeps=10", "numerics.max_substeps", "must be >= time.steps = 20"),
+    ("mechanics.clamp=['z-']", "mechanics.clamp", "does not exist in a 2-D grid"),
+    ("mechanics.slide=['x-', 'x-']", "mechanics.slide", "lists a face twice"),
+    ("biofilm.0.shape=cone", "biofilm[0]", "unknown shape 'cone'"),
+])
+def test_bad_values_name_the_key(tiny_scene, override, key, problem):
+    with pytest.raises(BadInput) as error:
+        load_scene(tiny_scene, [override])
+    line = str(error.value)
+    assert line.startswith(f"{tiny_scene}: {key}: "), line
+    assert problem is None or problem in line
+    assert "\n" not in line
+
+
+def test_obstacle_covering_everything_or_a_source_is_rejected(tiny_scene):
+    with pytest.raises(BadInput, match=r"obstacle: covers every cell"):
+        load_scene(tiny_scene, ["obstacle.0.lower=[0.0, 0.0]", "obstacle.0.upper=[16.0, 16.0]"])
+
+
+def test_several_errors_are_counted(tiny_scene):
+    with pytest.raises(BadInput, match=r"\(and 1 more\)"):
+        load_scene(tiny_scene, ["params.d=-1", "params.k=0"])
+
+
+def test_mask_file_relative_to_the_scene(write_toml, tmp_path):
+    array = np.zeros((16, 16), bool)
+    array[:2, :] = True  # x < 2: a wall on the x- side
+    np.save(tmp_path / "wall.npy", array)
+    path = write_toml("m.toml", "[grid]\nshape = [16, 16]\n[[obstacle]]\nshape = \"mask\"\npath = \"wall.npy\"\n")
+    problem = load_scene(path).problem()
+    assert problem.obstacle.sum() == 32 and problem.obstacle[:, :2].all()
+    with pytest.raises(BadInput, match=r"obstacle\[0\]\.path: mask file 'nope.npy' not found"):
+        load_scene(path, ["obstacle.0.path=nope.npy"])
+    with pytest.raises(BadInput, match=r"obstacle\[0\]\.path: array has shape \[16, 16\]"):
+        load_scene(path, ["grid.shape=[16, 8]"])
+
+
+def test_key_info_gives_units_for_sweep_coordinates():
+    assert key_info("g") == ("consumption g, 1/T*; 0 switches consumption off", "1/T*")
+    assert key_info("params.d")[1] == "um2/T*"
+    assert key_info("biofilm.0.radius") == ("radius, µm", "um")
+    assert key_info("grid.spacing")[1] == "um"
+
+
+def test_json_schema_documents_units_and_meaning():
+    schema = Scene.model_json_schema()
+    params = schema["$defs"]["Params"]["properties"]
+    assert params["d"]["units"] == "um2/T*" and "diffusivity" in params["d"]["description"]
+    assert params["d"]["exclusiveMinimum"] == 0
+
+
+def test_every_bundled_file_validates():
+    entries = catalog.entries()
+    assert any(e.kind == "scene" for e in entries) and any(e.kind == "study" for e in entries)
+    for entry in entries:
+        assert entry.kind in ("scene", "study"), entry
+        assert entry.description, entry
+        if entry.kind == "scene":
+            load_scene(entry.path).problem()
+        else:
+            plan = load_study(entry.path)
+            assert plan.cases
+
+
+def test_directional_scene_is_the_papers_4_1():
+    problem = load_scene(catalog.resolve("directional")).problem()
+    assert problem.grid.shape == (20, 20, 20) and problem.grid.spacing == 1.0
+    assert problem.t_end == 1.0 and problem.steps == 1000 and len(problem.output_times) == 21
+    x, y, z = problem.grid.cell_coordinates()
+    assert np.array_equal(problem.phi0, ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float))
+    assert np.array_equal(problem.nutrient_fixed, (x > 17) & (y > 17) & (z > 17))  # 3 x 3 x 3 corner cells
+    assert problem.params == solver.Parameters()

@@ -1,0 +1,209 @@
+"""Sweeps: study.nc layout, resume, failures kept apart, local processes, a Dask cluster, interruptions."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+from typer.testing import CliRunner
+
+from biostudy import runner, store
+from biostudy.cli import app
+from biostudy.study import load_study
+
+cli = CliRunner()
+
+
+def sweep_cli(*args):
+    return cli.invoke(app, ["sweep", *(str(a) for a in args), "-q"])
+
+
+def case_files(directory):
+    return sorted(p.name for p in (directory / "cases").iterdir())
+
+
+def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_study, tmp_path):
+    out = tmp_path / "out"
+    result = sweep_cli(tiny_study, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert case_files(out) == ["g=1e+08_r=100.nc", "g=1e+08_r=50.nc", "g=1e+09_r=100.nc", "g=1e+09_r=50.nc"]
+    ds = xr.open_dataset(out / "study.nc")
+    assert ds.phi_mean.dims == ("g", "r", "time") and ds.phi.dims == ("g", "r", "time", "y", "x")
+    assert ds.g.values.tolist() == [1e8, 1e9] and ds.r.values.tolist() == [50.0, 100.0]
+    assert ds.g.attrs["units"] == "1/T*" and "consumption" in ds.g.attrs["long_name"]
+    assert (ds.status.values == "done").all() and ds.case_id.sel(g=1e9, r=50).item() == "g=1e+09_r=50"
+    for name in list(ds.data_vars) + list(ds.coords):
+        assert "units" in ds[name].attrs and ds[name].attrs.get("long_name"), name
+    # each entry is that case's own dataset
+    one = xr.open_dataset(out / "cases" / "g=1e+09_r=50.nc")
+    np.testing.assert_array_equal(ds.phi_mean.sel(g=1e9, r=50).values, one.phi_mean.values)
+    assert one.attrs["status"] == "done" and one.attrs["case_id"] == "g=1e+09_r=50"
+    assert one.attrs["g"] == 1e9 and one.attrs["overrides"] == "g = 1e+09\nr = 50.0"
+    # swept parameters vary, so they are coordinates, not attributes, of study.nc
+    assert "g" not in ds.attrs and ds.attrs["d"] == 1e10 and ds.attrs["cases_done"] == 4
+    assert ds.attrs["sweep_mode"] == "grid" and "scene = \"tiny.toml\"" in ds.attrs["study"]
+    shown = cli.invoke(app, ["show", str(out)])  # the sweep's directory: its study.nc
+    assert shown.exit_code == 0 and "4 done, 0 failed" in shown.stdout and "g=1e+09_r=50" in shown.stdout
+
+
+def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path):
+    out = tmp_path / "out"
+    plan = load_study(tiny_study)
+    first = runner.sweep(plan, out)
+    assert len(first.ran) == 4 and not first.skipped
+    # as if a run had been killed: one case missing, a half-written temporary beside the others
+    (out / "cases" / "g=1e+09_r=100.nc").unlink()
+    (out / "cases" / ".g=1e+09_r=100.nc.4242.dead.tmp").write_bytes(b"\x89HDF half")
+    stamps = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.nc")}
+    store.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
+    partial = xr.open_dataset(out / "study.nc")
+    assert partial.status.sel(g=1e9, r=100).item() == "missing" and partial.attrs["cases_missing"] == 1
+    assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
+    again = runner.sweep(load_study(tiny_study), out)
+    assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
+    assert [p.name for p in again.removed] == [".g=1e+09_r=100.nc.4242.dead.tmp"]
+    assert case_files(out) == sorted([*stamps, "g=1e+09_r=100.nc"])
+    assert all((out / "cases" / n).stat().st_mtime_ns == t for n, t in stamps.items())  # untouched
+    assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
+    # a changed scene makes the recorded cases stale: they run again
+    changed = runner.sweep(load_study(tiny_study, ["time.steps=10"]), out)
+    assert len(changed.ran) == 4
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
+def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene, tmp_path):
+    study = write_toml("fail.toml", """\
+        scene = "tiny.toml"
+        [set]
+        "numerics.max_substeps" = 40
+        [sweep]
+        mode = "zip"
+        k_alpha = [1e-3, 1e100, 2e-3]
+        """)
+    out = tmp_path / "out"
+    result = sweep_cli(study, "-o", out)
+    assert result.exit_code == 1
+    assert "1 of 3 cases failed" in result.stderr and "k_alpha=1e+100: t = " in result.stderr
+    ds = xr.open_dataset(out / "study.nc")
+    assert ds.phi_mean.dims == ("case", "time")
+    assert ds.case.values.tolist() == ["k_alpha=0.001", "k_alpha=1e+100", "k_alpha=0.002"]
+    assert ds.k_alpha.values.tolist() == [1e-3, 1e100, 2e-3]  # swept values as coordinates
+    assert ds.status.values.tolist() == ["done", "failed", "done"]
+    message = ds.message.sel(case="k_alpha=1e+100").item()
+    assert message.startswith("t = ") and "bisected below" in message
+    assert np.isnan(ds.phi_mean.sel(case="k_alpha=1e+100")).all()
+    assert np.isfinite(ds.phi_mean.sel(case="k_alpha=0.002")).all()
+    assert ds.attrs["cases_failed"] == 1 and "k_alpha" not in ds.attrs  # swept: a coordinate, never an attribute
+    record = xr.open_dataset(out / "cases" / "k_alpha=1e+100.nc")
+    assert record.attrs["status"] == "failed" and record.attrs["message"] == message and not record.data_vars
+    assert "failed" in cli.invoke(app, ["show", str(out / "cases" / "k_alpha=1e+100.nc")]).stdout
+    # re-running keeps the recorded failure; --retry-failed runs it again
+    plan = load_study(study)
+    assert runner.sweep(plan, out).ran == []
+    assert runner.sweep(plan, out, retry_failed=True).ran == ["k_alpha=1e+100"]
+
+
+def test_local_processes_give_the_serial_results(tiny_study, tmp_path):
+    plan = load_study(tiny_study)
+    serial = runner.sweep(plan, tmp_path / "serial")
+    environment = dict(os.environ)
+    local = runner.sweep(plan, tmp_path / "local", workers=2)
+    assert dict(os.environ) == environment  # the workers' settings are theirs only
+    assert sorted(local.ran) == sorted(serial.ran) and local.ok
+    a, b = (xr.open_dataset(tmp_path / d / "study.nc") for d in ("serial", "local"))
+    np.testing.assert_allclose(a.phi.values, b.phi.values, rtol=0, atol=1e-12)
+    case = xr.open_dataset(tmp_path / "local" / "cases" / "g=1e+08_r=50.nc")
+    assert case.attrs["omp_num_threads"] == "1" and case.attrs["fipy_solvers"] == "scipy"
+
+
+def test_sweep_on_a_dask_cluster_of_two_processes(tiny_study, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) \
+            as cluster:
+        result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", cluster.scheduler_address)
+    assert result.exit_code == 0, result.output
+    ds = xr.open_dataset(tmp_path / "out" / "study.nc")
+    assert (ds.status.values == "done").all() and ds.phi_mean.sel(g=1e8, r=100).notnull().all()
+    case = xr.open_dataset(tmp_path / "out" / "cases" / "g=1e+09_r=50.nc")
+    assert case.attrs["omp_num_threads"] == "1"  # Dask's nanny sets it for its workers
+
+
+def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
+    result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")
+
+
+def _slow_study(write_toml, steps):
+    return write_toml("slow.toml", f"""\
+        scene = "tiny.toml"
+        [set]
+        "time.t_end" = 1.0
+        "time.steps" = {steps}
+        [sweep]
+        r = [50.0, 60.0, 70.0, 80.0]
+        """)
+
+
+def _wait_for(condition, timeout):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out")
+        time.sleep(0.05)
+
+
+def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_scene, tmp_path):
+    study = _slow_study(write_toml, 600)
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q"],
+                               stderr=subprocess.PIPE)
+    _wait_for(lambda: (out / "cases").is_dir() and any((out / "cases").glob("*.nc")), 60)
+    process.kill()  # SIGKILL: no handler runs
+    process.wait(timeout=10)
+    finished = list((out / "cases").glob("*.nc"))
+    assert 1 <= len(finished) < 4 and not (out / "study.nc").exists()
+    for path in finished:
+        assert store.recorded(path)["status"] == "done"  # complete, readable files only
+    report = runner.sweep(load_study(study), out)
+    assert len(report.skipped) == len(finished) and len(report.ran) == 4 - len(finished)
+    assert not list((out / "cases").glob(".*"))
+    assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
+
+
+def test_sigterm_stops_local_workers_and_exits_130(write_toml, tiny_scene, tmp_path):
+    psutil = pytest.importorskip("psutil")
+    study = _slow_study(write_toml, 4000)
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q",
+                                "--workers", "2"], stderr=subprocess.PIPE, text=True)
+    parent = psutil.Process(process.pid)
+    _wait_for(lambda: len(parent.children()) >= 2, 30)
+    workers = parent.children(recursive=True)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=30)
+    assert process.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    _, alive = psutil.wait_procs(workers, timeout=10)
+    assert not alive
+    assert not [p for p in (out / "cases").iterdir() if p.suffix != ".nc"]  # no temporary left either
+
+
+def test_cases_on_different_grids_keep_their_time_series_in_study_nc(write_toml, tiny_scene, tmp_path):
+    study = write_toml("grids.toml", """\
+        scene = "tiny.toml"
+        [sweep]
+        mode = "zip"
+        "grid.shape" = [[16, 16], [20, 16]]
+        """)
+    assert runner.sweep(load_study(study), tmp_path / "out").ok
+    ds = xr.open_dataset(tmp_path / "out" / "study.nc")
+    assert ds.grid_shape.values.tolist() == ["16x16", "20x16"]
+    assert ds.phi_mean.dims == ("case", "time") and ds.phi_mean.notnull().all()
+    assert "phi" not in ds and "phi" in ds.attrs["omitted_variables"]  # fields stay in cases/*.nc
+    assert xr.open_dataset(tmp_path / "out" / "cases" / "grid_shape=20x16.nc").sizes["x"] == 20
