@@ -161,3 +161,48 @@ def show(path: Path = typer.Argument(..., help="dataset written by run or sweep 
         from .store import open_dataset
 
         summarize(open_dataset(path / "study.nc" if path.is_dir() else path), out)
+
+
+@app.command()
+def plot(
+    path: Path = typer.Argument(..., help="dataset written by run or sweep (a sweep's directory means its study.nc)"),
+    output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                          help="picture (PNG); several figures get _series, _cut, ... suffixes "
+                                               "(default: beside the dataset)"),
+    variable: Optional[str] = typer.Option(None, "--variable", help="one field (phi, c, alpha, p) or, for a sweep, "
+                                                                    "one output (phi_mean, c_mean, biofilm_volume)"),
+    time: Optional[float] = typer.Option(None, "--time", help="draw the output nearest to this T*"),
+    cut: Optional[str] = typer.Option(None, "--cut", help="3-D: 'diagonal' (toward the nutrient, default), "
+                                                          "'xy-diagonal', or a plane such as 'x=10' or 'z=5.5' (µm)"),
+):
+    """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
+    with _guarded():
+        from .plots import plot as draw
+        from .store import open_dataset
+
+        source = path / "study.nc" if path.is_dir() else path
+        ds = open_dataset(source)
+        try:
+            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut)
+        except ValueError as error:
+            raise BadInput(str(error), source) from None
+        for picture in written:
+            out.print(f"wrote {picture}")
+
+
+@app.command()
+def export(
+    path: Path = typer.Argument(..., help="dataset written by run (or one case of a sweep)"),
+    directory: Path = typer.Argument(..., help="directory for snapshot_NNNN.vtu files and series.pvd"),
+):
+    """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
+    with _guarded():
+        from .export import export as write
+        from .store import open_dataset
+
+        ds = open_dataset(path)
+        try:
+            written = write(ds, directory)
+        except ValueError as error:
+            raise BadInput(str(error), path) from None
+        out.print(f"wrote {len(written)} files to {directory} (open {directory / 'series.pvd'} in ParaView)")
