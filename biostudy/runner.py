@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 from . import store, worker
 from .errors import BadInput
-from .scene import overrides_text
+from .scene import Scene, overrides_text
 from .study import Plan
 from .worker import Outcome, solve
 
@@ -161,13 +161,25 @@ class SweepReport:
         return not self.failed
 
 
-def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
-          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
-    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc.
+@dataclass(frozen=True)
+class Job:
+    """One simulation to run and record under DIR/cases/<id>.nc: a validated scene and where it came from."""
 
-    notify(event, case_id, message) is called with event "skip", "start" (once per case to run,
-    before any runs), "done" or "failed".  Without `workers` or `scheduler` cases run here, one
-    after another.
+    id: str
+    scene: Scene
+    scene_file: Path
+    overrides: str  # the overrides as TOML text, for the record
+    attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
+
+
+def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
+             retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
+    """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
+
+    A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped
+    (a recorded failure too, unless `retry_failed`).  notify(event, id, message) is called with event
+    "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without `workers` or
+    `scheduler` jobs run here, one after another.
     """
     out_dir = Path(out_dir)
     cases_dir = out_dir / "cases"
@@ -175,23 +187,24 @@ def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler
     report = SweepReport(out_dir / "study.nc")
     report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
     notify = notify or (lambda *args: None)
+    by_id = {job.id: job for job in jobs}
 
     ids, prints = [], {}
-    for case in plan.cases:
-        prints[case.id] = store.fingerprint(plan.scenes[case.id].problem())
-        record = store.recorded(store.case_file(out_dir, case.id))
-        if record and record.get("fingerprint") == prints[case.id] and (
+    for job in jobs:
+        prints[job.id] = store.fingerprint(job.scene.problem())
+        record = store.recorded(store.case_file(out_dir, job.id))
+        if record and record.get("fingerprint") == prints[job.id] and (
                 record.get("status") == "done" or (record.get("status") == "failed" and not retry_failed)):
-            report.skipped.append(case.id)
+            report.skipped.append(job.id)
             if record.get("status") == "failed":
-                report.failed[case.id] = str(record.get("message", ""))
-            notify("skip", case.id, str(record.get("status")))
+                report.failed[job.id] = str(record.get("message", ""))
+            notify("skip", job.id, str(record.get("status")))
             continue
-        ids.append(case.id)
-        notify("start", case.id, "")
+        ids.append(job.id)
+        notify("start", job.id, "")
 
-    def compile_(case_id: str) -> "solver.Problem":
-        return plan.scenes[case_id].problem()
+    def compile_(job_id: str) -> "solver.Problem":
+        return by_id[job_id].scene.problem()
 
     if not ids:
         results = _serial([], compile_)
@@ -201,25 +214,35 @@ def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler
         results = _local(ids, compile_, workers)
     else:
         results = _serial(ids, compile_)
-    cases = {case.id: case for case in plan.cases}
     with contextlib.closing(results):
-        for case_id, outcome in results:
-            _record(plan, out_dir, cases[case_id], outcome, prints[case_id])
-            report.ran.append(case_id)
+        for job_id, outcome in results:
+            _record(by_id[job_id], out_dir, outcome, prints[job_id])
+            report.ran.append(job_id)
             if outcome.status != "done":
-                report.failed[case_id] = outcome.message
-            notify(outcome.status, case_id, outcome.message)
-    store.write_study(plan, out_dir)
+                report.failed[job_id] = outcome.message
+            notify(outcome.status, job_id, outcome.message)
     return report
 
 
-def _record(plan: Plan, out_dir: Path, case, outcome: Outcome, fingerprint: str) -> None:
+def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
+          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
+    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`)."""
+    study_file = str(plan.file.resolve())
+    jobs = [Job(case.id, plan.scenes[case.id], plan.scene_file,
+                overrides_text({**plan.fixed, **case.overrides()}), {"case_id": case.id, "study_file": study_file})
+            for case in plan.cases]
+    report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify)
+    store.write_study(plan, Path(out_dir))
+    return report
+
+
+def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None:
     """Write one case's file: its dataset, or the failure record."""
-    scene = plan.scenes[case.id]
-    overrides = overrides_text({**plan.fixed, **case.overrides()})
-    extra = {"case_id": case.id, "study_file": str(plan.file.resolve()), "fingerprint": fingerprint}
+    extra = {**job.attrs, "fingerprint": fingerprint}
     if outcome.status == "done":
-        ds = store.stamp(outcome.dataset, scene, plan.scene_file, overrides, status="done", message="", **extra)
+        ds = store.stamp(outcome.dataset, job.scene, job.scene_file, job.overrides, status="done", message="",
+                         **extra)
     else:
-        ds = store.failure_record(outcome.message, outcome.seconds, scene, plan.scene_file, overrides, **extra)
-    store.write_atomic(ds, store.case_file(out_dir, case.id))
+        ds = store.failure_record(outcome.message, outcome.seconds, job.scene, job.scene_file, job.overrides,
+                                  error=outcome.error, **extra)
+    store.write_atomic(ds, store.case_file(out_dir, job.id))

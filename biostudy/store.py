@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 TMP_GLOB = ".*.tmp"
 # Per-case attributes that are not shared by a study (they stay in cases/*.nc).
-PER_CASE = {"case_id", "status", "message", "created", "scene", "overrides", "fingerprint", "title",
+PER_CASE = {"case_id", "status", "message", "error", "created", "scene", "overrides", "fingerprint", "title",
             "wall_time", "steps_taken", "steps_bisected", "steps_rejected"}
 
 
@@ -151,7 +151,7 @@ def recorded(path: str | Path) -> dict | None:
         return None
     try:
         with netCDF4.Dataset(path) as nc:
-            return {name: nc.getncattr(name) for name in ("status", "message", "fingerprint", "wall_time")
+            return {name: nc.getncattr(name) for name in ("status", "message", "error", "fingerprint", "wall_time")
                     if name in nc.ncattrs()}
     except OSError:
         return None

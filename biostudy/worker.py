@@ -28,6 +28,7 @@ class Outcome:
     dataset: "xr.Dataset | None"
     message: str
     seconds: float
+    error: str = ""  # class of the exception that ended a failed run, e.g. "MechanicsError"
 
 
 def start() -> None:
@@ -53,11 +54,11 @@ def solve(problem: "solver.Problem") -> Outcome:
     try:
         ds = simulate(problem)
     except SimulationError as error:
-        return Outcome("failed", None, str(error), time.perf_counter() - began)
+        return Outcome("failed", None, str(error), time.perf_counter() - began, type(error).__name__)
     except Exception as error:  # a bug or resource problem in this case must not sink the others
         frame = traceback.extract_tb(error.__traceback__)[-1]
         where = f" (at {Path(frame.filename).name}:{frame.lineno})"
         message = f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}{where}"
-        return Outcome("failed", None, message, time.perf_counter() - began)
+        return Outcome("failed", None, message, time.perf_counter() - began, type(error).__name__)
     ds.attrs.update(provenance())
     return Outcome("done", ds, "", time.perf_counter() - began)

@@ -46,10 +46,11 @@ class ReusedAMG:
         def tick(_):
             count[0] += 1
 
-        x, info = spla.cg(
-            matrix, rhs, x0=x0, rtol=self.tolerance, atol=0.0, maxiter=self.max_iterations,
-            M=self.hierarchy.aspreconditioner(cycle="V"), callback=tick,
-        )
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow shows up in the residual check
+            x, info = spla.cg(
+                matrix, rhs, x0=x0, rtol=self.tolerance, atol=0.0, maxiter=self.max_iterations,
+                M=self.hierarchy.aspreconditioner(cycle="V"), callback=tick,
+            )
         self.iterations += count[0]
         return x, info, count[0]
 
@@ -93,8 +94,9 @@ def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tole
     def tick(_):
         count[0] += 1
 
-    x, info = spla.bicgstab(matrix, rhs, x0=x0, rtol=tolerance, atol=0.0, maxiter=max_iterations,
-                            M=precondition, callback=tick)
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow shows up in the residual check
+        x, info = spla.bicgstab(matrix, rhs, x0=x0, rtol=tolerance, atol=0.0, maxiter=max_iterations,
+                                M=precondition, callback=tick)
     if not converged(matrix, x, rhs, tolerance):
         raise StepFailure(f"biofilm BiCGSTAB did not converge in {max_iterations} iterations (info {info})")
     return x, count[0]
