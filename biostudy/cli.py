@@ -206,3 +206,64 @@ def export(
         except ValueError as error:
             raise BadInput(str(error), path) from None
         out.print(f"wrote {len(written)} files to {directory} (open {directory / 'series.pvd'} in ParaView)")
+
+
+@app.command()
+def convergence(
+    scene: str = typer.Argument(..., help="scene file (TOML), or the name of a bundled scene"),
+    output: Optional[Path] = typer.Option(None, "-o", "--output", help="directory for cases/, convergence.nc, "
+                                                                     "convergence.md, work_precision.png"),
+    levels: int = typer.Option(3, "--levels", min=2, help="levels per series; the finest is the reference"),
+    series: str = typer.Option("space,time,both,adaptive", "--series",
+                               help="comma-separated refinement series: space, time, both, adaptive"),
+    tolerance: float = typer.Option(1e-2, "--tolerance", min=0.0,
+                                    help="time_tolerance of adaptive level 0 (divided by 4 per level)"),
+    workers: Optional[int] = typer.Option(None, "--workers", min=1, help="run levels on N local processes"),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running Dask scheduler"),
+    overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to level 0"),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
+):
+    """Refine grid, time step and both; measure each level's error and cost (work-precision)."""
+    with _guarded():
+        from . import convergence as study
+        from .plots.accuracy import work_precision
+        from .scene import apply_overrides, read_scene_data
+
+        if workers and scheduler:
+            raise BadInput("give --workers or --scheduler, not both", "--workers")
+        chosen = tuple(s.strip() for s in series.split(",") if s.strip())
+        unknown = [s for s in chosen if s not in study.SERIES]
+        if unknown or not chosen:
+            raise BadInput(f"unknown series {', '.join(unknown) or '(none)'}; choose from {', '.join(study.SERIES)}",
+                           None, "--series")
+        path = catalog.resolve(scene)
+        data = read_scene_data(path)
+        fixed = dict(apply_overrides(data, overrides))
+        directory = output or Path(f"{path.stem}-convergence")
+        with _job_progress(f"convergence {path.stem}", quiet) as notify:
+            ds, report = study.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
+                                   notify, fixed)
+        (directory / "convergence.md").write_text(study.table_text(ds))
+        work_precision(ds, directory / "work_precision.png")
+        typer.echo(study.table_text(ds))
+        err.print(f"wrote {directory / 'convergence.nc'}, convergence.md, work_precision.png "
+                  f"({len(report.ran)} runs, {len(report.skipped)} finished before)")
+        if report.failed:
+            raise _fail(f"{len(report.failed)} levels failed: "
+                        + "; ".join(f"{k}: {v}" for k, v in list(report.failed.items())[:3]), 1)
+
+
+@contextlib.contextmanager
+def _job_progress(title: str, quiet: bool):
+    """A progress bar over the jobs of a convergence or stability run; yields run_jobs' notify."""
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err, disable=quiet) as progress:
+        task = progress.add_task(title, total=0, last="")
+
+        def notify(event: str, job_id: str, message: str):
+            if event == "start":
+                progress.update(task, total=progress.tasks[0].total + 1)
+            elif event in ("done", "failed"):
+                progress.update(task, advance=1, last=f"{job_id} {event}")
+
+        yield notify

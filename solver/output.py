@@ -18,6 +18,7 @@ import xarray as xr
 from .problem import AXES, Problem
 
 BIOFILM_THRESHOLD = 0.5
+SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
 
 FIELDS = {
     "phi": ("1", "biofilm density phi (0 void, 1 dense biofilm)"),
@@ -86,7 +87,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         **_versions(),
     }
     if problem.grid.ndim == 2:
-        attrs["slab_thickness"] = problem.grid.spacing
+        attrs["slab_thickness"] = SLAB_THICKNESS
     if problem.mechanics is not None:
         m = problem.mechanics
         attrs.update({
@@ -107,7 +108,7 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     cell_dims = tuple(reversed(grid.axes))
     node_dims = tuple(f"{a}_node" for a in cell_dims)
     active = ~problem.obstacle
-    volume = grid.cell_volume * (grid.spacing if grid.ndim == 2 else 1.0)
+    volume = grid.cell_volume * (SLAB_THICKNESS if grid.ndim == 2 else 1.0)
     times = np.array([s.time for s in snapshots])
 
     data = {}
@@ -136,7 +137,7 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     data["biofilm_volume"] = ("time", np.array([np.count_nonzero(f[active] >= BIOFILM_THRESHOLD) * volume
                                                 for f in phi]),
                               {"units": "um3", "long_name": "volume of cells with phi >= 0.5"
-                               + (" (2-D: one cell thick)" if grid.ndim == 2 else "")})
+                               + (" (2-D: per um of thickness)" if grid.ndim == 2 else "")})
     for name, long_name in (("steps", "accepted steps so far"), ("bisections", "bisected (failed) steps so far"),
                             ("rejected", "steps rejected by the error control so far")):
         data[f"steps_{'taken' if name == 'steps' else name}"] = (

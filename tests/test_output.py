@@ -48,8 +48,9 @@ def test_time_series_match_their_definitions():
     assert ds.steps_taken.values.tolist() == [0, 2, 4]
 
 
-def test_two_dimensional_dataset_has_no_z_and_a_slab_volume():
+def test_two_dimensional_dataset_has_no_z_and_volumes_per_micrometre_of_thickness():
+    """A 2-D volume is the area times 1 µm, whatever the cell size (so it compares across refinements)."""
     ds = simulate(small_problem(shape=(6, 5)))
     assert "z" not in ds.dims and ds.phi.dims == ("time", "y", "x")
     phi = ds.phi.values[0]
-    assert float(ds.biofilm_volume[0]) == np.sum(phi[np.isfinite(phi)] >= 0.5) * 1.5**3
+    assert float(ds.biofilm_volume[0]) == np.sum(phi[np.isfinite(phi)] >= 0.5) * 1.5**2 * 1.0

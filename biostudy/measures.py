@@ -1,0 +1,91 @@
+"""What accuracy reports measure on datasets: fields on a common grid, a front, observed orders.
+
+* `restrict`: a field on a grid refined by an integer factor, averaged over
+  the fine cells inside each coarse cell (the finite-volume restriction: it
+  keeps cell averages, so fields of different resolutions compare on the
+  coarsest grid).  Obstacle cells (NaN) are left out of the averages.
+* `field_errors`: L1 and L2 norms of a difference per unit volume of open cells.
+* `front_position`: how far the biofilm reaches from where it started toward
+  the nutrient: along the ray from the initial biofilm's centroid to the
+  centroid of the held-nutrient region, the last point where phi (linearly
+  interpolated between cell centres) is still >= 0.5, in µm from the
+  starting centroid.  Sub-cell accurate, so it converges under refinement.
+* `observed_order`: the slope of log(error) against log(h or dt).
+"""
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+from scipy.ndimage import map_coordinates
+
+THRESHOLD = 0.5
+
+
+def restrict(field: np.ndarray, factor: int) -> np.ndarray:
+    """Average `factor`^ndim blocks of fine cells into coarse cells, ignoring NaN (obstacles)."""
+    if factor == 1:
+        return field
+    shape = []
+    for n in field.shape:
+        if n % factor:
+            raise ValueError(f"cannot restrict {field.shape} by {factor}")
+        shape += [n // factor, factor]
+    blocks = field.reshape(shape)
+    axes = tuple(range(1, 2 * field.ndim, 2))
+    with np.errstate(invalid="ignore"):
+        return np.nanmean(blocks, axis=axes) if np.isnan(field).any() else blocks.mean(axis=axes)
+
+
+def field_errors(field: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
+    """(L1, L2) of field - reference, per open cell: mean |e| and sqrt(mean e^2)."""
+    diff = (field - reference)[np.isfinite(field) & np.isfinite(reference)]
+    if diff.size == 0:
+        return float("nan"), float("nan")
+    return float(np.mean(np.abs(diff))), float(np.sqrt(np.mean(diff**2)))
+
+
+def _centroid(mask: np.ndarray, centres: list[np.ndarray]) -> np.ndarray | None:
+    if not mask.any():
+        return None
+    grids = np.meshgrid(*centres, indexing="ij")  # (z, y, x) order like the fields
+    return np.array([g[mask].mean() for g in grids])
+
+
+def front_position(ds: xr.Dataset, time_index: int = -1) -> float:
+    """Distance (µm) from the initial biofilm's centroid to the farthest phi >= 0.5 toward the source."""
+    dims = [d for d in ("z", "y", "x") if d in ds.dims]
+    centres = [ds[d].values for d in dims]
+    h = float(centres[-1][1] - centres[-1][0])
+    start = _centroid(ds["phi"].isel(time=0).values >= THRESHOLD, centres)
+    source = _centroid(ds["nutrient_source"].values.astype(bool), centres)
+    if start is None or source is None or np.allclose(start, source):
+        return float("nan")
+    direction = (source - start) / np.linalg.norm(source - start)
+    phi = np.nan_to_num(ds["phi"].isel(time=time_index).values, nan=0.0)
+    low = np.array([c[0] for c in centres])
+    high = np.array([c[-1] for c in centres])
+    # the ray until it leaves the box of cell centres
+    with np.errstate(divide="ignore", invalid="ignore"):
+        exits = np.where(direction > 0, (high - start) / direction, np.where(direction < 0, (low - start) / direction, np.inf))
+    length = float(np.min(exits))
+    s = np.arange(0.0, length + 1e-12, h / 8.0)
+    points = start[:, None] + direction[:, None] * s[None, :]
+    index = (points - low[:, None]) / h
+    values = map_coordinates(phi, index, order=1, mode="nearest")
+    inside = values >= THRESHOLD
+    if not inside.any():
+        return 0.0
+    last = int(np.flatnonzero(inside)[-1])
+    if last + 1 >= s.size:
+        return float(s[-1])
+    a, b = values[last], values[last + 1]
+    return float(s[last] + (a - THRESHOLD) / (a - b) * (s[last + 1] - s[last]))
+
+
+def observed_order(sizes, errors) -> float:
+    """Least-squares slope of log(error) against log(size); NaN when fewer than two usable points."""
+    sizes, errors = np.asarray(sizes, float), np.asarray(errors, float)
+    ok = (errors > 0) & np.isfinite(errors) & (sizes > 0)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(sizes[ok]), np.log(errors[ok]), 1)[0])

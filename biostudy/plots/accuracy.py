@@ -1,0 +1,50 @@
+"""Work-precision pictures of a convergence study: error against wall time, log-log.
+
+One line per refinement series (space, time, both, adaptive), one panel per
+measured quantity that has errors; the observed order of each series is in
+its legend entry.  Lower left is better: a method to the left of another
+reaches the same error sooner.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+from matplotlib.ticker import NullFormatter
+import numpy as np
+import xarray as xr
+
+from .style import save
+
+MARKERS = {"space": "s", "time": "o", "both": "D", "adaptive": "^"}
+PANELS = ("phi_L1", "biofilm_volume", "front_position", "p_L2")
+
+
+def work_precision(ds: xr.Dataset, out: Path) -> Path:
+    """Draw error against wall time for every series and quantity of `convergence.nc`."""
+    panels = [q for q in PANELS if np.isfinite(ds[f"error_{q}"].values).any()]
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.8), layout="constrained", squeeze=False)
+    for ax, quantity in zip(axes[0], panels):
+        error = ds[f"error_{quantity}"]
+        for name in ds.series.values:
+            x, y = ds.wall_time.sel(series=name).values, error.sel(series=name).values
+            ok = np.isfinite(x) & np.isfinite(y) & (y > 0)
+            if not ok.any():
+                continue
+            order = ds.attrs.get(f"order_{name}_{quantity}", float("nan"))
+            if isinstance(order, str):
+                suffix = f" ({order})"
+            else:
+                suffix = f" (order {order:.2f})" if math.isfinite(order) else ""
+            ax.loglog(x[ok], y[ok], marker=MARKERS.get(str(name), "o"), label=f"{name}{suffix}")
+        ax.set_xlabel("wall time (s)")
+        units = error.attrs.get("units", "1")
+        ax.set_ylabel(f"error ({units})" if units not in ("1", "") else "error")
+        ax.set_title(error.attrs.get("long_name", quantity), fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_minor_formatter(NullFormatter())  # narrow ranges: minor labels pile up
+        ax.legend(fontsize=7)
+    fig.suptitle(f"work-precision: {ds.attrs.get('title', '')}", fontsize=10)
+    return save(fig, Path(out))
