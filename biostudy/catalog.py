@@ -22,7 +22,7 @@ def studies_dir() -> Path:
 @dataclass(frozen=True)
 class Entry:
     path: Path
-    kind: str  # "scene", "study" or "unreadable"
+    kind: str  # "scene", "study", "stability" (a catalogue of cases) or "unreadable"
     description: str
 
 
@@ -36,10 +36,11 @@ def entries(directory: Path | None = None) -> list[Entry]:
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
             found.append(Entry(path, "unreadable", str(error).splitlines()[0]))
             continue
-        kind = "scene" if "grid" in data else "study" if "scene" in data else "other"
+        kind = ("scene" if "grid" in data else "stability" if "case" in data else "study" if "scene" in data
+                else "other")
         found.append(Entry(path, kind, str(data.get("description", ""))))
-    order = {"scene": 0, "study": 1}
-    return sorted(found, key=lambda e: (order.get(e.kind, 2), e.path.name))
+    order = {"scene": 0, "study": 1, "stability": 2}
+    return sorted(found, key=lambda e: (order.get(e.kind, 3), e.path.name))
 
 
 def resolve(name: str | Path) -> Path:

@@ -267,3 +267,34 @@ def _job_progress(title: str, quiet: bool):
                 progress.update(task, advance=1, last=f"{job_id} {event}")
 
         yield notify
+
+
+@app.command()
+def stability(
+    catalogue: str = typer.Argument(..., help="stability catalogue (TOML), or the name of a bundled one"),
+    output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                          help="directory for cases/, stability.nc, stability.md"),
+    workers: Optional[int] = typer.Option(None, "--workers", min=1, help="run cases on N local processes"),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running Dask scheduler"),
+    overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to every case"),
+    quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
+):
+    """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
+    with _guarded():
+        from . import stability as catalogue_run
+
+        if workers and scheduler:
+            raise BadInput("give --workers or --scheduler, not both", "--workers")
+        path = catalog.resolve(catalogue)
+        directory = output or Path(f"{path.stem}-results")
+        with _job_progress(f"stability {path.stem}", quiet) as notify:
+            ds, report = catalogue_run.run(path, directory, overrides, workers, scheduler, notify)
+        text = catalogue_run.table_text(ds)
+        (directory / "stability.md").write_text(text)
+        typer.echo(text)
+        bad = [str(c) for c, ok in zip(ds.case.values, ds.ok.values) if not ok]
+        err.print(f"wrote {directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of {ds.sizes['case']} "
+                  f"cases completed within bounds or stopped with a diagnosis")
+        if bad:
+            raise _fail(f"{len(bad)} cases failed: " + "; ".join(
+                f"{c}: {m}" for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok), 1)

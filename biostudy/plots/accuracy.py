@@ -23,7 +23,7 @@ PANELS = ("phi_L1", "biofilm_volume", "front_position", "p_L2")
 
 def work_precision(ds: xr.Dataset, out: Path) -> Path:
     """Draw error against wall time for every series and quantity of `convergence.nc`."""
-    panels = [q for q in PANELS if np.isfinite(ds[f"error_{q}"].values).any()]
+    panels = [q for q in PANELS if (ds[f"error_{q}"].values > 0).any()] or ["phi_L1"]
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.8), layout="constrained", squeeze=False)
     for ax, quantity in zip(axes[0], panels):
         error = ds[f"error_{quantity}"]
@@ -45,6 +45,7 @@ def work_precision(ds: xr.Dataset, out: Path) -> Path:
         ax.grid(alpha=0.3, which="both")
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_minor_formatter(NullFormatter())  # narrow ranges: minor labels pile up
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
     fig.suptitle(f"work-precision: {ds.attrs.get('title', '')}", fontsize=10)
     return save(fig, Path(out))

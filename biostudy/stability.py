@@ -1,0 +1,252 @@
+"""Stiff and extreme cases, each completed with its bounds held or stopped with a diagnosis.
+
+A catalogue (TOML, in `studies/`) names a base scene, overrides for every
+case (`[set]`, e.g. a reduced grid) and a list of `[[case]]`s, each with its
+own overrides and a line on what it stresses.  Every case runs (like a sweep:
+workers, a Dask cluster, resume) and gets a verdict:
+
+* completed: the dataset is checked independently of the solver's own step
+  checks: no NaN in open cells; 0 <= c <= 1; alpha >= 0; 0 <= phi <= the
+  bound the k_alpha alpha source allows, 1 + sum_j k_alpha max(alpha(t_j+1))
+  (t_j+1 - t_j) over the outputs (alpha never decreases, so this bounds the
+  source's integral); p finite where the mechanics was solved;
+* refused: the mechanics stopped the run with its diagnosis (det F <= 0,
+  Newton not converged after its safeguards): acceptable, that is what the
+  diagnosis is for;
+* failed: anything else: a transport case that did not complete, a bound
+  broken, a NaN, an exception that is not the solver's diagnosis.
+`ok` is 1 for completed-within-bounds and refused, 0 for failed.
+"""
+from __future__ import annotations
+
+import copy
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from . import store
+from .errors import BadInput, from_validation_error, read_toml
+from .runner import Job, SweepReport, run_jobs
+from .scene import Scene, overrides_text, read_scene_data, scene_from_data, set_key
+from .study import flatten
+
+ROUNDOFF = 1e-9
+PARAMETERS = ("d", "g", "r", "beta", "k_alpha", "mu")
+
+
+class StabilityCase(BaseModel):
+    """One stiff or extreme case: overrides of the base scene."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(description="short unique name, used as the case's file name")
+    why: str = Field("", description="what the case stresses")
+    set: dict[str, Any] = Field({}, description="overrides (dotted keys, like --set)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flatten(cls, data: Any):
+        if isinstance(data, dict) and isinstance(data.get("set"), dict):
+            data = {**data, "set": flatten(data["set"])}
+        return data
+
+
+class Catalogue(BaseModel):
+    """A list of stiff and extreme cases of one base scene."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field("", description="short name (default: the file's name)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    scene: str = Field(description="base scene file, relative to this file")
+    set: dict[str, Any] = Field({}, description="overrides applied to every case")
+    case: list[StabilityCase] = Field(description="the cases", min_length=1)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flatten(cls, data: Any):
+        if isinstance(data, dict) and isinstance(data.get("set"), dict):
+            data = {**data, "set": flatten(data["set"])}
+        return data
+
+    @model_validator(mode="after")
+    def _unique(self):
+        names = [c.name for c in self.case]
+        repeated = next((n for n in names if names.count(n) > 1), None)
+        if repeated:
+            raise ValueError(f"case name {repeated!r} comes twice")
+        return self
+
+
+def job_id(name: str) -> str:
+    return re.sub(r"[^\w.+=-]", "_", name)
+
+
+def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> tuple[Catalogue, Path, list[Job]]:
+    """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case."""
+    from .scene import apply_overrides
+
+    data = read_toml(path)
+    if "case" not in data:
+        raise BadInput("not a stability catalogue (it has no [[case]] list)", path)
+    data.setdefault("name", path.stem)
+    try:
+        catalogue = Catalogue.model_validate(data)
+    except ValidationError as error:
+        raise from_validation_error(error, path, known_keys=Catalogue.model_fields) from None
+    scene_file = path.parent / catalogue.scene
+    if not scene_file.is_file():
+        raise BadInput(f"scene file {catalogue.scene!r} not found (looked for {scene_file})", path, "scene")
+    base = read_scene_data(scene_file)
+    for key, value in catalogue.set.items():
+        try:
+            set_key(base, key, value)
+        except BadInput as error:
+            raise BadInput(error.problem, path, f"set.{key}") from None
+    fixed = {**catalogue.set, **dict(apply_overrides(base, overrides))}
+    jobs = []
+    for case in catalogue.case:
+        data = copy.deepcopy(base)
+        try:
+            for key, value in case.set.items():
+                set_key(data, key, value)
+            scene = scene_from_data(data, scene_file)
+        except BadInput as error:
+            raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {case.name}", error.key)))) from None
+        jobs.append(Job(job_id(case.name), scene, scene_file, overrides_text({**fixed, **case.set}),
+                        {"case_id": case.name, "case_why": case.why, "catalogue_file": str(path.resolve())}))
+    return catalogue, scene_file, jobs
+
+
+def examine(ds: xr.Dataset) -> dict:
+    """Independent checks of a finished run: extremes, bounds, non-finite values."""
+    open_cells = ~ds["obstacle"].values.astype(bool)
+    fields = {name: ds[name].values[:, open_cells] for name in ("phi", "c", "alpha")}
+    times = ds["time"].values
+    k_alpha = float(ds.attrs["k_alpha"])
+    alpha_max = np.nanmax(fields["alpha"], axis=1)
+    bound = 1.0 + np.concatenate([[0.0], np.cumsum(k_alpha * alpha_max[1:] * np.diff(times))])
+    facts = {
+        "nonfinite": int(sum(np.count_nonzero(~np.isfinite(v)) for v in fields.values())),
+        "phi_min": float(np.nanmin(fields["phi"])), "phi_max": float(np.nanmax(fields["phi"])),
+        "phi_bound": float(bound[-1]),
+        "c_min": float(np.nanmin(fields["c"])), "c_max": float(np.nanmax(fields["c"])),
+        "alpha_min": float(np.nanmin(fields["alpha"])),
+        "newton_max": float(np.nanmax(ds["newton_iterations"].values)) if "newton_iterations" in ds else np.nan,
+    }
+    broken = []
+    if facts["nonfinite"]:
+        broken.append(f"{facts['nonfinite']} non-finite values")
+    if facts["c_min"] < -ROUNDOFF or facts["c_max"] > 1 + ROUNDOFF:
+        broken.append(f"c in [{facts['c_min']:.3g}, {facts['c_max']:.3g}]")
+    if facts["alpha_min"] < -ROUNDOFF:
+        broken.append(f"alpha min {facts['alpha_min']:.3g}")
+    phi_max = np.nanmax(fields["phi"], axis=1)
+    if facts["phi_min"] < -ROUNDOFF or np.any(phi_max > bound * (1 + ROUNDOFF) + ROUNDOFF):
+        broken.append(f"phi in [{facts['phi_min']:.3g}, {facts['phi_max']:.6g}], bound {facts['phi_bound']:.6g}")
+    if "p" in ds:
+        solved = ds["newton_iterations"].values >= 0
+        p = ds["p"].values[solved][:, open_cells]
+        if not np.isfinite(p).all():
+            broken.append("p not finite where the mechanics was solved")
+    facts["broken"] = "; ".join(broken)
+    return facts
+
+
+def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
+    """stability.nc: one entry per case with its verdict, counters, extremes and parameters."""
+    rows = []
+    for job in jobs:
+        path = store.case_file(out_dir, job.id)
+        record = store.recorded(path) or {}
+        mechanics = job.scene.mechanics is not None and job.scene.mechanics.enabled
+        row = {"name": job.attrs["case_id"], "why": job.attrs["case_why"], "mechanics": int(mechanics),
+               "cells": int(np.prod(job.scene.grid.shape)), "steps_nominal": job.scene.time.steps,
+               "consumption": job.scene.model.consumption, "advection": job.scene.numerics.advection,
+               **{p: float(getattr(job.scene.params, p)) for p in PARAMETERS}}
+        status = record.get("status", "missing")
+        if status == "done":
+            ds = store.open_dataset(path)
+            facts = examine(ds)
+            row.update({k: v for k, v in facts.items() if k != "broken"})
+            row.update(wall_time=float(ds.attrs["wall_time"]), steps=int(ds.attrs["steps_taken"]),
+                       bisections=int(ds.attrs["steps_bisected"]), rejected=int(ds.attrs["steps_rejected"]))
+            if facts["broken"]:
+                row.update(verdict="failed", ok=0, message=f"bounds broken: {facts['broken']}")
+            else:
+                row.update(verdict="completed", ok=1, message="bounds held")
+        elif status == "failed":
+            message, error = str(record.get("message", "")), str(record.get("error", ""))
+            row.update(wall_time=float(record.get("wall_time", np.nan)))
+            if mechanics and error == "MechanicsError":
+                row.update(verdict="refused", ok=1, message=message)
+            else:
+                row.update(verdict="failed", ok=0, message=f"{error or 'error'}: {message}")
+        else:
+            row.update(verdict="missing", ok=0, message="not run")
+        rows.append(row)
+    return _dataset(rows)
+
+
+NUMBERS = {"ok": ("1", "1 = completed within bounds or refused by the mechanics with a diagnosis"),
+           "wall_time": ("s", "wall time"), "steps": ("1", "accepted steps"),
+           "bisections": ("1", "bisected (failed) steps"), "rejected": ("1", "steps rejected by the error control"),
+           "phi_min": ("1", "smallest phi"), "phi_max": ("1", "largest phi"),
+           "phi_bound": ("1", "upper bound of phi from the k_alpha alpha source"),
+           "c_min": ("1", "smallest c"), "c_max": ("1", "largest c"), "alpha_min": ("1", "smallest alpha"),
+           "nonfinite": ("1", "non-finite values in open cells"),
+           "newton_max": ("1", "most Newton iterations of a mechanics solve")}
+LABELS = {"verdict": "completed, refused (mechanics diagnosis) or failed", "message": "diagnosis or check result",
+          "why": "what the case stresses"}
+COORDS = {"d": "um2/T*", "g": "1/T*", "r": "um/T*", "beta": "um2/T*", "k_alpha": "1/T*", "mu": "Pa",
+          "cells": "1", "steps_nominal": "1", "mechanics": "1"}
+
+
+def _dataset(rows: list[dict]) -> xr.Dataset:
+    data = {}
+    for name, (units, long_name) in NUMBERS.items():
+        data[name] = ("case", np.array([float(r.get(name, np.nan)) for r in rows]),
+                      {"units": units, "long_name": long_name})
+    for name, long_name in LABELS.items():
+        data[name] = ("case", np.array([str(r.get(name, "")) for r in rows], dtype=object),
+                      {"units": "1", "long_name": long_name})
+    coords = {"case": ("case", np.array([r["name"] for r in rows], dtype=object), {"units": "1", "long_name": "case"})}
+    for name, units in COORDS.items():
+        coords[name] = ("case", np.array([r[name] for r in rows]), {"units": units, "long_name": f"{name} of the case"})
+    for name in ("consumption", "advection"):
+        coords[name] = ("case", np.array([r[name] for r in rows], dtype=object), {"units": "1", "long_name": name})
+    return xr.Dataset(data, coords=coords)
+
+
+def run(path: Path, out_dir: Path, overrides=(), workers=None, scheduler=None, notify=None) -> tuple[xr.Dataset, SweepReport]:
+    """Run the catalogue, judge every case, write DIR/stability.nc."""
+    catalogue, scene_file, jobs = load(path, overrides)
+    report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
+    ds = verdicts(jobs, out_dir)
+    ds.attrs = store.legal_attrs({
+        "Conventions": "CF-1.10", "title": f"stability catalogue: {catalogue.name}",
+        "catalogue": path.read_text(encoding="utf-8"), "catalogue_file": str(path.resolve()),
+        "scene_file": str(scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum()),
+        "biostudy_version": store.version(), "created": store.now()})
+    store.write_atomic(ds, out_dir / "stability.nc")
+    return ds, report
+
+
+def table_text(ds: xr.Dataset) -> str:
+    """Markdown table: one row per case."""
+    head = ["case", "what it stresses", "cells", "verdict", "steps", "bisected", "wall s", "phi range", "c range",
+            "diagnosis"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for i in range(ds.sizes["case"]):
+        row = ds.isel(case=i)
+        number = lambda v, f: f.format(float(v)) if np.isfinite(float(v)) else "-"
+        lines.append("| " + " | ".join([
+            str(row.case.values), str(row.why.values), f"{int(row.cells)}", str(row.verdict.values),
+            number(row.steps, "{:.0f}"), number(row.bisections, "{:.0f}"), number(row.wall_time, "{:.2f}"),
+            f"[{number(row.phi_min, '{:.3g}')}, {number(row.phi_max, '{:.4g}')}]",
+            f"[{number(row.c_min, '{:.3g}')}, {number(row.c_max, '{:.3g}')}]",
+            str(row.message.values).replace("|", "/"),
+        ]) + " |")
+    return "\n".join(lines) + "\n"

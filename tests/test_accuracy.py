@@ -1,0 +1,90 @@
+"""`biostudy convergence` and `biostudy stability`: layouts, orders, verdicts, failure detection."""
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from biostudy import stability
+from test_cli import invoke
+
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
+
+
+def test_convergence_of_the_front_scene(tmp_path):
+    """Time refinement of the front scene: implicit Euler's first order, errors falling as cost rises."""
+    out = tmp_path / "conv"
+    result = invoke("convergence", STUDIES / "front.toml", "-o", out, "--levels", "4", "--series", "time,adaptive,space",
+                    "-q", "--set", "time.t_end=0.1", "--set", "time.steps=20")
+    assert result.exit_code == 0, result.output
+    ds = xr.open_dataset(out / "convergence.nc")
+    assert ds.error_phi_L1.dims == ("series", "level") and list(ds.series.values) == ["time", "adaptive", "space"]
+    for name in ("cells", "dt", "wall_time", "error_phi_L1", "error_phi_L2", "error_biofilm_volume", "error_c_mean",
+                 "error_front_position"):
+        assert ds[name].attrs["units"] and ds[name].attrs["long_name"], name
+    time = ds.sel(series="time")
+    assert np.allclose(time.dt.values, 0.1 / (20 * 2 ** np.arange(4)))
+    errors = time.error_phi_L1.values[:-1]
+    assert np.all(np.diff(errors) < 0) and np.isnan(time.error_phi_L1.values[-1])  # the finest is the reference
+    assert 0.8 < ds.attrs["order_time_phi_L1"] < 1.2
+    assert 0.8 < ds.attrs["order_time_front_position"] < 1.2
+    assert ds.attrs["order_time_c_mean"] == "exact"  # no consumption: c is the same linear field at every level
+    assert 0.25 < ds.attrs["order_adaptive_phi_L1"] < 0.75  # local error ~ dt^2 ~ tolerance: global ~ sqrt(tol)
+    assert ds.sel(series="space").cells.values.tolist() == [40, 160, 640, 2560]
+    assert "reference_error_time_phi_L1" in ds.attrs and "finest level" in ds.attrs["reference"]
+    assert (out / "convergence.md").read_text().count("\n") > 12 and (out / "work_precision.png").stat().st_size > 0
+
+    again = invoke("convergence", STUDIES / "front.toml", "-o", out, "--levels", "4", "--series", "time,adaptive,space",
+                   "-q", "--set", "time.t_end=0.1", "--set", "time.steps=20")
+    assert again.exit_code == 0 and "0 runs, " in again.stderr  # every level was finished before
+
+
+def test_convergence_rejects_bad_options(tmp_path):
+    result = invoke("convergence", STUDIES / "front.toml", "-o", tmp_path, "--series", "space,sideways")
+    assert result.exit_code == 2 and result.stderr.startswith("error: --series: unknown series sideways")
+
+
+def test_stability_catalogue_at_reduced_size(tmp_path):
+    """Every case completes within bounds, or (mechanics only) stops with its diagnosis; exit 0."""
+    out = tmp_path / "stab"
+    result = invoke("stability", STUDIES / "stability.toml", "-o", out, "-q", "--set", "grid.shape=[8,8,8]",
+                    "--set", "grid.spacing=2.5", "--set", "time.steps=10")
+    assert result.exit_code in (0, 1), result.output
+    ds = xr.open_dataset(out / "stability.nc")
+    assert ds.sizes["case"] >= 20 and (out / "stability.md").is_file()
+    transport = ds.mechanics.values == 0
+    assert set(ds.verdict.values[transport]) == {"completed"}, ds.message.values[transport]
+    assert set(ds.verdict.values[~transport]) <= {"completed", "refused"}
+    completed = ds.verdict.values == "completed"
+    assert (ds.c_min.values[completed] >= 0).all() and (ds.c_max.values[completed] <= 1).all()
+    assert (ds.phi_max.values[completed] <= ds.phi_bound.values[completed] + 1e-9).all()
+    assert ds.phi_max.sel(case="k_alpha=1") > 1.0  # the expansion source does push phi above 1
+    assert result.exit_code == 0 and ds.ok.all()
+    refused = ds.verdict.values == "refused"
+    assert all(m.startswith("t = ") and " at cell " in m for m in ds.message.values[refused])
+
+
+def test_bounds_check_catches_what_the_solver_must_never_write(tmp_path):
+    """The independent check flags NaN, c above 1 and phi above its source bound."""
+    from solver import Grid, Problem, simulate
+
+    grid = Grid((6, 6), 1.0)
+    x, y = grid.cell_coordinates()
+    ds = simulate(Problem(grid=grid, phi0=(x < 3).astype(float), nutrient_fixed=x > 5, t_end=0.1, steps=5,
+                          output_times=[0, 0.1]))
+    assert stability.examine(ds)["broken"] == ""
+    for corrupt, expected in ((lambda d: d.phi.values.__setitem__((1, 2, 2), np.nan), "non-finite"),
+                              (lambda d: d.c.values.__setitem__((1, 0, 0), 1.01), "c in"),
+                              (lambda d: d.phi.values.__setitem__((1, 3, 3), 1.2), "phi in")):
+        bad = ds.copy(deep=True)
+        corrupt(bad)
+        assert expected in stability.examine(bad)["broken"]
+
+
+def test_stability_bad_catalogue_is_one_line(write_toml):
+    path = write_toml("bad.toml", """\
+        scene = "nowhere.toml"
+        [[case]]
+        name = "a"
+        """)
+    result = invoke("stability", path)
+    assert result.exit_code == 2 and result.stderr.count("\\n") <= 1 and "scene file 'nowhere.toml' not found" in result.stderr
