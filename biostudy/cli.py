@@ -145,8 +145,9 @@ def scenes():
     """List the bundled scenes and studies with their descriptions."""
     directory = catalog.studies_dir()
     table = Table(title=f"bundled scenes and studies in {directory}", show_edge=False)
-    for column in ("file", "kind", "description"):
-        table.add_column(column)
+    table.add_column("file", no_wrap=True)
+    table.add_column("kind", no_wrap=True)
+    table.add_column("description")
     for entry in catalog.entries(directory):
         table.add_row(entry.path.name, entry.kind, entry.description)
     out.print(table)
