@@ -141,6 +141,9 @@ class MechanicsSetup:
     residual_stiffness: relative stiffness of void (phi = 0) cells, weight
         w = eps + (1 - eps) phi^2 on shear and bulk energy.
     every: solve at every n-th output time (and always the last one).
+    linear_solver: preconditioner of the Newton steps' GMRES: "direct"
+        (sparse factorisation), "multigrid" (geometric, on the grid) or
+        "auto" (direct up to 100k dofs, 30³ cells, with PARDISO; multigrid beyond).
     """
 
     clamp: tuple[str, ...] = ()
@@ -149,11 +152,14 @@ class MechanicsSetup:
     every: int = 1
     newton_tolerance: float = 1e-8
     max_newton_iterations: int = 25
+    linear_solver: str = "auto"
 
     def __post_init__(self):
         for face in (*self.clamp, *self.slide):
             if face not in FACES:
                 raise ValueError(f"unknown face {face!r}; faces are {FACES}")
+        if self.linear_solver not in ("auto", "direct", "multigrid"):
+            raise ValueError(f"unknown linear solver {self.linear_solver!r}; use auto, direct or multigrid")
 
 
 @dataclass(frozen=True, eq=False)

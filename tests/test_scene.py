@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import solver
-from biostudy import catalog
+from biostudy import catalog, stability
 from biostudy.errors import BadInput
 from biostudy.scene import Scene, key_info, load_scene, parse_override
 from biostudy.study import load_study
@@ -151,13 +151,17 @@ def test_every_bundled_file_validates():
     entries = catalog.entries()
     assert any(e.kind == "scene" for e in entries) and any(e.kind == "study" for e in entries)
     for entry in entries:
-        assert entry.kind in ("scene", "study"), entry
+        assert entry.kind in ("scene", "study", "stability"), entry
         assert entry.description, entry
         if entry.kind == "scene":
             load_scene(entry.path).problem()
+        elif entry.kind == "study":
+            assert load_study(entry.path).cases
         else:
-            plan = load_study(entry.path)
-            assert plan.cases
+            _, _, jobs = stability.load(entry.path)
+            assert jobs
+            for job in jobs:
+                job.scene.problem()
 
 
 def test_directional_scene_is_the_papers_4_1():
