@@ -60,7 +60,7 @@ def main() -> None:
     parser.add_argument("--advection", choices=["upwind", "tvd"], help="default: the scene's")
     parser.add_argument("--reference-steps", type=int, default=8000)
     args = parser.parse_args()
-    common = ["time.outputs=11"] + ([f"numerics.advection=\"{args.advection}\""] if args.advection else [])
+    common = ["time.outputs=11", "mechanics.enabled=false"] + ([f"numerics.advection=\"{args.advection}\""] if args.advection else [])
     reference, seconds = run(common + [f"time.steps={args.reference_steps}"])
     scheme = reference.attrs["advection"]
     print(f"directional scene 20^3, T* = 1, advection = {scheme}; reference: {args.reference_steps} fixed steps "

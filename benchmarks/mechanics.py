@@ -3,6 +3,7 @@
     python benchmarks/mechanics.py                          # 20^3 and 40^3, k = 1e-3 and 1e-2, auto solver
     python benchmarks/mechanics.py --sizes 20 --solvers direct multigrid --k 1e-2
     python benchmarks/mechanics.py --sizes 20 --solvers direct-superlu auto-superlu   # without pypardiso
+    python benchmarks/mechanics.py --in-run 20              # every snapshot of the bundled scene's own run
 
 Scene: a cube of 20 µm in n^3 cells, phi = 1 in a sphere of radius 5 µm at the
 centre, smoothed over one cell (phi = clip(1/2 - (r - 5)/h, 0, 1)),
@@ -13,6 +14,11 @@ pattern), the first snapshot from rest, and a second one warm-started from it
 with alpha grown by 10 % (what the time loop does), each with its Newton and
 GMRES iterations and preconditioner builds.  Asserts nothing: a table for
 docs/mechanics.md.
+
+--in-run N runs the bundled directional scene (studies/directional.toml,
+TVD, 200 steps to T* = 1) on N^3 cells with the mechanics at every 0.2 T*
+and prints each snapshot's cost: there phi itself moves between snapshots,
+which the static cases above leave out.
 """
 from __future__ import annotations
 
@@ -61,6 +67,22 @@ def measure(n: int, k: float, solver: str) -> dict:
     return out
 
 
+def in_run(n: int) -> None:
+    from biostudy import catalog
+    from biostudy.scene import load_scene
+    from solver import evolve
+
+    scene = load_scene(catalog.resolve("directional"), [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}",
+                                                        "time.steps=200", "time.outputs=6", "mechanics.every=1"])
+    print(f"directional scene {n}^3 in its time loop: mechanics at every output")
+    print(f"{'T*':>4} {'seconds':>8} {'newton':>6} {'gmres':>5} {'builds':>6} {'load steps':>10} {'cutbacks':>8}")
+    for snapshot in evolve(scene.problem()):
+        m = snapshot.mechanics
+        if m.get("newton_iterations", 0) or snapshot.time > 0:
+            print(f"{snapshot.time:>4.1f} {m['seconds']:>8.2f} {m['newton_iterations']:>6} {m['gmres_iterations']:>5} "
+                  f"{m['preconditioner_builds']:>6} {m['load_steps']:>10} {m['load_cutbacks']:>8}", flush=True)
+
+
 def run_case(n: int, k: float, solver: str) -> dict:
     """One case in a fresh process, under /usr/bin/time -v when it is there."""
     command = [sys.executable, __file__, "--case", str(n), str(k), solver]
@@ -83,7 +105,11 @@ def main():
     parser.add_argument("--solvers", nargs="+", default=["auto"],
                         choices=["auto", "direct", "multigrid", "auto-superlu", "direct-superlu", "multigrid-superlu"])
     parser.add_argument("--case", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--in-run", type=int, metavar="N", help="snapshots of the directional scene's run on N^3")
     args = parser.parse_args()
+    if args.in_run:
+        in_run(args.in_run)
+        return
     if args.case:
         n, k, solver = int(args.case[0]), float(args.case[1]), args.case[2]
         print(json.dumps(measure(n, k, solver)))

@@ -38,7 +38,7 @@ def write_study(directory: Path, name: str, scene_overrides: dict, values: list[
     shutil.copy(catalog.resolve("directional"), scene)
     fixed = "\n".join(f'"{k}" = {v}' for k, v in scene_overrides.items())
     path = directory / f"{name}.toml"
-    path.write_text(f'scene = "directional.toml"\n[set]\n{fixed}\n[sweep]\nr = {values}\n')
+    path.write_text(f'scene = "directional.toml"\n[set]\n"mechanics.enabled" = false\n"numerics.advection" = "upwind"\n{fixed}\n[sweep]\nr = {values}\n')
     return path
 
 

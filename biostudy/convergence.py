@@ -201,7 +201,9 @@ def measure(wanted: list[Level], out_dir: Path, levels: int, series: tuple[str, 
         steps = _successive(mine, results)
         for q in QUANTITIES:
             differences = np.array([d[q] for d in steps])
-            if differences.size and np.nanmax(differences, initial=0.0) < EXACT:
+            if differences.size == 0 or np.all(np.isnan(differences)):
+                continue  # not measured (p without mechanics)
+            if np.nanmax(differences, initial=0.0) < EXACT:
                 attrs[f"order_{name}_{q}"] = "exact"
                 continue
             order = measures.observed_order(sizes[: differences.size], differences)

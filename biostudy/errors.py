@@ -17,7 +17,7 @@ from pydantic import ValidationError
 
 # Tags of the shape union: pydantic puts them into error locations
 # (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.
-SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask"})
+SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
 
 
 class BadInput(Exception):
@@ -101,7 +101,7 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
         return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {show(given)})"
     if kind == "union_tag_not_found":
-        return "", "needs a 'shape' key (box, sphere, cylinder or mask)"
+        return "", "needs a 'shape' key (box, sphere, cylinder or mask; obstacles also maze or grate)"
     message = error["msg"]
     for before, after in (("Input should be", "must be"), ("List should have", "must have"),
                           ("Value should have", "must have")):

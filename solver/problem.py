@@ -143,14 +143,14 @@ class MechanicsSetup:
     every: solve at every n-th output time (and always the last one).
     linear_solver: preconditioner of the Newton steps' GMRES: "direct"
         (sparse factorisation), "multigrid" (geometric, on the grid) or
-        "auto" (direct up to 100k dofs, 30³ cells, with PARDISO; multigrid beyond).
+        "auto" (direct with PARDISO up to 250k dofs, 40³ cells; multigrid beyond).
     """
 
     clamp: tuple[str, ...] = ()
     slide: tuple[str, ...] = ()
     residual_stiffness: float = 1e-4
     every: int = 1
-    newton_tolerance: float = 1e-8
+    newton_tolerance: float = 1e-6
     max_newton_iterations: int = 25
     linear_solver: str = "auto"
 

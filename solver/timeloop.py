@@ -167,7 +167,7 @@ class Run:
         result = self.mechanics.solve(np.nan_to_num(snapshot.phi), np.nan_to_num(snapshot.alpha), snapshot.time)
         self.transport.timings["mechanics"] += time.perf_counter() - began
         snapshot.u, snapshot.p = result.u, result.p
-        snapshot.mechanics = {"newton_iterations": result.newton_iterations, **result.info}
+        snapshot.mechanics = {"newton_iterations": result.newton_iterations, "seconds": result.seconds, **result.info}
 
     def report(self) -> dict:
         """What the run cost: wall time, counters, where the time went."""

@@ -117,7 +117,7 @@ def test_multigrid_and_direct_agree():
 @pytest.mark.parametrize("shape", [(5, 4, 3), (7, 5)])
 def test_multigrid_handles_odd_cell_counts(shape):
     grid = Grid(shape, 1.0)
-    mech = GrowthMechanics(grid, PARAMS, MechanicsSetup(linear_solver="multigrid"), coarsest=20)
+    mech = GrowthMechanics(grid, PARAMS, MechanicsSetup(linear_solver="multigrid", newton_tolerance=1e-12), coarsest=20)
     result = mech.solve(np.ones(grid.cells_shape), np.full(grid.cells_shape, 0.02), 0.3)
     positions = np.stack(np.meshgrid(*(grid.nodes(a) for a in reversed(grid.axes)), indexing="ij")[::-1], -1)
     if grid.ndim == 3:

@@ -83,10 +83,18 @@ def field_names(ds: xr.Dataset, variable: str | None) -> list[str]:
 
 
 def snapshot_indices(ds: xr.Dataset, time: float | None, count: int = 4) -> list[int]:
-    """Output indices to draw: `count` spread over the run, or the output nearest to `time`."""
+    """Output indices to draw: `count` spread over the run, or the output nearest to `time`.
+
+    When the run has p but solved the mechanics only at some outputs (`[mechanics] every`), the
+    spread is taken over those outputs, so that every drawn column has its p."""
     times = ds["time"].values
     if time is None:
-        return sorted({int(round(i)) for i in np.linspace(0, times.size - 1, min(count, times.size))})
+        candidates = np.arange(times.size)
+        if "p" in ds.data_vars:
+            solved = np.flatnonzero(ds["p"].notnull().any([d for d in ds["p"].dims if d != "time"]).values)
+            candidates = solved if solved.size >= min(count, times.size) else candidates
+        picks = np.linspace(0, candidates.size - 1, min(count, candidates.size))
+        return sorted({int(candidates[int(round(i))]) for i in picks})
     slack = 1e-9 * max(1.0, abs(times[-1]))
     if not times[0] - slack <= time <= times[-1] + slack:
         raise ValueError(f"time {time:g} is outside the run (T* from {times[0]:g} to {times[-1]:g})")

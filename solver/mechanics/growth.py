@@ -10,8 +10,8 @@ are interpolated linearly and Newton starts from the previous step's u.  The
 full step s = 1 is tried first; when Newton fails (an element would invert,
 no descent, no convergence) the step is halved, and after a success it grows
 again.  Below 1/64 of the way the solve gives up with a `MechanicsError`
-naming the time and the worst cell.  At the very first solve the start is
-alpha = 0, u = 0, which is an equilibrium for any phi.
+naming the time and the worst cell.  As long as nothing has grown the start is
+alpha = 0, u = 0, which is an equilibrium for any phi: then only alpha is stepped.
 
 2-D scenes are in plane strain: u_z = 0 and F_zz = 1.  The biofilm still
 grows in z (Jg = (1 + alpha)^3), but cannot expand there, so even uniform
@@ -111,7 +111,8 @@ class GrowthMechanics:
         alpha1 = self._element_values("alpha", alpha, time)
         if np.any(alpha1 <= -1.0):
             raise MechanicsError(time, "alpha <= -1 (no volume left)", self._cell(int(np.argmin(alpha1))))
-        phi0 = phi1 if self.phi is None else self.phi
+        # with no growth yet (alpha = 0, u = 0) the start is an equilibrium for any phi: start from phi1
+        phi0 = phi1 if self.phi is None or not np.any(self.alpha) else self.phi
         alpha0 = self.alpha
         tol, max_its = self.setup.newton_tolerance, self.setup.max_newton_iterations
         # force scale of the tolerance: the growth load at u = 0, reactions included (a fully
@@ -120,7 +121,7 @@ class GrowthMechanics:
         builds0, gmres0 = self.linear.builds, self.linear.iterations
 
         u, s, ds = self.u.copy(), 0.0, 1.0
-        tangent = self.tangent
+        tangent = self.tangent if np.any(alpha0) else None
         if tangent is None:  # alpha = 0, u = 0: the stress-free (linear-elastic) tangent
             tangent = self._evaluator(phi0, np.zeros_like(alpha0))(u, True).matrix
         history, iterations, steps, cutbacks = [], 0, 0, 0

@@ -11,8 +11,9 @@ and rebuilds it from the current tangent only when GMRES needs more than
 Preconditioners ("method"):
 * "direct": a sparse factorisation of the tangent, PARDISO (pypardiso,
   symmetric indefinite, x86_64 only) or SuperLU elsewhere.  Fastest up to
-  ~100k dofs; at 40^3 (207k dofs) a snapshot costs 46 s and 3.8 GB peak
-  (docs/mechanics.md), against 51 s and 1.8 GB with multigrid.
+  250k dofs; at 40^3 (207k dofs) a snapshot costs 40 s and 3.8 GB peak
+  (docs/mechanics.md), against 30 s and 1.8 GB with multigrid at alpha = 1e-3;
+  but at alpha = 1e-2 the prestressed, indefinite tangent defeats the V-cycle.
 * "multigrid": `multigrid.Multigrid` V-cycles, direct solve on the coarsest
   level.  Cost grows about linearly with the dofs.
 * "auto": direct when PARDISO is there and the problem has at most
@@ -81,7 +82,7 @@ class TangentSolver:
     """GMRES with a reused preconditioner (direct factorisation or multigrid)."""
 
     def __init__(self, method: str, n_dofs: int, multigrid_factory, modes: np.ndarray | None = None,
-                 direct_limit: int = 100_000, rebuild_after: int = 40, max_iterations: int = 150):
+                 direct_limit: int = 250_000, rebuild_after: int | None = None, max_iterations: int = 150):
         if method == "auto":
             method = "direct" if (pypardiso is not None and n_dofs <= direct_limit) or n_dofs <= 5_000 else "multigrid"
         if method not in ("direct", "multigrid"):
@@ -92,7 +93,9 @@ class TangentSolver:
         self.safety = 1.0 if method == "direct" else 0.3
         self.direct = DirectSolver()
         self.multigrid = multigrid_factory(self.direct) if method == "multigrid" else None
-        self.rebuild_after = rebuild_after
+        # a stale factorisation shows in the iteration count (rebuild early: a PARDISO factorisation
+        # costs ~25 iterations at 20^3); a V-cycle needs ~20 iterations whatever its age
+        self.rebuild_after = rebuild_after or (12 if method == "direct" else 40)
         self.max_iterations = max_iterations
         self.fresh = False  # preconditioner built from the matrix being solved
         self.ready = False
