@@ -224,7 +224,8 @@ def characteristic_solution(x, t, phi_initial, r, k, c_slope, c_offset):
     from scipy.optimize import brentq
 
     def travel(start, end):
-        return (end - start + k / c_slope * np.log((c_offset + c_slope * end) / (c_offset + c_slope * start))) / r
+        with np.errstate(divide="ignore"):  # end where c = 0 (the held cell): log 0 = -inf, nothing moves
+            return (end - start + k / c_slope * np.log((c_offset + c_slope * end) / (c_offset + c_slope * start))) / r
 
     exact = np.empty_like(x)
     lowest = -c_offset / c_slope + 1e-12
