@@ -111,8 +111,7 @@ def sweep(
         from . import runner
         from .study import load_study
 
-        if workers and scheduler:
-            raise BadInput("give --workers or --scheduler, not both", "--workers")
+        _one_pool(workers, scheduler)
         plan = load_study(catalog.resolve(study), overrides)
         directory = output or Path(plan.study.name)
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
@@ -230,8 +229,7 @@ def convergence(
         from .plots.accuracy import work_precision
         from .scene import apply_overrides, read_scene_data
 
-        if workers and scheduler:
-            raise BadInput("give --workers or --scheduler, not both", "--workers")
+        _one_pool(workers, scheduler)
         chosen = tuple(s.strip() for s in series.split(",") if s.strip())
         unknown = [s for s in chosen if s not in study.SERIES]
         if unknown or not chosen:
@@ -252,6 +250,12 @@ def convergence(
         if report.failed:
             raise _fail(f"{len(report.failed)} levels failed: "
                         + "; ".join(f"{k}: {v}" for k, v in list(report.failed.items())[:3]), 1)
+
+
+def _one_pool(workers: int | None, scheduler: str | None) -> None:
+    """Jobs run on local processes or on a Dask cluster, not both."""
+    if workers and scheduler:
+        raise BadInput("give --workers or --scheduler, not both", "--workers")
 
 
 @contextlib.contextmanager
@@ -284,8 +288,7 @@ def stability(
     with _guarded():
         from . import stability as catalogue_run
 
-        if workers and scheduler:
-            raise BadInput("give --workers or --scheduler, not both", "--workers")
+        _one_pool(workers, scheduler)
         path = catalog.resolve(catalogue)
         directory = output or Path(f"{path.stem}-results")
         with _job_progress(f"stability {path.stem}", quiet) as notify:

@@ -19,26 +19,25 @@ workers, a Dask cluster, resume) and gets a verdict:
 """
 from __future__ import annotations
 
-import copy
 import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import ConfigDict, Field, ValidationError, model_validator
 
 from . import store
 from .errors import BadInput, from_validation_error, read_toml
 from .runner import Job, SweepReport, run_jobs
-from .scene import Scene, overrides_text, read_scene_data, scene_from_data, set_key
-from .study import flatten
+from .scene import overrides_text
+from .study import FlatSet, base_scene, case_scene
 
 ROUNDOFF = 1e-9
 PARAMETERS = ("d", "g", "r", "beta", "k_alpha", "mu")
 
 
-class StabilityCase(BaseModel):
+class StabilityCase(FlatSet):
     """One stiff or extreme case: overrides of the base scene."""
 
     model_config = ConfigDict(extra="forbid")
@@ -46,15 +45,8 @@ class StabilityCase(BaseModel):
     why: str = Field("", description="what the case stresses")
     set: dict[str, Any] = Field({}, description="overrides (dotted keys, like --set)")
 
-    @model_validator(mode="before")
-    @classmethod
-    def _flatten(cls, data: Any):
-        if isinstance(data, dict) and isinstance(data.get("set"), dict):
-            data = {**data, "set": flatten(data["set"])}
-        return data
 
-
-class Catalogue(BaseModel):
+class Catalogue(FlatSet):
     """A list of stiff and extreme cases of one base scene."""
 
     model_config = ConfigDict(extra="forbid")
@@ -63,13 +55,6 @@ class Catalogue(BaseModel):
     scene: str = Field(description="base scene file, relative to this file")
     set: dict[str, Any] = Field({}, description="overrides applied to every case")
     case: list[StabilityCase] = Field(description="the cases", min_length=1)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _flatten(cls, data: Any):
-        if isinstance(data, dict) and isinstance(data.get("set"), dict):
-            data = {**data, "set": flatten(data["set"])}
-        return data
 
     @model_validator(mode="after")
     def _unique(self):
@@ -86,8 +71,6 @@ def job_id(name: str) -> str:
 
 def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> tuple[Catalogue, Path, list[Job]]:
     """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case."""
-    from .scene import apply_overrides
-
     data = read_toml(path)
     if "case" not in data:
         raise BadInput("not a stability catalogue (it has no [[case]] list)", path)
@@ -96,25 +79,10 @@ def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> tuple[Catal
         catalogue = Catalogue.model_validate(data)
     except ValidationError as error:
         raise from_validation_error(error, path, known_keys=Catalogue.model_fields) from None
-    scene_file = path.parent / catalogue.scene
-    if not scene_file.is_file():
-        raise BadInput(f"scene file {catalogue.scene!r} not found (looked for {scene_file})", path, "scene")
-    base = read_scene_data(scene_file)
-    for key, value in catalogue.set.items():
-        try:
-            set_key(base, key, value)
-        except BadInput as error:
-            raise BadInput(error.problem, path, f"set.{key}") from None
-    fixed = {**catalogue.set, **dict(apply_overrides(base, overrides))}
+    scene_file, base, fixed = base_scene(path, catalogue.scene, catalogue.set, overrides)
     jobs = []
     for case in catalogue.case:
-        data = copy.deepcopy(base)
-        try:
-            for key, value in case.set.items():
-                set_key(data, key, value)
-            scene = scene_from_data(data, scene_file)
-        except BadInput as error:
-            raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {case.name}", error.key)))) from None
+        scene = case_scene(base, case.set, scene_file, path, case.name)
         jobs.append(Job(job_id(case.name), scene, scene_file, overrides_text({**fixed, **case.set}),
                         {"case_id": case.name, "case_why": case.why, "catalogue_file": str(path.resolve())}))
     return catalogue, scene_file, jobs

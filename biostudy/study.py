@@ -117,7 +117,18 @@ class Sweep(BaseModel):
         return self
 
 
-class Study(BaseModel):
+class FlatSet(BaseModel):
+    """A model with a `set` table of overrides, which may be written as nested tables: read as dotted keys."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flatten_set(cls, data: Any):
+        if isinstance(data, dict) and isinstance(data.get("set"), dict):
+            data = {**data, "set": flatten(data["set"])}
+        return data
+
+
+class Study(FlatSet):
     """Many cases of one base scene (SPEC 3)."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
@@ -126,13 +137,6 @@ class Study(BaseModel):
     scene: str = Field(description="base scene file, relative to this study file")
     set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
     sweep: Sweep
-
-    @model_validator(mode="before")
-    @classmethod
-    def _flatten_set(cls, data: Any):
-        if isinstance(data, dict) and isinstance(data.get("set"), dict):
-            data = {**data, "set": flatten(data["set"])}
-        return data
 
 
 @dataclass(frozen=True)
@@ -185,6 +189,32 @@ class Plan:
         return self.study.sweep.mode
 
 
+def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
+    """The raw data of the base scene a study or catalogue file names, with its [set] and the --set
+    overrides applied; returns (scene file, data, the overrides applied to every case)."""
+    scene_file = path.parent / scene
+    if not scene_file.is_file():
+        raise BadInput(f"scene file {scene!r} not found (looked for {scene_file})", path, "scene")
+    data = read_scene_data(scene_file)
+    for key, value in fixed_set.items():
+        try:
+            set_key(data, key, value)
+        except BadInput as error:
+            raise BadInput(error.problem, path, f"set.{key}") from None
+    return scene_file, data, {**fixed_set, **dict(apply_overrides(data, overrides))}
+
+
+def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, label: str) -> Scene:
+    """One case's validated scene: the base data with the case's values; errors name the case."""
+    data = copy.deepcopy(base_data)
+    try:
+        for key, value in values.items():
+            set_key(data, key, value)
+        return scene_from_data(data, scene_file)
+    except BadInput as error:
+        raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {label}", error.key)))) from None
+
+
 def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
     """Read a study file, its base scene and every case; any bad input is a `BadInput`."""
     path = Path(path)
@@ -196,32 +226,12 @@ def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) ->
         study = Study.model_validate(data)
     except ValidationError as error:
         raise from_validation_error(error, path, known_keys=Study.model_fields) from None
-    scene_file = path.parent / study.scene
-    if not scene_file.is_file():
-        raise BadInput(f"scene file {study.scene!r} not found (looked for {scene_file})", path, "scene")
-    base_data = read_scene_data(scene_file)
-    fixed = {}
-    for key, value in study.set.items():
-        try:
-            set_key(base_data, key, value)
-        except BadInput as error:
-            raise BadInput(error.problem, path, f"set.{key}") from None
-        fixed[key] = value
-    fixed.update(apply_overrides(base_data, overrides))
+    scene_file, base_data, fixed = base_scene(path, study.scene, study.set, overrides)
     base = scene_from_data(base_data, scene_file)
     cases = expand(study.sweep)
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)
     if repeated:
         raise BadInput(f"case {repeated} comes twice", path, "sweep")
-    scenes = {}
-    for case in cases:
-        case_data = copy.deepcopy(base_data)
-        try:
-            for key, value in case.values.items():
-                set_key(case_data, key, value)
-            scenes[case.id] = scene_from_data(case_data, scene_file)
-        except BadInput as error:
-            where = ": ".join(filter(None, (f"case {case.id}", error.key)))
-            raise BadInput(error.problem, path, where) from None
+    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.id) for case in cases}
     return Plan(path, study, scene_file, base, cases, scenes, fixed)

@@ -35,7 +35,6 @@ def start() -> None:
     """Initializer of local worker processes: the parent handles Ctrl-C and ends the workers, so a
     worker must not die mid-task on its own; the solver is imported while the parent prepares."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    os.environ.setdefault("FIPY_SOLVERS", "scipy")
     import solver.output  # noqa: F401  (FiPy, xarray: a second of imports before the first case arrives)
 
 
