@@ -27,35 +27,30 @@ import meshio
 import numpy as np
 import xarray as xr
 
+from solver import Grid
+from solver.problem import AXES
+
 CELL_FIELDS = ("phi", "c", "alpha", "p")
 SNAPSHOT = "snapshot_{:04d}.vtu"
 COLLECTION = "series.pvd"
 
 
-def _node_axes(ds: xr.Dataset, axes: tuple[str, ...]) -> list[np.ndarray]:
-    """Node coordinates along each axis: stored, or the faces between the cell centres."""
-    nodes = []
-    for a in axes:
-        if f"{a}_node" in ds.coords:
-            nodes.append(np.asarray(ds[f"{a}_node"].values, dtype=float))
-            continue
-        centres = np.asarray(ds[a].values, dtype=float)
-        h = centres[1] - centres[0] if centres.size > 1 else float(ds.attrs.get("grid_spacing", 1.0))
-        nodes.append(np.append(centres - 0.5 * h, centres[-1] + 0.5 * h))
-    return nodes
+def _grid(ds: xr.Dataset) -> Grid:
+    """The run's solver grid (cubic cells, origin at 0): shape from the fields, spacing as recorded."""
+    axes = [a for a in AXES if a in ds.dims]
+    x = np.asarray(ds["x"].values, dtype=float)
+    spacing = ds.attrs.get("grid_spacing", x[1] - x[0] if x.size > 1 else 1.0)
+    return Grid(tuple(ds.sizes[a] for a in axes), float(spacing))
 
 
-def _lattice(ds: xr.Dataset):
+def _lattice(grid: Grid):
     """All grid nodes (n, 3) and every cell's node indices, cells in the (z, y, x) C order of the fields."""
-    axes = ("x", "y", "z") if "z" in ds.dims else ("x", "y")
-    nodes = _node_axes(ds, axes)
-    shape = tuple(len(n) for n in reversed(nodes))  # node array shape (z, y, x) or (y, x)
-    grids = np.meshgrid(*reversed(nodes), indexing="ij")
-    points = np.zeros((grids[0].size, 3))
-    for k, g in enumerate(reversed(grids)):  # x, y[, z]
+    nodes = np.meshgrid(*(grid.nodes(a) for a in reversed(grid.axes)), indexing="ij")  # (z, y, x) order
+    points = np.zeros((nodes[0].size, 3))
+    for k, g in enumerate(reversed(nodes)):  # x, y[, z]
         points[:, k] = g.ravel()
-    n = np.arange(points.shape[0]).reshape(shape)  # node number at (k, j, i)
-    if len(axes) == 3:
+    n = np.arange(points.shape[0]).reshape(grid.nodes_shape)  # node number at (k, j, i)
+    if grid.ndim == 3:
         # VTK hexahedron: bottom face counter-clockwise, then the top face
         corners = [n[:-1, :-1, :-1], n[:-1, :-1, 1:], n[:-1, 1:, 1:], n[:-1, 1:, :-1],
                    n[1:, :-1, :-1], n[1:, :-1, 1:], n[1:, 1:, 1:], n[1:, 1:, :-1]]
@@ -68,6 +63,7 @@ def _lattice(ds: xr.Dataset):
 
 
 def _check(ds: xr.Dataset):
+    """Refuse, with a one-line reason, what is not one run's fields (a sweep, a time series only)."""
     if "phi" not in ds or "x" not in ds.dims:
         raise ValueError("export needs a run's dataset with cell fields (phi on time, [z,] y, x)")
     extra = set(ds["phi"].dims) - {"time", "z", "y", "x"}
@@ -81,8 +77,9 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
     _check(ds)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    cell_dims = ("z", "y", "x") if "z" in ds.dims else ("y", "x")
-    points, cells, kind = _lattice(ds)
+    grid = _grid(ds)
+    cell_dims = tuple(reversed(grid.axes))
+    points, cells, kind = _lattice(grid)
     open_cells = (np.ones(cells.shape[0], bool) if "obstacle" not in ds
                   else ~ds["obstacle"].transpose(*cell_dims).values.astype(bool).ravel())
     cells = cells[open_cells]

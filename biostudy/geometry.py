@@ -73,6 +73,13 @@ class Shape(BaseModel):
             raise InvalidAt("", "contains no cell centre (cells belong to a shape when their centre is inside)")
 
 
+def _from_gaps(gaps: list[np.ndarray]) -> np.ndarray:
+    """Signed distance to an intersection of slabs, each given by its signed gap (> 0 outside):
+    the Euclidean length of the positive gaps outside, the largest gap inside."""
+    outside = np.sqrt(sum(np.maximum(g, 0.0) ** 2 for g in gaps))
+    return outside + np.minimum(np.maximum.reduce(gaps), 0.0)
+
+
 class Box(Shape):
     """Axis-aligned box between two corners."""
 
@@ -100,9 +107,8 @@ class Box(Shape):
         return inside
 
     def distance(self, grid):
-        gaps = [np.maximum(low - q, q - high) for q, low, high in zip(grid.cell_coordinates(), self.lower, self.upper)]
-        outside = np.sqrt(sum(np.maximum(g, 0.0) ** 2 for g in gaps))
-        return outside + np.minimum(np.maximum.reduce(gaps), 0.0)
+        return _from_gaps([np.maximum(low - q, q - high)
+                           for q, low, high in zip(grid.cell_coordinates(), self.lower, self.upper)])
 
 
 class Sphere(Shape):
@@ -160,8 +166,7 @@ class Cylinder(Shape):
         gaps = [radial - self.radius]
         if along < grid.ndim and self.length is not None:
             gaps.append(np.abs(coords[along] - self.center[along]) - 0.5 * self.length)
-        outside = np.sqrt(sum(np.maximum(g, 0.0) ** 2 for g in gaps))
-        return outside + np.minimum(np.maximum.reduce(gaps), 0.0)
+        return _from_gaps(gaps)
 
 
 class Mask(Shape):

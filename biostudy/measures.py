@@ -44,10 +44,11 @@ def field_errors(field: np.ndarray, reference: np.ndarray) -> tuple[float, float
     return float(np.mean(np.abs(diff))), float(np.sqrt(np.mean(diff**2)))
 
 
-def _centroid(mask: np.ndarray, centres: list[np.ndarray]) -> np.ndarray | None:
+def centroid(mask: np.ndarray, centres: list[np.ndarray]) -> np.ndarray | None:
+    """Centre (µm) of a cell mask, in the mask's axis order given by `centres`; None for an empty mask."""
     if not mask.any():
         return None
-    grids = np.meshgrid(*centres, indexing="ij")  # (z, y, x) order like the fields
+    grids = np.meshgrid(*centres, indexing="ij")  # the mask's axis order
     return np.array([g[mask].mean() for g in grids])
 
 
@@ -56,8 +57,8 @@ def front_position(ds: xr.Dataset, time_index: int = -1) -> float:
     dims = [d for d in ("z", "y", "x") if d in ds.dims]
     centres = [ds[d].values for d in dims]
     h = float(centres[-1][1] - centres[-1][0])
-    start = _centroid(ds["phi"].isel(time=0).values >= THRESHOLD, centres)
-    source = _centroid(ds["nutrient_source"].values.astype(bool), centres)
+    start = centroid(ds["phi"].isel(time=0).values >= THRESHOLD, centres)
+    source = centroid(ds["nutrient_source"].values.astype(bool), centres)
     if start is None or source is None or np.allclose(start, source):
         return float("nan")
     direction = (source - start) / np.linalg.norm(source - start)

@@ -1,9 +1,10 @@
-"""Shared fixtures: tiny scene and study files for the study-service tests (biostudy/)."""
+"""Shared fixtures: tiny scene and study files, and tiny runs for the picture and export tests."""
 from __future__ import annotations
 
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 # A 2-D 16 x 16 scene of 20 steps: ~0.1 s to simulate, yet every part of a scene is there.
@@ -68,3 +69,43 @@ def tiny_study(write_toml, tiny_scene) -> Path:
         g = [1e8, 1e9]
         r = [50.0, 100.0]
         """)
+
+
+@pytest.fixture(scope="session")
+def tiny_run():
+    """tiny_run(shape, spacing=1.0) -> the dataset of a few steps of a blob growing toward a source in the
+    far corner cell, with an obstacle block (x, y < 2 cells) in the near corner; for picture and export tests."""
+    from solver import Grid, Problem, simulate
+
+    def run(shape, spacing=1.0):
+        grid = Grid(shape, spacing)
+        coords = grid.cell_coordinates()
+        centre = [0.5 * n * spacing for n in shape]
+        phi0 = (sum((q - m) ** 2 for q, m in zip(coords, centre)) <= (2 * spacing) ** 2).astype(float)
+        held = np.logical_and.reduce([q > (n - 1) * spacing for q, n in zip(coords, shape)])
+        blocked = np.logical_and.reduce([q < 2 * spacing for q in coords[:2]])
+        return simulate(Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_fixed=held,
+                                obstacle=blocked, t_end=0.02, steps=4, output_times=[0, 0.01, 0.02], name="tiny"))
+
+    return run
+
+
+@pytest.fixture(scope="session")
+def with_mechanics():
+    """with_mechanics(ds, unsolved=None) -> a run's dataset with p (Pa, cells) and u (µm, nodes) added in the
+    layout of SPEC 5, distinct in every entry; both NaN at output index `unsolved` (mechanics not solved)."""
+
+    def add(ds, unsolved=None):
+        ds = ds.copy()
+        cell_dims = [d for d in ("z", "y", "x") if d in ds.dims]
+        ds["p"] = (-10.0 * ds["phi"] + ds["x"] * 0.1).assign_attrs(units="Pa", long_name="hydrostatic stress")
+        nodes = {f"{d}_node": np.arange(ds.sizes[d] + 1) * ds.attrs["grid_spacing"] for d in cell_dims}
+        shape = (ds.sizes["time"], *(v.size for v in nodes.values()), len(cell_dims))
+        u = np.random.default_rng(1).normal(size=shape)
+        if unsolved is not None:
+            ds["p"][dict(time=unsolved)] = np.nan
+            u[unsolved] = np.nan
+        ds["u"] = (("time", *nodes, "component"), u, {"units": "um", "long_name": "displacement"})
+        return ds.assign_coords(nodes).assign_coords(component=list("xyz"[: len(cell_dims)]))
+
+    return add

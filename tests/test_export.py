@@ -7,45 +7,18 @@ import pytest
 import xarray as xr
 
 from biostudy.export import export
-from solver import Grid, Problem, simulate
 
 H = 1.5  # µm: a spacing other than 1 so that index and coordinate mix-ups show
 
 
-def tiny_run(shape):
-    """A few steps of a blob growing toward a corner source, an obstacle block in the opposite corner."""
-    grid = Grid(shape, H)
-    coords = grid.cell_coordinates()
-    phi0 = (sum((q - 0.5 * n * H) ** 2 for q, n in zip(coords, shape)) <= (2 * H) ** 2).astype(float)
-    held = np.logical_and.reduce([q > (n - 1) * H for q, n in zip(coords, shape)])
-    blocked = np.logical_and.reduce([q < 2 * H for q in coords[:2]])
-    return simulate(Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_fixed=held, obstacle=blocked,
-                            t_end=0.02, steps=4, output_times=[0, 0.01, 0.02], name="tiny"))
-
-
-def with_mechanics(ds, unsolved=None):
-    """Test data in the layout of SPEC 5: p (Pa) on cells and u (µm) on nodes, distinct in every entry."""
-    ds = ds.copy()
-    cell_dims = [d for d in ("z", "y", "x") if d in ds.dims]
-    ds["p"] = (-10.0 * ds["phi"] + ds["x"] * 0.1).assign_attrs(units="Pa", long_name="hydrostatic stress")
-    nodes = {f"{d}_node": np.arange(ds.sizes[d] + 1) * H for d in cell_dims}
-    shape = (ds.sizes["time"], *(v.size for v in nodes.values()), len(cell_dims))
-    u = np.random.default_rng(1).normal(size=shape)
-    if unsolved is not None:
-        ds["p"][dict(time=unsolved)] = np.nan
-        u[unsolved] = np.nan
-    ds["u"] = (("time", *nodes, "component"), u, {"units": "um", "long_name": "displacement"})
-    return ds.assign_coords(nodes).assign_coords(component=list("xyz"[: len(cell_dims)]))
+@pytest.fixture(scope="module")
+def run3d(tiny_run):
+    return tiny_run((6, 5, 4), H)
 
 
 @pytest.fixture(scope="module")
-def run3d():
-    return tiny_run((6, 5, 4))
-
-
-@pytest.fixture(scope="module")
-def run2d():
-    return tiny_run((7, 5))
+def run2d(tiny_run):
+    return tiny_run((7, 5), H)
 
 
 def read_series(paths):
@@ -61,7 +34,7 @@ def cell_index(mesh, ds):
     return tuple(ijk[:, k] for k in ((2, 1, 0) if "z" in ds.dims else (1, 0)))
 
 
-def test_three_dimensional_round_trip(run3d, tmp_path):
+def test_three_dimensional_round_trip(run3d, with_mechanics, tmp_path):
     ds = with_mechanics(run3d)
     meshes = read_series(export(ds, tmp_path / "vtk"))
     obstacle = ds["obstacle"].values.astype(bool)
@@ -83,7 +56,7 @@ def test_three_dimensional_round_trip(run3d, tmp_path):
         assert (np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 3] - p[:, 0]), p[:, 4] - p[:, 0]) > 0).all()
 
 
-def test_two_dimensional_quads_with_u_padded_to_three_components(run2d, tmp_path):
+def test_two_dimensional_quads_with_u_padded_to_three_components(run2d, with_mechanics, tmp_path):
     ds = with_mechanics(run2d)
     meshes = read_series(export(ds, tmp_path))
     for t, mesh in enumerate(meshes):
@@ -106,7 +79,7 @@ def test_collection_lists_every_snapshot_with_its_time(run3d, tmp_path):
     assert all((tmp_path / e.get("file")).is_file() for e in entries)
 
 
-def test_without_mechanics_no_u_or_p_and_unsolved_times_are_left_out(run3d, tmp_path):
+def test_without_mechanics_no_u_or_p_and_unsolved_times_are_left_out(run3d, with_mechanics, tmp_path):
     mesh = read_series(export(run3d, tmp_path / "plain"))[0]
     assert "u" not in mesh.point_data and "p" not in mesh.cell_data and "phi" in mesh.cell_data
     meshes = read_series(export(with_mechanics(run3d, unsolved=1), tmp_path / "partial"))

@@ -1,6 +1,4 @@
 """Pictures (`biostudy.plots`): the files a call makes, the cut sampler and the isosurface, exactly."""
-from pathlib import Path
-
 import matplotlib.image
 import numpy as np
 import pytest
@@ -11,44 +9,15 @@ from biostudy.plots.cuts import axis_plane, cell_axes, diagonal_plane, plane_for
 from biostudy.plots.isosurface import isosurface, surface_area
 from biostudy.plots.style import colour_scale, on_scale
 from biostudy.plots.sweep import cases, roles
-from solver import Grid, Problem, simulate
-
-
-def tiny_run(shape, obstacle=True):
-    """A few steps of a sphere growing toward a corner source, with a small obstacle column."""
-    grid = Grid(shape, 1.0)
-    coords = grid.cell_coordinates()
-    centre = [n / 2 for n in shape]
-    phi0 = (sum((q - m) ** 2 for q, m in zip(coords, centre)) <= 2.5**2).astype(float)
-    held = np.logical_and.reduce([q > n - 2 for q, n in zip(coords, shape)])
-    blocked = np.zeros(grid.cells_shape, bool)
-    if obstacle:
-        blocked[..., 0:2, 0:2] = True  # a column along z (3-D) or a square (2-D) in the far corner
-    problem = Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_fixed=held, obstacle=blocked,
-                      t_end=0.02, steps=4, output_times=[0, 0.01, 0.02], name="tiny")
-    return simulate(problem)
-
-
-def with_mechanics(ds):
-    """Test data in the layout of SPEC 5: p (Pa) on cells, u (µm) on nodes; p not solved at the middle output."""
-    ds = ds.copy()
-    cell_dims = [d for d in ("z", "y", "x") if d in ds.dims]
-    p = -10.0 * ds["phi"] + 2.0
-    p[dict(time=1)] = np.nan
-    ds["p"] = p.assign_attrs(units="Pa", long_name="hydrostatic Cauchy stress tr(sigma)/3")
-    nodes = {f"{d}_node": np.append(ds[d].values - 0.5, ds[d].values[-1] + 0.5) for d in cell_dims}
-    shape = (ds.sizes["time"], *(v.size for v in nodes.values()), len(cell_dims))
-    ds["u"] = (("time", *nodes, "component"), np.full(shape, 0.01), {"units": "um", "long_name": "displacement"})
-    return ds.assign_coords(nodes).assign_coords(component=list("xyz"[: len(cell_dims)]))
 
 
 @pytest.fixture(scope="module")
-def run3d():
+def run3d(tiny_run):
     return tiny_run((8, 8, 8))
 
 
 @pytest.fixture(scope="module")
-def run2d():
+def run2d(tiny_run):
     return tiny_run((16, 12))
 
 
@@ -61,20 +30,20 @@ def assert_pictures(paths, tags):
 
 
 @pytest.mark.parametrize("mechanics", [False, True])
-def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, tmp_path, mechanics):
-    ds = with_mechanics(run3d) if mechanics else run3d
+def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, with_mechanics, tmp_path, mechanics):
+    ds = with_mechanics(run3d, unsolved=1) if mechanics else run3d
     paths = plot(ds, tmp_path / "run.png")
     assert_pictures(paths, ["series", "cut", "isosurface"])
 
 
 @pytest.mark.parametrize("mechanics", [False, True])
-def test_two_dimensional_run_gives_series_and_maps(run2d, tmp_path, mechanics):
-    ds = with_mechanics(run2d) if mechanics else run2d
+def test_two_dimensional_run_gives_series_and_maps(run2d, with_mechanics, tmp_path, mechanics):
+    ds = with_mechanics(run2d, unsolved=1) if mechanics else run2d
     assert_pictures(plot(ds, tmp_path / "run"), ["series", "maps"])
 
 
-def test_options_choose_variable_time_and_cut(run3d, tmp_path):
-    ds = with_mechanics(run3d)
+def test_options_choose_variable_time_and_cut(run3d, with_mechanics, tmp_path):
+    ds = with_mechanics(run3d, unsolved=1)
     assert_pictures(plot(ds, tmp_path / "p.png", variable="p", time=0.02, cut="z=5.5"), ["series", "cut"])
     assert_pictures(plot(ds, tmp_path / "phi.png", variable="phi", time=0.004, cut="x=1"),
                     ["series", "cut", "isosurface"])

@@ -48,7 +48,7 @@ def test_maze_walls_and_corridors_have_the_asked_sizes():
     assert maze.corridor == pytest.approx((275 - 45) / 6 - 10)  # wall centre lines at 45 ... 275 µm
     row = wall[140, 140:]  # from the centre along +x
     blocks = np.diff(np.flatnonzero(np.diff(np.r_[0, row.astype(int), 0])))[::2]
-    assert np.all((blocks >= 4) & (blocks <= 6)) or blocks.size == 0
+    assert blocks.size > 0 and np.all((blocks >= 4) & (blocks <= 6)), blocks  # the row crosses walls
 
 
 def test_sectors_label_every_corridor_cell():

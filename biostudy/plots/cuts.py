@@ -26,6 +26,8 @@ import numpy as np
 import xarray as xr
 from scipy import ndimage
 
+from ..measures import centroid
+
 AXES = ("x", "y", "z")
 _AXIS_CUT = re.compile(r"^\s*([xyz])\s*=\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(?:um|µm)?\s*$")
 
@@ -81,11 +83,8 @@ def source_centroid(ds: xr.Dataset) -> np.ndarray | None:
     if "nutrient_source" not in ds:
         return None
     mask = ds["nutrient_source"].transpose("z", "y", "x").values.astype(bool)
-    if not mask.any():
-        return None
-    x, y, z = cell_axes(ds)
-    kk, jj, ii = np.nonzero(mask)
-    return np.array([x[ii].mean(), y[jj].mean(), z[kk].mean()])
+    centre = centroid(mask, cell_axes(ds)[::-1])  # (z, y, x) like the mask
+    return None if centre is None else centre[::-1]
 
 
 def diagonal_plane(ds: xr.Dataset, toward_source: bool = True) -> Plane:
@@ -148,18 +147,23 @@ def plane_for(ds: xr.Dataset, cut: str | None) -> Plane:
     return axis_plane(ds, match.group(1), float(match.group(2)))
 
 
+def _index(centres: tuple[np.ndarray, ...], points: np.ndarray) -> np.ndarray:
+    """Points (..., 3) as (x, y, z) in µm -> fractional cell indices (3, ...) in array order z, y, x."""
+    index = []
+    for axis in (2, 1, 0):
+        c = centres[axis]
+        step = c[1] - c[0] if c.size > 1 else 1.0
+        index.append((points[..., axis] - c[0]) / step)
+    return np.stack(index)
+
+
 def sample(field: np.ndarray, centres: tuple[np.ndarray, ...], points: np.ndarray) -> np.ndarray:
     """Trilinear interpolation of a cell field (z, y, x) at points (..., 3) given as (x, y, z) in µm.
 
     centres: the cell-centre coordinates x, y, z (uniform spacing along each axis).
     NaN cells carry no weight; where less than half the weight is finite, the result is NaN.
     """
-    index = []
-    for axis in (2, 1, 0):  # array order z, y, x
-        c = centres[axis]
-        step = c[1] - c[0] if c.size > 1 else 1.0
-        index.append((points[..., axis] - c[0]) / step)
-    index = np.stack(index)
+    index = _index(centres, points)
     finite = np.isfinite(field)
     value = ndimage.map_coordinates(np.where(finite, field, 0.0), index, order=1, mode="nearest")
     weight = ndimage.map_coordinates(finite.astype(float), index, order=1, mode="nearest")
@@ -169,9 +173,5 @@ def sample(field: np.ndarray, centres: tuple[np.ndarray, ...], points: np.ndarra
 
 def sample_nearest(mask: np.ndarray, centres: tuple[np.ndarray, ...], points: np.ndarray) -> np.ndarray:
     """A cell mask (z, y, x) at points (..., 3): the value of the cell containing each point."""
-    index = []
-    for axis in (2, 1, 0):
-        c = centres[axis]
-        step = c[1] - c[0] if c.size > 1 else 1.0
-        index.append(np.clip(np.round((points[..., axis] - c[0]) / step), 0, c.size - 1).astype(int))
-    return mask[tuple(index)]
+    index = np.round(_index(centres, points)).astype(int)
+    return mask[tuple(np.clip(i, 0, n - 1) for i, n in zip(index, mask.shape))]

@@ -24,14 +24,6 @@ LOG_TICKS = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0
 NOTES = {"c": " (log scale)", "p": ": compression < 0 < tension"}
 
 
-def _images_on_plane(ds: xr.Dataset, name: str, indices: list[int], plane: Plane):
-    centres = cell_axes(ds)
-    step = (centres[0][1] - centres[0][0] if centres[0].size > 1 else 1.0) / SAMPLES_PER_CELL
-    s, t, points = plane.grid(step)
-    field = ds[name].transpose("time", "z", "y", "x").values
-    return [sample(field[i], centres, points) for i in indices], (s, t, points)
-
-
 def _source_on_plane(ds: xr.Dataset, points: np.ndarray) -> np.ndarray | None:
     if "nutrient_source" not in ds or not ds["nutrient_source"].values.any():
         return None
@@ -88,9 +80,13 @@ def _draw_rows(ds, names, indices, images, extent, limits, source, axis_labels, 
 
 def cut_figure(ds: xr.Dataset, names: list[str], indices: list[int], plane: Plane):
     """3-D run: the fields on `plane` at the given output indices."""
-    images, (s, t, points) = {}, (None, None, None)
+    centres = cell_axes(ds)
+    step = (centres[0][1] - centres[0][0] if centres[0].size > 1 else 1.0) / SAMPLES_PER_CELL
+    s, t, points = plane.grid(step)  # one sampling of the plane for every field and time
+    images = {}
     for name in names:
-        images[name], (s, t, points) = _images_on_plane(ds, name, indices, plane)
+        field = ds[name].transpose("time", "z", "y", "x").values
+        images[name] = [sample(field[i], centres, points) for i in indices]
     half_s, half_t = 0.5 * (s[1] - s[0]), 0.5 * (t[1] - t[0])  # samples are pixel centres
     extent = (s[0] - half_s, s[-1] + half_s, t[0] - half_t, t[-1] + half_t)
     return _draw_rows(ds, names, indices, images, extent, (s[0], s[-1], t[0], t[-1]), _source_on_plane(ds, points),

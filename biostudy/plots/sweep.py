@@ -79,6 +79,15 @@ def roles(found: list[Case], varying: list[str]) -> tuple[str, list[str], list[s
     return x_key, split, follow
 
 
+def _layout(ds: xr.Dataset, names: list[str]):
+    """What both sweep figures arrange by: the cases, the horizontal-axis parameter, the parameters that
+    split lines and those that follow it, and the line groups (values of the splitting ones) in order."""
+    found, varying = cases(ds, names)
+    x_key, others, follow = roles(found, varying)
+    groups = sorted({tuple(c.params[k] for k in others) for c in found}, key=_group_order)
+    return found, x_key, others, follow, groups
+
+
 def _axis_label(ds: xr.Dataset, found: list[Case], x_key: str, follow: list[str]) -> str:
     text = x_key
     if x_key in ds and ds[x_key].attrs.get("units", "1") != "1":
@@ -120,9 +129,7 @@ def _axis(ax, key: str, values: list):
 
 def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     """Outputs at one time (default the last) against the first varying parameter, a line per other combination."""
-    found, varying = cases(ds, names)
-    x_key, others, follow = roles(found, varying)
-    groups = sorted({tuple(c.params[k] for k in others) for c in found}, key=_group_order)
+    found, x_key, others, follow, groups = _layout(ds, names)
     when = float(ds["time"].values[index])
     fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.8), layout="constrained", squeeze=False)
     for ax, name in zip(axes[0], names):
@@ -150,11 +157,9 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
 
 def series_figure(ds: xr.Dataset, names: list[str]):
     """Every case's time series: colour = value of the first varying parameter, line style = the others."""
-    found, varying = cases(ds, names)
-    x_key, others, follow = roles(found, varying)
+    found, x_key, others, follow, groups = _layout(ds, names)
     x_values = sorted({c.params[x_key] for c in found}, key=_order)
     colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(x_values)))
-    groups = sorted({tuple(c.params[k] for k in others) for c in found}, key=_group_order)
     time = ds["time"].values
     fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.8), layout="constrained", squeeze=False)
     for ax, name in zip(axes[0], names):
@@ -165,6 +170,7 @@ def series_figure(ds: xr.Dataset, names: list[str]):
         ax.set_xlabel("normalised time T*")
         ax.set_ylabel(label(ds[name]))
         ax.grid(alpha=0.3)
+
     def case_label(v):
         match = next(c for c in found if c.params[x_key] == v)
         return ", ".join(f"{k} = {_fmt(match.params[k])}" for k in (x_key, *follow))
