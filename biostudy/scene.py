@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
 
 import solver
-from solver.problem import FACES
+from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES
 
 from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
 from .geometry import SHAPES, AnyShape, Shape
@@ -142,9 +142,15 @@ class MechanicsSpec(BaseModel):
     residual_stiffness: float = _field(_MECHANICS.residual_stiffness, "relative stiffness of void cells "
                                                                       "(phi = 0)", "1", gt=0, lt=1)
     every: int = _field(_MECHANICS.every, "solve at every n-th output time (and the last)", "1", ge=1)
-    linear_solver: Literal["auto", "direct", "multigrid"] = Field(
-        "auto", description="preconditioner of the Newton steps: direct factorisation, geometric multigrid, or "
-                            "auto (direct up to 250k unknowns, 40³ cells, multigrid beyond; docs/mechanics.md)")
+    linear_solver: Literal[LINEAR_SOLVERS] = Field(
+        _MECHANICS.linear_solver,
+        description="preconditioner of the Newton steps' Krylov solves: multigrid (geometric), direct "
+                    "(factorisation), amg (pyamg smoothed aggregation), or auto (direct for small problems, "
+                    "multigrid beyond; docs/mechanics.md)")
+    pressure: Literal[tuple(PRESSURES)] = Field(
+        _MECHANICS.pressure,
+        description="the p in the dataset: recovered (Q1/P0 dilatations averaged to the nodes and back, no "
+                    "checkerboard modes) or element (the paper's Q1/P0 element pressure); docs/mechanics.md")
 
     @model_validator(mode="after")
     def _faces(self):
@@ -162,7 +168,7 @@ class MechanicsSpec(BaseModel):
             return None
         return solver.MechanicsSetup(clamp=tuple(self.clamp), slide=tuple(self.slide),
                                      residual_stiffness=self.residual_stiffness, every=self.every,
-                                     linear_solver=self.linear_solver)
+                                     linear_solver=self.linear_solver, pressure=self.pressure)
 
 
 def _valued(role: str, description: str, **extra):

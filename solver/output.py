@@ -15,7 +15,7 @@ import platform
 import numpy as np
 import xarray as xr
 
-from .problem import AXES, Problem
+from .problem import AXES, PRESSURES, Problem
 
 BIOFILM_THRESHOLD = 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
@@ -93,7 +93,8 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         attrs.update({
             "mechanics_clamp": ",".join(m.clamp), "mechanics_slide": ",".join(m.slide),
             "mechanics_residual_stiffness": m.residual_stiffness, "mechanics_every": m.every,
-            "mechanics_newton_tolerance": m.newton_tolerance,
+            "mechanics_newton_tolerance": m.newton_tolerance, "mechanics_pressure": m.pressure,
+            "mechanics_linear_solver_choice": m.linear_solver, "mechanics_pressure_comment": PRESSURES[m.pressure],
         })
         solved = [s.mechanics for s in snapshots if s.mechanics]
         for key, value in (solved[-1] if solved else {}).items():
@@ -121,7 +122,8 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
         nan_nodes = np.full((*grid.nodes_shape, grid.ndim), np.nan)
         units, long_name = FIELDS["p"]
         data["p"] = (("time", *cell_dims), np.stack([nan_cells if s.p is None else s.p for s in snapshots]),
-                     {"units": units, "long_name": long_name})
+                     {"units": units, "long_name": long_name, "pressure": problem.mechanics.pressure,
+                      "comment": PRESSURES[problem.mechanics.pressure]})
         data["u"] = (("time", *node_dims, "component"),
                      np.stack([nan_nodes if s.u is None else s.u for s in snapshots]),
                      {"units": "um", "long_name": "displacement of grid node"})

@@ -21,6 +21,13 @@ AXES = ("x", "y", "z")
 FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 Consumption = Literal["first-order", "zero-order"]
 Advection = Literal["upwind", "tvd"]
+LINEAR_SOLVERS = ("auto", "multigrid", "direct", "amg")
+PRESSURES = {  # which pressure a dataset holds (solver/mechanics/pressure.py, docs/mechanics.md)
+    "recovered": "Q1/P0 element pressure without its spurious (checkerboard) modes: p = w kappa (Theta - 1) "
+                 "filtered at interior nodes",
+    "element": "Q1/P0 mean-dilatation element pressure p = w kappa (Theta - 1), as in the paper (carries "
+               "checkerboard modes where the pressure is rough)",
+}
 
 
 @dataclass(frozen=True)
@@ -141,9 +148,17 @@ class MechanicsSetup:
     residual_stiffness: relative stiffness of void (phi = 0) cells, weight
         w = eps + (1 - eps) phi^2 on shear and bulk energy.
     every: solve at every n-th output time (and always the last one).
-    linear_solver: preconditioner of the Newton steps' GMRES: "direct"
-        (sparse factorisation), "multigrid" (geometric, on the grid) or
-        "auto" (direct with PARDISO up to 250k dofs, 40³ cells; multigrid beyond).
+    newton_tolerance: |R| <= tolerance * growth load, and the predicted next
+        increment <= tolerance * |u| (energy norm).
+    max_newton_iterations: Newton steps per load step (the other caps are
+        in `solver.mechanics.settings.Settings`).
+    linear_solver: preconditioner of the Newton steps' Krylov solves:
+        "multigrid" (geometric, on the grid), "direct" (sparse factorisation),
+        "amg" (pyamg smoothed aggregation) or "auto" (direct for small
+        problems, multigrid beyond; docs/mechanics.md).
+    pressure: which p the dataset holds: "recovered" (Q1/P0 dilatations
+        averaged to the nodes and back: no checkerboard modes) or "element"
+        (the paper's Q1/P0 element pressure); see docs/mechanics.md.
     """
 
     clamp: tuple[str, ...] = ()
@@ -153,13 +168,16 @@ class MechanicsSetup:
     newton_tolerance: float = 1e-6
     max_newton_iterations: int = 25
     linear_solver: str = "auto"
+    pressure: str = "recovered"
 
     def __post_init__(self):
         for face in (*self.clamp, *self.slide):
             if face not in FACES:
                 raise ValueError(f"unknown face {face!r}; faces are {FACES}")
-        if self.linear_solver not in ("auto", "direct", "multigrid"):
-            raise ValueError(f"unknown linear solver {self.linear_solver!r}; use auto, direct or multigrid")
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"unknown linear solver {self.linear_solver!r}; use one of {LINEAR_SOLVERS}")
+        if self.pressure not in PRESSURES:
+            raise ValueError(f"unknown pressure {self.pressure!r}; use one of {tuple(PRESSURES)}")
 
 
 @dataclass(frozen=True, eq=False)

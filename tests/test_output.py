@@ -54,3 +54,21 @@ def test_two_dimensional_dataset_has_no_z_and_volumes_per_micrometre_of_thicknes
     assert "z" not in ds.dims and ds.phi.dims == ("time", "y", "x")
     phi = ds.phi.values[0]
     assert float(ds.biofilm_volume[0]) == np.sum(phi[np.isfinite(phi)] >= 0.5) * 1.5**2 * 1.0
+
+
+def test_the_dataset_says_which_pressure_it_holds():
+    """p's attributes and the dataset's name the pressure: recovered by default, the paper's element
+    pressure on request."""
+    from dataclasses import replace
+
+    from solver import MechanicsSetup
+
+    base = small_problem(shape=(4, 3), obstacle=False)
+    uniform = replace(base, phi0=np.ones(base.grid.cells_shape), params=Parameters(k_alpha=0.5),
+                      mechanics=MechanicsSetup(clamp=("y-",)))
+    recovered = simulate(uniform)
+    element = simulate(replace(uniform, mechanics=MechanicsSetup(clamp=("y-",), pressure="element")))
+    assert recovered.p.attrs["pressure"] == recovered.attrs["mechanics_pressure"] == "recovered"
+    assert element.p.attrs["pressure"] == element.attrs["mechanics_pressure"] == "element"
+    assert "checkerboard" in element.p.attrs["comment"]
+    assert np.isfinite(recovered.p.values[-1]).all() and np.isfinite(element.p.values[-1]).all()

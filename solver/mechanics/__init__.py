@@ -1,15 +1,20 @@
-"""Growth mechanics with scikit-fem (SPEC 1, paper 2.1, 2.3.1, 3): u at grid nodes, p per cell.
+"""Growth mechanics with scikit-fem (paper 2.1, 2.3.1, 3): u at grid nodes, p per cell.
 
 One file per concept:
-  material     energy, stress and tangent at quadrature points (pure functions)
-  mesh         the transport grid as a Q1 mesh (scikit-fem reference element)
-  assembly     residual and consistent tangent, vectorised over elements
-  constraints  clamp / slide faces, obstacles, rigid-body modes
-  multigrid    geometric multigrid preconditioner on the structured grid
-  linear       GMRES with a reused preconditioner (direct or multigrid)
-  newton       safeguarded Newton iteration
-  growth       `GrowthMechanics`: load stepping, warm start, results
+  material         energy, stress coefficients and tangent at quadrature points (pure functions)
+  mesh             the transport grid as a Q1 mesh (scikit-fem reference element)
+  assembly         residual and consistent tangent, vectorised over elements
+  constraints      clamp / slide faces, obstacles, rigid-body modes
+  pressure         the dataset's pressure: Q1/P0 element values or recovered without checkerboards
+  multigrid        geometric multigrid V-cycle on the structured grid
+  preconditioners  direct, multigrid, smoothed aggregation, deflation (build, then apply)
+  linear           scipy's Krylov solvers around a reused preconditioner
+  newton           safeguarded, capped Newton iteration
+  loading          load stepping between snapshots, with its caps
+  settings         every heuristic and cap in one object
+  growth           `GrowthMechanics`: checks, load stepping, result
 """
 from .growth import GrowthMechanics, MechanicsResult
+from .settings import Settings
 
-__all__ = ["GrowthMechanics", "MechanicsResult"]
+__all__ = ["GrowthMechanics", "MechanicsResult", "Settings"]

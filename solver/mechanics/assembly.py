@@ -5,20 +5,23 @@ w, growth Jg), return the internal-force vector, the exact tangent as a
 block-sparse (BSR, ndim x ndim blocks) matrix on a pattern fixed at
 construction, and per-element pressure and volume ratios.
 
-Element quantities (mean dilatation, paper 3 and Table 1 steps 5-7), with
-g_ai = G_iJ dN_a/dX_J, f_ai = F_iJ dN_a/dX_J at each Gauss point q:
+Element quantities (mean dilatation, paper section 3 and Table 1 steps 5-7),
+with g_ai = G_iJ dN_a/dX_J, f_ai = F_iJ dN_a/dX_J at each Gauss point q:
 
     v      = sum_q w_q J                      (current element volume)
     Theta  = v / (Jg V),   p = w kappa (Theta - 1)
-    R_ai   = sum_q w_q [ s (f_ai - I1/3 g_ai) + p J g_ai ],      s = Jg w mu J^(-2/3)
+    R_ai   = sum_q w_q P_iJ dN_a/dX_J,   P = s (F - I1/3 G) + p J G,   s = Jg w mu J^(-2/3)
     K      = sum_q w_q [ s d_ik (dN_a . dN_b) + c_fg (g_ai f_bk + f_ai g_bk)
                          + c_gg g_ai g_bk + c_swap g_ak g_bi ]
              + w kappa / (Jg V) h_ai h_bk,   h_ai = sum_q w_q J g_ai
 
-The last term is the condensed pressure (Schur complement of the P0 block);
-the rest is `material.tangent_coefficients` contracted with the gradients.
-Fixed dofs get identity rows and columns so that the matrix stays
-symmetric.  Work is done in chunks of elements to bound the temporaries.
+The last term is the condensed pressure (Schur complement of the P0 block,
+Table 1 step 7); the rest is `material.tangent_coefficients` contracted with
+the gradients.  Fixed dofs get identity rows and columns so that the matrix
+stays symmetric.  Work is done in chunks of elements to bound the
+temporaries; element matrices go straight into the BSR data, one local
+node pair (a, b) at a time: for a fixed pair no two elements share a block,
+so a plain indexed add is exact.
 """
 from __future__ import annotations
 
@@ -50,27 +53,36 @@ class Assembler:
     def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, chunk: int = 4096):
         self.mesh = mesh
         self.d = d = mesh.ndim
-        self.ref = mesh.reference
+        self.ref = ref = mesh.reference
         self.chunk = chunk
         self.edofs = mesh.element_dofs()
-        self.fixed = np.asarray(fixed, bool)
         conn = mesh.connectivity
         nloc = conn.shape[1]
         # node-level pattern: one d x d block per pair of nodes sharing an element
         keys = (conn[:, :, None].astype(np.int64) * mesh.n_nodes + conn[:, None, :]).ravel()
-        unique, self.block_map = np.unique(keys, return_inverse=True)
-        self.block_map = self.block_map.reshape(-1, nloc, nloc).astype(np.int64)
-        rows, cols = np.divmod(unique, mesh.n_nodes)
+        unique, block_map = np.unique(keys, return_inverse=True)
+        self.block_map = block_map.reshape(-1, nloc, nloc)
+        self.rows, cols = np.divmod(unique, mesh.n_nodes)
         self.indices = cols.astype(np.int32)
-        self.indptr = np.searchsorted(rows, np.arange(mesh.n_nodes + 1)).astype(np.int32)
+        self.indptr = np.searchsorted(self.rows, np.arange(mesh.n_nodes + 1)).astype(np.int32)
+        self.constrain(fixed)
+        Q = ref.gradients.shape[0]
+        # constant per element: w_q dN_a . dN_b (the isotropic part), w_q dN_a/dX_J (the residual)
+        self.gram = np.einsum("q,qaJ,qbJ->qab", ref.weights, ref.gradients, ref.gradients).reshape(Q, -1)
+        self.weighted_dN = (ref.weights[:, None, None] * ref.gradients).transpose(0, 2, 1).reshape(Q * d, nloc)
+        # displacement -> gradient at the Gauss points / corners: (nloc, Q * d) each
+        self.to_points = ref.gradients.transpose(1, 0, 2).reshape(nloc, -1)
+        self.to_corners = ref.corner_gradients.transpose(1, 0, 2).reshape(nloc, -1)
+
+    def constrain(self, fixed: np.ndarray):
+        """Hold the dofs `fixed` at zero: their rows and columns become the identity's."""
+        d = self.d
+        self.fixed = np.asarray(fixed, bool)
         fixed_node = self.fixed.reshape(-1, d)
-        self.keep = ~fixed_node[rows][:, :, None] & ~fixed_node[cols][:, None, :]
-        diag = np.flatnonzero(rows == cols)
+        self.keep = ~fixed_node[self.rows][:, :, None] & ~fixed_node[self.indices][:, None, :]
+        diag = np.flatnonzero(self.rows == self.indices)
         node, comp = np.nonzero(fixed_node)
         self.fixed_diag = (diag[node], comp)
-        # constant per Gauss point: dN_a . dN_b
-        self.gram = np.einsum("qaJ,qbJ->qab", self.ref.gradients, self.ref.gradients)
-        self.scatter = None  # built on the first tangent
 
     @property
     def n_blocks(self) -> int:
@@ -78,12 +90,13 @@ class Assembler:
 
     def gradient(self, u: np.ndarray, elements: slice, corners: bool = False) -> np.ndarray:
         """F = I + grad u at the Gauss points (or the corners) of some elements: (E, Q, 3, 3)."""
-        dN = self.ref.corner_gradients if corners else self.ref.gradients
-        Q, nloc, d = dN.shape
-        ue = u[self.edofs[elements]].reshape(-1, nloc, d).transpose(0, 2, 1)  # (E, i, a)
-        H = (ue.reshape(-1, nloc) @ dN.transpose(1, 0, 2).reshape(nloc, Q * d)).reshape(-1, d, Q, d)
-        F = np.zeros((H.shape[0], Q, 3, 3))
-        F[..., :d, :d] = H.transpose(0, 2, 1, 3)
+        d = self.d
+        nloc = self.to_points.shape[0]
+        ue = u[self.edofs[elements]].reshape(-1, nloc, d).transpose(0, 2, 1).reshape(-1, nloc)  # (E d, a)
+        H = ue @ (self.to_corners if corners else self.to_points)
+        H = H.reshape(-1, d, H.shape[1] // d, d).transpose(0, 2, 1, 3)  # (E, Q, i, J)
+        F = np.zeros(H.shape[:2] + (3, 3))
+        F[..., :d, :d] = H
         F[..., [0, 1, 2], [0, 1, 2]] += 1.0
         return F
 
@@ -91,81 +104,99 @@ class Assembler:
                  tangent: bool = True) -> Evaluation:
         """Residual (and tangent) at displacement u; w and growth Jg = (1+alpha)^3 per element."""
         mesh, d, ref = self.mesh, self.d, self.ref
-        E, nloc, Q = mesh.n_elements, ref.gradients.shape[1], ref.gradients.shape[0]
-        V, wq, dN = ref.volume, ref.weights, ref.gradients
+        E, nloc = mesh.n_elements, self.to_points.shape[0]
+        V, wq = ref.volume, ref.weights
         forces = np.zeros((E, nloc, d))
-        blocks = np.empty((E, nloc, d, nloc, d)) if tangent else None
-        pressure, theta, min_det = np.empty(E), np.empty(E), np.empty(E)
+        data = np.zeros((self.n_blocks, d, d)) if tangent else None
+        pressure, theta, min_det = np.zeros(E), np.ones(E), np.empty(E)
         energy = 0.0
         for start in range(0, E, self.chunk):
             part = slice(start, min(start + self.chunk, E))
             F = self.gradient(u, part)
-            J, G, I1 = material.invariants(F)
+            J = material.determinant(F)
             min_det[part] = np.minimum(J.min(axis=1), material.determinant(self.gradient(u, part, True)).min(axis=1))
             if np.any(J <= 0):  # leave the rest undefined: the caller rejects this state
-                min_det[part] = np.minimum(min_det[part], J.min(axis=1))
                 continue
-            we, Jg = w[part, None], growth[part, None]
-            th = (J * wq).sum(axis=1) / (Jg[:, 0] * V)
-            p = we[:, 0] * kappa * (th - 1.0)
+            G = material.cofactor(F) / J[..., None, None]
+            I1 = np.einsum("eqiJ,eqiJ->eq", F, F)
+            we, Jg = w[part], growth[part]
+            th = J @ wq / (Jg * V)
+            p = we * kappa * (th - 1.0)
             theta[part], pressure[part] = th, p
-            shear = Jg * we * mu
-            energy += float((material.isochoric_energy(F, shear) * wq).sum()
-                            + (Jg[:, 0] * V * we[:, 0] * kappa / 2 * (th - 1.0) ** 2).sum())
-            f, g = self._contract(F, dN), self._contract(G, dN)
+            shear = (Jg * we * mu)[:, None]
+            energy += float((material.isochoric_energy(J, I1, shear) @ wq).sum()
+                            + (Jg * V * we * kappa / 2 * (th - 1.0) ** 2).sum())
             s, c_fg, c_gg, c_swap = material.tangent_coefficients(J, I1, shear, p[:, None])
-            stress = s[..., None, None] * (f - (I1 / 3)[..., None, None] * g) + (p[:, None] * J)[..., None, None] * g
-            forces[part] = np.tensordot(wq, stress, axes=([0], [1]))
+            Fd, Gd = F[..., :d, :d], G[..., :d, :d]
+            stress = s[..., None, None] * (Fd - (I1 / 3)[..., None, None] * Gd) + (p[:, None] * J)[..., None, None] * Gd
+            # R_ai = sum_(q, J) P_iJ w_q dN_aJ: one product over (q, J)
+            n = stress.shape[0]
+            forces[part] = (stress.transpose(0, 2, 1, 3).reshape(n * d, -1) @ self.weighted_dN
+                            ).reshape(n, d, nloc).transpose(0, 2, 1)
             if tangent:
-                blocks[part] = self._element_matrices(f, g, J, wq, s, c_fg, c_gg, c_swap,
-                                                      we[:, 0] * kappa / (Jg[:, 0] * V))
+                K = self._element_matrices(Fd, Gd, J, s, c_fg, c_gg, c_swap, we * kappa / (Jg * V))
+                self._scatter(data, K, part)
         residual = np.bincount(self.edofs.ravel(), weights=forces.ravel(), minlength=mesh.n_dofs)
         load = float(np.linalg.norm(residual))
         residual[self.fixed] = 0.0
-        matrix = self._matrix(blocks) if tangent and np.all(min_det > 0) else None
+        matrix = self._matrix(data) if tangent and np.all(min_det > 0) else None
         return Evaluation(residual, matrix, pressure, theta, min_det, energy, load)
 
-    def _contract(self, T: np.ndarray, dN: np.ndarray) -> np.ndarray:
-        """T_iJ dN_a/dX_J at every point: (E, Q, 3, 3) x (Q, a, J) -> (E, Q, a, i)."""
-        d = self.d
-        out = T[:, :, None, :d, 0] * dN[None, :, :, None, 0]
-        for J in range(1, d):
-            out += T[:, :, None, :d, J] * dN[None, :, :, None, J]
-        return out
+    def growth_load(self, w: np.ndarray, growth: np.ndarray, kappa: float) -> float:
+        """|internal forces| at u = 0, reactions included: the force scale of Newton's tolerance.
 
-    def _element_matrices(self, f, g, J, wq, s, c_fg, c_gg, c_swap, bulk):
+        At u = 0, F = G = I: the isochoric stress vanishes and P = p I with
+        p = w kappa (1/Jg - 1), so R_ai = p sum_q w_q dN_a/dX_i per element."""
+        corner_forces = self.weighted_dN.reshape(-1, self.d, self.weighted_dN.shape[1]).sum(axis=0).T  # (a, i)
+        p = w * kappa * (1.0 / growth - 1.0)
+        forces = p[:, None, None] * corner_forces
+        return float(np.linalg.norm(np.bincount(self.edofs.ravel(), weights=forces.ravel(),
+                                                minlength=self.mesh.n_dofs)))
+
+    def _vectors(self, T: np.ndarray) -> np.ndarray:
+        """T_iJ dN_a/dX_J at every point, as (E, Q, a * d + i): the element dof order."""
+        dN = self.ref.gradients
+        E, Q, d = T.shape[0], T.shape[1], self.d
+        out = np.empty((E, Q, dN.shape[1], d))
+        for q in range(Q):  # (E i, J) x (J, a): one small product per point
+            out[:, q] = (T[:, q].reshape(E * d, d) @ dN[q].T).reshape(E, d, -1).transpose(0, 2, 1)
+        return out.reshape(E, Q, -1)
+
+    def _element_matrices(self, Fd, Gd, J, s, c_fg, c_gg, c_swap, bulk) -> np.ndarray:
         """(E, a, i, b, k) element tangents from the per-point vectors (see module docstring)."""
-        E, Q, nloc, d = g.shape
-        m = nloc * d
-        gq, fq = g.reshape(E, Q, m), f.reshape(E, Q, m)
-        gt = gq.transpose(0, 2, 1)
-        # g^T (c_gg g + c_fg f) + its transpose's f part: [g f] [[c_gg, c_fg], [c_fg, 0]] [g f]^T
-        half = np.matmul(gt, (wq * c_fg)[..., None] * fq)
-        K = np.matmul(gt, (wq * c_gg)[..., None] * gq)
-        K += half
-        K += half.transpose(0, 2, 1)
-        K = K.reshape(E, nloc, d, nloc, d)
+        E, Q, d = Fd.shape[0], Fd.shape[1], self.d
+        wq = self.ref.weights
+        f, g = self._vectors(Fd), self._vectors(Gd)
+        m = g.shape[2]
+        nloc = m // d
+        # sum_q [g f]_q [[c_gg, c_fg], [c_fg, 0]]_q [g f]_q^T as one batched product over 2Q
+        left = np.concatenate([g, f], axis=1)
+        right = np.concatenate([(wq * c_gg)[..., None] * g + (wq * c_fg)[..., None] * f,
+                                (wq * c_fg)[..., None] * g], axis=1)
+        K = np.matmul(left.transpose(0, 2, 1), right).reshape(E, nloc, d, nloc, d)
         # c_swap g_ak g_bi: the same outer product with the component indices exchanged
-        swap = np.matmul(gt, (wq * c_swap)[..., None] * gq).reshape(E, nloc, d, nloc, d)
+        swap = np.matmul(g.transpose(0, 2, 1), (wq * c_swap)[..., None] * g).reshape(E, nloc, d, nloc, d)
         K += swap.transpose(0, 1, 4, 3, 2)
         # s d_ik (dN_a . dN_b)
-        iso = ((wq * s) @ self.gram.reshape(Q, -1)).reshape(E, nloc, nloc)
+        iso = (s @ self.gram).reshape(E, nloc, nloc)
         for i in range(d):
             K[:, :, i, :, i] += iso
         # condensed pressure: rank one per element
-        h = np.tensordot(wq, J[..., None] * gq, axes=([0], [1]))
+        h = np.einsum("q,eq,eqm->em", wq, J, g)
         K = K.reshape(E, m, m)
         K += (bulk[:, None] * h)[:, :, None] * h[:, None, :]
         return K.reshape(E, nloc, d, nloc, d)
 
-    def _matrix(self, blocks: np.ndarray) -> sp.bsr_matrix:
+    def _scatter(self, data: np.ndarray, K: np.ndarray, elements: slice):
+        """Add element matrices (E, a, i, b, k) into the BSR data, one local pair (a, b) at a time."""
+        targets = self.block_map[elements]
+        nloc = targets.shape[1]
+        for a in range(nloc):
+            for b in range(nloc):
+                data[targets[:, a, b]] += K[:, a, :, b, :]
+
+    def _matrix(self, data: np.ndarray) -> sp.bsr_matrix:
         d, n = self.d, self.mesh.n_dofs
-        if self.scatter is None:  # (E, a, i, b, k) -> position in the BSR data (blocks, i, k)
-            i = np.arange(d)
-            self.scatter = (self.block_map[:, :, None, :, None] * d * d + i[:, None, None] * d
-                            + i[None, None, :]).ravel()
-        data = np.bincount(self.scatter, weights=blocks.ravel(), minlength=self.n_blocks * d * d)
-        data = data.reshape(self.n_blocks, d, d)
         data *= self.keep
         data[self.fixed_diag[0], self.fixed_diag[1], self.fixed_diag[1]] = 1.0
         return sp.bsr_matrix((data, self.indices, self.indptr), shape=(n, n))

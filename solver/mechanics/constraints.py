@@ -9,16 +9,28 @@
 * whatever rigid-body motion (3 translations + 3 rotations in 3-D, 2 + 1 in
   2-D) the constraints above leave free is removed by pinning single
   components of a few nodes, chosen greedily: a component is pinned only if
-  it removes a mode not removed yet.  The candidates are, in this order, the
-  mesh node nearest the origin and the nodes nearest the far ends of the x,
-  y (and z) axes from it, so that with no other constraint the pins are the
-  classic 3-2-1 set: origin (x, y, z), (Lx, 0, 0) (y, z), (0, Ly, 0) (z).
-  Such a set is statically determinate: at equilibrium its reactions vanish
-  (the internal forces of a free body balance in force and moment), so the
-  stress does not depend on which point is pinned, and uniform growth gives
-  exactly u = alpha X about the pinned origin.
+  it removes a mode not removed yet.  The candidates are an anchor node and
+  the nodes farthest from it along the x, y (and z) axes, so that with no
+  other constraint the pins are a 3-2-1 set: anchor (x, y, z), a node along
+  x (y, z), a node along y (z).  Such a set is statically determinate: at
+  equilibrium its reactions vanish (the internal forces of a free body
+  balance in force and moment), so the stress does not depend on which
+  points are pinned; the displacements differ by a rigid-body motion.
   This is done per connected piece of the mesh (an obstacle wall can cut
   the domain in two).
+
+Where the pins go matters to the solver, not to the answer.  Pinned in the
+void (the domain's corner), a dense body floats on the void's residual
+stiffness: its rigid motions become the softest modes of the tangent
+(eigenvalues ~1e-8 of a diagonal of ~0.2 at 20^3), and as their stiffness
+depends on the body's prestress as much as on the void, a preconditioner
+built from one tangent misjudges them in the next and Newton stalls
+(docs/mechanics.md).  So `pin_rigid_modes` takes an optional node
+stiffness and pins inside the stiffest part: anchor at the stiff node
+nearest the stiffness-weighted centroid, axis nodes the stiff nodes
+farthest from it along the anchor's grid lines.  The displacement reported
+is still the one pinned at the domain corner (`gauge`): a rigid-body
+motion apart, exactly for infinitesimal rotations.
 """
 from __future__ import annotations
 
@@ -106,35 +118,111 @@ def _row_basis(rows: np.ndarray, tol: float) -> np.ndarray:
     return vt[sv > tol * max(sv[0], 1.0)]
 
 
-def pin_rigid_modes(mesh: StructuredMesh, fixed: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """`fixed` plus the pins removing the remaining rigid-body modes; also the pins as (grid node, comp)."""
+def pin_rigid_modes(mesh: StructuredMesh, fixed: np.ndarray,
+                    stiffness: np.ndarray | None = None) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """`fixed` plus the pins removing the remaining rigid-body modes; also the pins as (mesh node, comp).
+
+    stiffness: per mesh node (e.g. `node_stiffness`); None pins at the domain's corner (the origin)."""
     d = mesh.ndim
     fixed = fixed.copy()
-    conn = mesh.connectivity
-    edges = sp.coo_matrix((np.ones(conn.size), (np.repeat(conn[:, 0], conn.shape[1]), conn.ravel())),
-                          shape=(mesh.n_nodes, mesh.n_nodes))
-    _, piece = connected_components(edges, directed=False)
+    piece = pieces(mesh)
     coords = mesh.node_coordinates()
     pins = []
     for label in np.unique(piece):
         nodes = np.flatnonzero(piece == label)
-        anchor = nodes[np.argmin(np.linalg.norm(coords[nodes], axis=1))]
+        if stiffness is None:
+            pool, anchor = nodes, nodes[np.argmin(np.linalg.norm(coords[nodes], axis=1))]
+        else:  # the stiff nodes of this piece; anchor nearest their weighted centroid
+            s = stiffness[nodes]
+            pool = nodes[s >= 0.5 * s.max()]
+            centre = (coords[pool] * stiffness[pool, None]).sum(axis=0) / stiffness[pool].sum()
+            anchor = pool[np.argmin(np.linalg.norm(coords[pool] - centre, axis=1))]
         x = (coords[nodes] - coords[anchor]) / mesh.h  # relative, in cells: well-conditioned
         modes = rigid_modes(x).reshape(nodes.size, d, -1)
         held = fixed.reshape(-1, d)[nodes]
         basis = _row_basis(modes[held], 1e-9)
+        local = np.flatnonzero(np.isin(nodes, pool))
         candidates = [np.flatnonzero(nodes == anchor)[0]]
-        for axis in range(d):  # farthest along each axis, nearest to the anchor's line
-            far = np.flatnonzero(np.isclose(x[:, axis], x[:, axis].max()))
-            candidates.append(far[np.argmin(np.linalg.norm(x[far], axis=1))])
-        for local in candidates:
+        for axis in range(d):  # the pool node farthest from the anchor along each axis, nearest its line
+            reach = np.abs(x[local, axis]) - 1e-3 * np.linalg.norm(np.delete(x[local], axis, axis=1), axis=1)
+            candidates.append(local[np.argmax(reach)])
+        for index in candidates:
             for comp in range(d):
                 if basis.shape[0] == modes.shape[2]:
                     break
-                row = modes[local, comp]
+                row = modes[index, comp]
                 rest = row - basis.T @ (basis @ row)
                 if np.linalg.norm(rest) > 1e-9 * max(np.linalg.norm(row), 1.0):
                     basis = np.vstack([basis, rest / np.linalg.norm(rest)])
-                    fixed[nodes[local] * d + comp] = True
-                    pins.append((int(mesh.nodes[nodes[local]]), comp))
+                    fixed[nodes[index] * d + comp] = True
+                    pins.append((int(nodes[index]), comp))
     return fixed, pins
+
+
+def pieces(mesh: StructuredMesh) -> np.ndarray:
+    """Per mesh node, the label of its connected piece of the mesh."""
+    conn = mesh.connectivity
+    edges = sp.coo_matrix((np.ones(conn.size), (np.repeat(conn[:, 0], conn.shape[1]), conn.ravel())),
+                          shape=(mesh.n_nodes, mesh.n_nodes))
+    return connected_components(edges, directed=False)[1]
+
+
+def pins_are_stiff(pins: list[tuple[int, int]], stiffness: np.ndarray, piece: np.ndarray) -> bool:
+    """Every pinned node at least half as stiff as the stiffest node of its piece."""
+    return all(stiffness[node] >= 0.5 * stiffness[piece == piece[node]].max() for node, _ in pins)
+
+
+def node_stiffness(mesh: StructuredMesh, weight: np.ndarray) -> np.ndarray:
+    """Per mesh node, the mean stiffness weight w of the elements around it."""
+    conn = mesh.connectivity
+    total = np.bincount(conn.ravel(), weights=np.repeat(weight, conn.shape[1]), minlength=mesh.n_nodes)
+    return total / np.bincount(conn.ravel(), minlength=mesh.n_nodes)
+
+
+def gauge(mesh: StructuredMesh, u: np.ndarray, fixed: np.ndarray, pins: list[tuple[int, int]]) -> np.ndarray:
+    """u minus the rigid-body motion that is zero at the held dofs and equals u at `pins`.
+
+    The same equilibrium pinned elsewhere (exact for infinitesimal rotations:
+    the rigid modes are linearised)."""
+    if not pins:
+        return u
+    d = mesh.ndim
+    coords = mesh.node_coordinates()
+    modes = rigid_modes((coords - coords.mean(axis=0)) / mesh.h)
+    rows = np.array([node * d + comp for node, comp in pins])
+    held = np.flatnonzero(fixed)
+    held = held[~np.isin(held, rows)]
+    system = np.vstack([modes[held], modes[rows]])
+    target = np.concatenate([np.zeros(held.size), u[rows]])
+    coefficients = np.linalg.lstsq(system, target, rcond=None)[0]
+    return u - modes @ coefficients
+
+
+def body_modes(mesh: StructuredMesh, dense: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """Orthonormal rigid-body modes of each connected dense body, zero elsewhere and at fixed dofs.
+
+    `dense` marks elements (e.g. phi > 1/2).  A body that touches no
+    constraint floats in the void, held only by its residual stiffness: its
+    rigid motions are the softest modes of the tangent (eigenvalues ~1e-7 of
+    its diagonal at 20^3, docs/mechanics.md), which a Krylov solve stopped on
+    the residual leaves unconverged; `preconditioners.Deflated` solves them
+    exactly instead.  Bodies held by constraints get modes too: harmless."""
+    d, conn = mesh.ndim, mesh.connectivity
+    elements = np.flatnonzero(dense)
+    if elements.size == 0:
+        return np.zeros((mesh.n_dofs, 0))
+    incidence = sp.csr_matrix((np.ones(elements.size * conn.shape[1]),
+                               (np.repeat(np.arange(elements.size), conn.shape[1]), conn[elements].ravel())),
+                              shape=(elements.size, mesh.n_nodes))
+    count, label = connected_components(incidence @ incidence.T, directed=False)
+    coords = mesh.node_coordinates()
+    columns = []
+    for body in range(count):
+        nodes = np.unique(conn[elements[label == body]])
+        modes = np.zeros((mesh.n_nodes, d, 3 * (d - 1)))
+        modes[nodes] = rigid_modes((coords[nodes] - coords[nodes].mean(axis=0)) / mesh.h).reshape(nodes.size, d, -1)
+        columns.append(modes.reshape(mesh.n_dofs, -1))
+    Z = np.hstack(columns)
+    Z[fixed] = 0.0
+    q, r = np.linalg.qr(Z)
+    return q[:, np.abs(np.diag(r)) > 1e-10 * np.abs(np.diag(r)).max()]

@@ -56,50 +56,9 @@ def cofactor(F: np.ndarray) -> np.ndarray:
     return c
 
 
-def invariants(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """J = det F, G = F^-T and I1 = tr(F^T F)."""
-    J = determinant(F)
-    return J, cofactor(F) / J[..., None, None], np.einsum("...iJ,...iJ->...", F, F)
-
-
-def isochoric_energy(F: np.ndarray, shear) -> np.ndarray:
-    """shear/2 (J^(-2/3) I1 - 3); `shear` = Jg w mu (per unit reference volume)."""
-    J, _, I1 = invariants(F)
+def isochoric_energy(J: np.ndarray, I1: np.ndarray, shear) -> np.ndarray:
+    """shear/2 (J^(-2/3) I1 - 3), I1 = tr(F^T F); `shear` = Jg w mu (per unit reference volume)."""
     return 0.5 * shear * (J ** (-2.0 / 3.0) * I1 - 3.0)
-
-
-def isochoric_stress(F: np.ndarray, shear) -> np.ndarray:
-    """First Piola-Kirchhoff stress of the isochoric part: P = shear J^(-2/3) (F - I1/3 F^-T)."""
-    J, G, I1 = invariants(F)
-    return (shear * J ** (-2.0 / 3.0))[..., None, None] * (F - (I1 / 3.0)[..., None, None] * G)
-
-
-def isochoric_tangent(F: np.ndarray, shear) -> np.ndarray:
-    """dP/dF of `isochoric_stress` (the reference form; `assembly` uses `tangent_coefficients`):
-
-    A_iJkL = shear J^(-2/3) [ d_ik d_JL - 2/3 (F_kL G_iJ + G_kL F_iJ)
-                              + 2/9 I1 G_iJ G_kL + I1/3 G_iL G_kJ ],   G = F^-T.
-    """
-    J, G, I1 = invariants(F)
-    I1 = I1[..., None, None, None, None]
-    A = np.broadcast_to(np.einsum("ik,JL->iJkL", np.eye(3), np.eye(3)), F.shape[:-2] + (3, 3, 3, 3)).copy()
-    A -= 2.0 / 3.0 * (np.einsum("...kL,...iJ->...iJkL", F, G) + np.einsum("...kL,...iJ->...iJkL", G, F))
-    A += 2.0 / 9.0 * I1 * np.einsum("...iJ,...kL->...iJkL", G, G)
-    A += I1 / 3.0 * np.einsum("...iL,...kJ->...iJkL", G, G)
-    return (shear * J ** (-2.0 / 3.0))[..., None, None, None, None] * A
-
-
-def pressure_stress(F: np.ndarray, pressure) -> np.ndarray:
-    """First Piola-Kirchhoff stress of a Cauchy pressure p: P = p cof F = p J F^-T."""
-    return np.asarray(pressure)[..., None, None] * cofactor(F)
-
-
-def pressure_tangent(F: np.ndarray, pressure) -> np.ndarray:
-    """d(p cof F)/dF at fixed p: p J (G_iJ G_kL - G_iL G_kJ), the initial-stress part of the
-    volumetric tangent (the change of the element pressure itself is `assembly`'s rank-one term)."""
-    J, G, _ = invariants(F)
-    A = np.einsum("...iJ,...kL->...iJkL", G, G) - np.einsum("...iL,...kJ->...iJkL", G, G)
-    return (pressure * J)[..., None, None, None, None] * A
 
 
 def tangent_coefficients(J: np.ndarray, I1: np.ndarray, shear, pressure):

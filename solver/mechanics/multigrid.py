@@ -1,10 +1,9 @@
-"""Geometric multigrid on the structured grid, as a preconditioner for the tangent.
+"""Geometric multigrid on the structured grid: a V-cycle preconditioner for the tangent.
 
-Why: a sparse direct factorisation of the 3-D tangent costs O(n^2): 0.6-1 s
-at 20^3 cells but 30-50 s and 3.3 GB at 40^3 (docs/mechanics.md).  Smoothed
-aggregation AMG needed ~70 GMRES iterations at 40^3.  The grid is
-structured, so the coarse spaces are known exactly: Q1 on cells of 2h, 4h,
-..., nested in the fine one.
+The grid is structured, so the coarse spaces are known exactly: Q1 on cells
+of 2h, 4h, ..., nested in the fine one.  (Smoothed aggregation, which has to
+discover them, is the `preconditioners.SmoothedAggregation` alternative; the
+two are compared in docs/mechanics.md.)
 
 * Prolongation: (bi/tri)linear interpolation of each displacement component
   from the coarse nodes, a Kronecker product of 1-D interpolations.  An odd
@@ -12,15 +11,16 @@ structured, so the coarse spaces are known exactly: Q1 on cells of 2h, 4h,
   domain; only its restriction to the domain matters.  Rows of nodes without
   dofs (inside obstacles) are dropped, rows of fixed dofs zeroed, so the
   coarse correction never moves a held component.
-* Coarse operators: Galerkin, A_c = P^T A P: they inherit the coefficient
-  jumps (biofilm/void contrast 1e4) without any averaging rule.
+* Coarse operators: Galerkin, A_c = P^T A P, in ndim x ndim blocks (BSR):
+  they inherit the coefficient jumps (biofilm/void contrast 1e4) without
+  any averaging rule.
 * Smoother: point-block Gauss-Seidel (ndim x ndim node blocks, pyamg's
   kernel), forward before and backward after the coarse correction, so the
-  V-cycle is symmetric.
-* Coarsest level: a sparse direct solve (`linear.DirectSolver`).
+  V-cycle is symmetric (a valid preconditioner for CG).
+* Coarsest level: a sparse factorisation (`preconditioners.Factoriser`).
 
-The hierarchy's interpolation depends only on the mesh and the constraints
-and is built once; `update` recomputes the operators for a new tangent.
+The transfers depend only on the mesh and the constraints and are built
+once; `build(A)` recomputes the operators for a new tangent.
 """
 from __future__ import annotations
 
@@ -43,66 +43,59 @@ def interpolation_1d(cells: int) -> sp.csr_matrix:
 
 
 class Level:
-    """One grid of the hierarchy: its operator (BSR), block-diagonal inverse, transfer to the next."""
+    """One grid of the hierarchy: operator (BSR), inverse diagonal blocks, transfers to the next."""
 
-    def __init__(self, cells_shape, nodes, P=None):
-        self.cells_shape = cells_shape
-        self.nodes = nodes  # grid-node index of each dof-carrying node on this level
+    def __init__(self, P: sp.bsr_matrix | None = None):
         self.P = P  # from the next coarser level
-        self.R = None if P is None else P.T.tocsr()
+        self.R = None if P is None else P.T.tobsr(blocksize=P.blocksize[::-1])
         self.A = None
         self.Dinv = None
 
 
 class Multigrid:
-    """V-cycle preconditioner; `update(A)` for each new tangent, then call it on residuals."""
+    """V-cycle preconditioner: `build(A)` for each new tangent, then call it on residuals."""
 
-    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, coarse_solver, coarsest: int = 30_000,
+    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, factorise, coarsest: int = 5_000,
                  sweeps: int = 2):
         self.d = d = mesh.ndim
         self.sweeps = sweeps
-        self.coarse_solver = coarse_solver
-        free = ~np.asarray(fixed, bool)
+        self.factorise = factorise  # matrix -> solve(b)
+        self.coarse_solve = None
         self.levels = []
         shape, nodes = tuple(mesh.grid.cells_shape), mesh.nodes
         while nodes.size * d > coarsest and max(shape) > 1:
-            coarse_shape = tuple((n + 1) // 2 for n in shape)
             P = interpolation_1d(shape[0])
             for n in shape[1:]:
                 P = sp.kron(P, interpolation_1d(n), format="csr")
             P = P[nodes]
             used = np.flatnonzero(np.diff(P.tocsc().indptr))
             P = sp.kron(P[:, used], sp.identity(d), format="csr")
-            if not self.levels:
-                P = sp.diags(free.astype(float)) @ P
-            self.levels.append(Level(shape, nodes, P.tocsr()))
-            shape, nodes = coarse_shape, used
-        self.levels.append(Level(shape, nodes))
-        self.coarse_matrix = None
+            self.levels.append(Level(P.tobsr(blocksize=(d, d))))
+            shape, nodes = tuple((n + 1) // 2 for n in shape), used
+        self.levels.append(Level())
+        self.interpolation = self.levels[0].P if len(self.levels) > 1 else None
+        self.constrain(fixed)
 
-    @property
-    def sizes(self) -> list[int]:
-        return [level.nodes.size * self.d for level in self.levels]
+    def constrain(self, fixed: np.ndarray):
+        """Zero the interpolation's rows of held dofs: a coarse correction never moves them."""
+        if self.interpolation is None:
+            return
+        free = sp.diags((~np.asarray(fixed, bool)).astype(float))
+        P = (free @ self.interpolation).tobsr(blocksize=self.interpolation.blocksize)
+        self.levels[0] = Level(P)
 
-    def update(self, A: sp.spmatrix):
+    def build(self, A: sp.spmatrix):
         """Galerkin operators and smoother data for tangent A (fine level, identity at fixed dofs)."""
         d = self.d
-        A = A.tocsr()
+        A = A.tobsr(blocksize=(d, d))
         for level in self.levels[:-1]:
-            level.A = A.tobsr(blocksize=(d, d))
-            level.A.sort_indices()
-            level.Dinv = self._block_diagonal_inverse(level.A)
-            A = (level.P.T @ (A @ level.P)).tocsr()
+            A.sort_indices()
+            level.A, level.Dinv = A, _block_diagonal_inverse(A)
+            A = level.R @ (A @ level.P)
             empty = A.diagonal() == 0  # coarse dofs whose support is all fixed
             if np.any(empty):
-                A = A + sp.diags(empty.astype(float))
-        self.coarse_matrix = A
-        self.coarse_solver.factor(A)
-
-    def _block_diagonal_inverse(self, A: sp.bsr_matrix) -> np.ndarray:
-        rows = np.repeat(np.arange(A.shape[0] // self.d), np.diff(A.indptr))
-        diagonal = A.data[rows == A.indices]
-        return np.ascontiguousarray(np.linalg.inv(diagonal))
+                A = (A + sp.diags(empty.astype(float))).tobsr(blocksize=(d, d))
+        self.coarse_solve = self.factorise(A.tocsr())
 
     def _smooth(self, level: Level, x: np.ndarray, b: np.ndarray, forward: bool):
         n = level.A.shape[0] // self.d
@@ -111,13 +104,20 @@ class Multigrid:
             block_gauss_seidel(level.A.indptr, level.A.indices, level.A.data.ravel(), x, b,
                                level.Dinv.ravel(), start, stop, step, self.d)
 
-    def cycle(self, b: np.ndarray, depth: int = 0) -> np.ndarray:
+    def __call__(self, b: np.ndarray, depth: int = 0) -> np.ndarray:
         """One V-cycle from a zero guess: an approximation of A^-1 b."""
         if depth == len(self.levels) - 1:
-            return self.coarse_solver.solve(b)
+            return self.coarse_solve(b)
         level = self.levels[depth]
         x = np.zeros_like(b)
         self._smooth(level, x, b, forward=True)
-        x += level.P @ self.cycle(level.R @ (b - level.A @ x), depth + 1)
+        x += level.P @ self(level.R @ (b - level.A @ x), depth + 1)
         self._smooth(level, x, b, forward=False)
         return x
+
+
+def _block_diagonal_inverse(A: sp.bsr_matrix) -> np.ndarray:
+    d = A.blocksize[0]
+    rows = np.repeat(np.arange(A.shape[0] // d), np.diff(A.indptr))
+    diagonal = A.data[rows == A.indices]
+    return np.ascontiguousarray(np.linalg.inv(diagonal))

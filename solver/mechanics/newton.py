@@ -1,38 +1,34 @@
-"""Newton's method for the discrete equilibrium R(u) = 0 (paper Table 1, step 8), safeguarded.
+"""Newton's method for the discrete equilibrium R(u) = 0 (paper Table 1, step 8), safeguarded and capped.
 
-* Euler predictor, Newton corrector: the first step uses the tangent of the
-  last equilibrium (given as `predictor`: at the very first solve the
-  stress-free, linear-elastic tangent), the next ones the exact consistent
-  tangent at the iterate (`assembly`), which converges quadratically.  The
-  tangent at the grown but undeformed start carries a compressive prestress
-  |p| ~ 3 kappa alpha that exceeds mu from alpha ~ 0.007 on: it is indefinite
-  and its Newton step inverts void elements at alpha = 0.1 (measured), while
-  the predictor step there lands within 22 % of the residual.
-* Inexact linear solves: with q the expected relative size of the coming
-  step (the last one times the observed contraction), the linear solve's
-  relative error is eta = 0.1 max(q, tol / q), within [1e-8, 1e-4] (1e-2 for
-  the first step): below
-  the Newton error while that matters, so the quadratic rate is kept, and
-  no smaller than the final tolerance needs.  (The error, not the residual:
-  see `linear.gmres`.)
-* Backtracking: a step is halved (up to 8 times) while it would invert an
-  element (det F <= 0 at a Gauss point or corner) or lower neither |R| nor
-  the energy (Armijo: Pi(u + t du) <= Pi(u) + 1e-4 t R.du, when du is a
-  descent direction; only while |R| > 1e-6 |R_ref|).  The energy is the
-  better merit far from equilibrium (large growth), the residual near it,
-  where the energy is flat to round-off.
+* Operator.  The first step uses the `operator` the caller gives (load
+  stepping: the tangent with the start's stress, positive definite at a
+  stable equilibrium) or the tangent at the start.  It is kept (a chord
+  step: a residual costs a third of a tangent) while each step cuts |R| at
+  least `1 / Settings.retangent`-fold: between snapshots the strains change
+  by ~1e-3 and the tangent hardly at all.  After a slower or damped step
+  the tangent is reassembled at the iterate: exact Newton, quadratic where
+  the problem is nonlinear (large growth).  A step from another operator
+  that finds no descent is retried once with the tangent at the iterate.
+* Inexact linear solves (forcing term, Eisenstat & Walker's choice 2):
+  the relative residual asked of a linear solve is the square of the last
+  observed contraction |R_k| / |R_k-1| (`forcing_first` for the first step),
+  clipped to [forcing_min, forcing_max], and no smaller than what brings |R|
+  to `forcing_safety` times the final tolerance.
+* Backtracking: a step is halved (up to `max_halvings` times) while it would
+  invert an element (det F <= 0 at a Gauss point or corner) or lower neither
+  |R| nor the energy (Armijo, when du is a descent direction; only while
+  |R| > 1e-6 |R_ref|: near equilibrium the energy is flat to round-off and
+  the residual is the sharper merit).
 * Converged when |R| <= tol |R_ref| AND the next increment predicted from
-  the observed contraction, |du_k| * |du_k| / |du_k-1|, is <= tol |u|: the
-  increment test without paying one more solve just to measure it.
+  the observed contraction, |du_k| min(1, |du_k| / |du_k-1|), is <= tol |u|.
   Increments are measured in the energy norm |v|_K = sqrt(v.K v) of the
-  tangent K they were solved with (the Newton decrement).  The max norm
-  would be ruled by the void: with stiffness 1e-4 of the biofilm's, its
-  displacements are 1e4 times less determined by the forces, and a
-  multigrid-preconditioned solve that is accurate to 1e-2 in energy can be
-  off by 60 % there (docs/mechanics.md).
+  operator they were solved with: the max norm would be ruled by the void,
+  whose displacements are 1e4 times less determined by the forces.
   |R_ref| is the growth load: the internal forces at u = 0, reactions included.
 
-Failures are returned, not raised: the caller may cut the load step back.
+At most `max_iterations` steps, each with one linear solve and at most
+`max_halvings + 1` residuals.  Failures are returned, not raised: the
+caller may cut the load step back.
 """
 from __future__ import annotations
 
@@ -43,6 +39,7 @@ import numpy as np
 
 from .assembly import Evaluation
 from .linear import LinearSolveError
+from .settings import Settings
 
 
 @dataclass
@@ -53,6 +50,7 @@ class NewtonOutcome:
     iterations: int = 0
     history: list[float] = field(default_factory=list)
     reason: str = ""
+    contraction: float | None = None  # last observed |R_k+1| / |R_k|
 
 
 def energy_norm(matrix, v: np.ndarray) -> float:
@@ -60,53 +58,63 @@ def energy_norm(matrix, v: np.ndarray) -> float:
     return float(np.sqrt(abs(v @ (matrix @ v))))
 
 
-def newton(evaluate: Callable[[np.ndarray, bool], Evaluation],
-           solve: Callable[[object, np.ndarray, float], np.ndarray],
-           u: np.ndarray, reference: float, tolerance: float, max_iterations: int,
-           predictor=None, max_halvings: int = 8) -> NewtonOutcome:
-    """Iterate from u; evaluate(u, tangent) -> Evaluation, solve(K, rhs, rtol) -> du."""
-    ev = evaluate(u, True)
+def forcing(r: float, contraction: float | None, target: float, s: Settings) -> float:
+    """Relative residual asked of the next linear solve (see the module docstring)."""
+    expected = s.forcing_first if contraction is None else contraction**2
+    return float(np.clip(max(expected, s.forcing_safety * target / r), s.forcing_min, s.forcing_max))
+
+
+def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.ndarray, reference: float,
+           tolerance: float, max_iterations: int, settings: Settings, operator=None) -> NewtonOutcome:
+    """Iterate from u; evaluate(u, tangent) -> Evaluation, linear.solve(K, rhs, rtol) -> du."""
+    s = settings
+    ev = evaluate(u, operator is None)
     if np.min(ev.min_det) <= 0:
         return NewtonOutcome(u, ev, False, reason="det F <= 0 at the starting point")
     r = float(np.linalg.norm(ev.residual))
     history = [r]
     if r <= tolerance * reference:
         return NewtonOutcome(u, ev, True, 0, history)
-    previous_step = None
+    matrix = operator if operator is not None else ev.matrix
+    exact = operator is None  # matrix is the tangent at u
+    previous_size = contraction = None
     for k in range(1, max_iterations + 1):
-        if previous_step:  # q: the next step's relative size if the observed contraction holds
-            q = max(relative * min(contraction, 1.0), 1e-300)
-            eta = min(1e-4, max(1e-8, 0.1 * q, 0.1 * tolerance / q))
-        else:
-            eta = 1e-2
+        eta = forcing(r, contraction, tolerance * reference, s)
         try:
-            matrix = predictor if k == 1 and predictor is not None else ev.matrix
-            du = solve(matrix, -ev.residual, eta)
+            du = linear.solve(matrix, -ev.residual, eta)
         except LinearSolveError as error:
-            return NewtonOutcome(u, ev, False, k - 1, history, f"linear solver: {error}")
-        step = 1.0
-        for _ in range(max_halvings + 1):
+            return NewtonOutcome(u, ev, False, k - 1, history, f"linear solver: {error}", contraction)
+        step, slope = 1.0, float(ev.residual @ du)
+        for _ in range(s.max_halvings + 1):
             trial = u + step * du
-            ev_trial = evaluate(trial, True)
+            ev_trial = evaluate(trial, False)
             r_trial = float(np.linalg.norm(ev_trial.residual))
-            slope = float(ev.residual @ du)
-            # energy descent counts only far from equilibrium (near it the residual is the
-            # sharper merit) and where the decrease is above the energy's round-off
+            # energy descent counts only far from equilibrium and above the energy's round-off
             descent = (r > 1e-6 * reference and -slope > 1e-10 * abs(ev.energy)
-                       and ev_trial.energy <= ev.energy + 1e-4 * step * slope)
+                       and ev_trial.energy <= ev.energy + s.armijo * step * slope)
             if np.min(ev_trial.min_det) > 0 and (r_trial < r or descent):
                 break
             step *= 0.5
         else:
-            reason = ("every step length down to 2^-%d inverts an element" % max_halvings
+            if not exact:  # an operator from elsewhere misled the step: the tangent at u, then again
+                ev, exact, contraction = evaluate(u, True), True, None
+                matrix = ev.matrix
+                continue
+            reason = (f"every step length down to 2^-{s.max_halvings} inverts an element"
                       if np.min(ev_trial.min_det) <= 0 else "no step length lowers the residual or the energy")
-            return NewtonOutcome(u, ev_trial, False, k, history, reason)
+            return NewtonOutcome(u, ev_trial, False, k, history, reason, contraction)
         size = step * energy_norm(matrix, du)
-        contraction = size / previous_step if previous_step else r_trial / r
-        u, ev, r, previous_step = trial, ev_trial, r_trial, size
-        relative = size / max(energy_norm(matrix, u), 1e-300)
+        contraction = r_trial / r
+        shrink = size / previous_size if previous_size else contraction
+        u, ev, r, previous_size = trial, ev_trial, r_trial, size
         history.append(r)
-        if r <= tolerance * reference and relative * min(contraction, 1.0) <= tolerance:
-            return NewtonOutcome(u, ev, True, k, history)
+        relative = size / max(energy_norm(matrix, u), 1e-300)
+        if r <= tolerance * reference and relative * min(shrink, 1.0) <= tolerance:
+            return NewtonOutcome(u, ev, True, k, history, contraction=contraction)
+        exact = False
+        if contraction > s.retangent or step < 1.0:  # slow or damped: the tangent at the iterate
+            ev, exact = evaluate(u, True), True  # (the residual again: cheaper than a tangent per trial)
+            matrix = ev.matrix
     return NewtonOutcome(u, ev, False, max_iterations, history,
-                         f"not converged in {max_iterations} iterations (|R|/|R_ref| = {r / reference:.2e})")
+                         f"not converged in {max_iterations} iterations (|R|/|R_ref| = {r / reference:.2e})",
+                         contraction)

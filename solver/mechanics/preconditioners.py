@@ -1,0 +1,166 @@
+"""Preconditioners for the tangent, apart from the Krylov loop: `build(A)`, then `M(r) ~ A^-1 r`.
+
+* `Direct`: a sparse factorisation, PARDISO (pypardiso, symmetric
+  indefinite, x86_64 wheels) or scipy's SuperLU elsewhere.  Exact, but its
+  cost grows like n^2 in 3-D: the choice for small problems only.
+* `GeometricMultigrid`: `multigrid.Multigrid`, the default beyond
+  `Settings.direct_limit` dofs.
+* `SmoothedAggregation`: pyamg's smoothed-aggregation AMG with the rigid-body
+  modes as near-null space; selectable for comparison (docs/mechanics.md).
+* `Deflated`: a wrapper correcting the rigid-body modes exactly around any
+  of the above (a balancing two-level step).
+
+All are symmetric when A is, so CG may use them.  `build(A)` is the expensive
+part; `prepare(A)`, where defined, adapts a built preconditioner cheaply to
+another operator.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyamg
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .multigrid import Multigrid
+
+try:  # PARDISO from PyPI wheels (x86_64); SuperLU is the portable fallback
+    import pypardiso
+except ImportError:  # pragma: no cover - depends on the platform
+    pypardiso = None
+
+
+class Factoriser:
+    """factor(A) -> solve(b): PARDISO's symmetric indefinite LDL^T if available, else SuperLU.
+
+    Keeps one PARDISO handle (creating one searches the disk for MKL) and so
+    one factorisation at a time: a new one replaces the last."""
+
+    def __init__(self):
+        self._pardiso = None
+
+    def __call__(self, A: sp.spmatrix):
+        if pypardiso is None:
+            return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve
+        if self._pardiso is None:
+            self._pardiso = pypardiso.PyPardisoSolver(mtype=-2)
+        else:
+            self._pardiso.free_memory()  # the last factors
+        upper = sp.triu(A, format="csr")
+        upper.sort_indices()
+        self._pardiso.factorize(upper)
+        return lambda b: self._pardiso.solve(upper, b)
+
+
+def backend() -> str:
+    return "pardiso" if pypardiso is not None else "superlu"
+
+
+class Direct:
+    """Factor once, solve many."""
+
+    def __init__(self):
+        self.name = f"direct({backend()})"
+        self._factorise = Factoriser()
+        self._solve = None
+
+    def build(self, A: sp.spmatrix):
+        self._solve = self._factorise(A.tocsr())
+
+    def constrain(self, fixed: np.ndarray):
+        pass  # the factors come from the (constrained) matrix itself
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        return self._solve(r)
+
+
+class GeometricMultigrid:
+    """V-cycles on the grid's own coarse spaces; the coarsest level factorised."""
+
+    def __init__(self, mesh, fixed: np.ndarray, coarsest: int, sweeps: int):
+        self.cycle = Multigrid(mesh, fixed, Factoriser(), coarsest=coarsest, sweeps=sweeps)
+        self.name = f"multigrid({len(self.cycle.levels)} levels, {backend()} coarsest)"
+
+    def build(self, A: sp.spmatrix):
+        self.cycle.build(A)
+
+    def constrain(self, fixed: np.ndarray):
+        self.cycle.constrain(fixed)
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        return self.cycle(r)
+
+
+class SmoothedAggregation:
+    """pyamg's smoothed aggregation, rigid-body modes (zero at fixed dofs) as near-null space."""
+
+    def __init__(self, modes: np.ndarray, fixed: np.ndarray, ndim: int, coarsest: int):
+        self.all_modes, self.d, self.coarsest = modes, ndim, coarsest
+        self.name = "smoothed aggregation(pyamg)"
+        self._cycle = None
+        self.constrain(fixed)
+
+    def constrain(self, fixed: np.ndarray):
+        self.modes = np.where(np.asarray(fixed, bool)[:, None], 0.0, self.all_modes)
+
+    def build(self, A: sp.spmatrix):
+        hierarchy = pyamg.smoothed_aggregation_solver(
+            A.tobsr(blocksize=(self.d, self.d)), B=self.modes, symmetry="symmetric",
+            strength=("symmetric", {"theta": 0.0}), smooth=("jacobi", {"omega": 4.0 / 3.0}),
+            presmoother=("block_gauss_seidel", {"sweep": "symmetric"}),
+            postsmoother=("block_gauss_seidel", {"sweep": "symmetric"}),
+            max_coarse=self.coarsest, coarse_solver="splu", keep=False)
+        self._cycle = hierarchy.aspreconditioner(cycle="V")
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        return self._cycle @ r
+
+
+class Deflated:
+    """Another preconditioner M with the rigid-body modes corrected exactly (balancing form):
+    M_d = Z E^-1 Z^T + (I - Z E^-1 Z^T A) M (I - A Z E^-1 Z^T),  E = Z^T A Z.
+
+    The modes left free by pinning single nodes of the soft void are the
+    softest of the tangent; a preconditioner built from another tangent can
+    leave errors in them that neither the residual nor the energy shows.  The
+    Galerkin correction in span(Z) (Z the rigid-body modes, zero at fixed
+    dofs) removes them before and after M, keeping symmetry."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.name = f"deflated {inner.name}"
+        self.Z = None  # orthonormal modes (dofs, k); set before `build` (they follow the biofilm)
+        self._A = self._AZ = self._Einv = None
+
+    def build(self, A: sp.spmatrix):
+        self.inner.build(A)
+        self.prepare(A)
+
+    def constrain(self, fixed: np.ndarray):
+        self.inner.constrain(fixed)
+
+    def prepare(self, A: sp.spmatrix):
+        """The exact part for operator A (k products with A); the inner preconditioner stays."""
+        self._A = A
+        self._AZ = np.asarray(A @ self.Z)
+        self._Einv = np.linalg.pinv(self.Z.T @ self._AZ, rcond=1e-12)
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        Z, Einv = self.Z, self._Einv
+        x = Z @ (Einv @ (Z.T @ r))
+        x += self.inner(r - self._AZ @ (Einv @ (Z.T @ r)))
+        return x + Z @ (Einv @ (Z.T @ (r - self._A @ x)))
+
+
+def choose(method: str, n_dofs: int, mesh, fixed: np.ndarray, modes: np.ndarray, settings):
+    """The preconditioner a `MechanicsSetup.linear_solver` names ("auto": by size), deflated if asked."""
+    if method == "auto":
+        method = "direct" if n_dofs <= settings.direct_limit else "multigrid"
+    if method == "direct":
+        inner = Direct()
+    elif method == "multigrid":
+        inner = GeometricMultigrid(mesh, fixed, settings.coarsest, settings.sweeps)
+    elif method == "amg":
+        inner = SmoothedAggregation(modes, fixed, mesh.ndim, settings.coarsest)
+    else:
+        raise ValueError(f"unknown linear solver {method!r}")
+    return Deflated(inner) if settings.deflate else inner
