@@ -29,7 +29,15 @@ class SimulationError(RuntimeError):
 
 
 class MechanicsError(SimulationError):
-    """Growth mechanics failed: det F <= 0 or Newton not converged after its safeguards."""
+    """Growth mechanics failed: det F <= 0, or no equilibrium within the solver's caps.
+
+    `tried` counts what the snapshot's solve spent (load steps, Newton steps,
+    Krylov iterations, preconditioner builds), so a caller can see the work
+    was bounded."""
+
+    def __init__(self, time: float, cause: str, where: str = "", tried: dict | None = None):
+        super().__init__(time, cause, where)
+        self.tried = dict(tried or {})
 
 
 def describe_cell(index: tuple[int, ...], spacing: float) -> str:

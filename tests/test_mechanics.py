@@ -5,7 +5,7 @@ import pytest
 from scipy.optimize import brentq
 
 from solver import Grid, MechanicsError, MechanicsSetup, Parameters
-from solver.mechanics import GrowthMechanics, MechanicsResult
+from solver.mechanics import GrowthMechanics, MechanicsResult, Settings
 from solver.mechanics.assembly import Assembler
 from solver.mechanics.mesh import StructuredMesh
 
@@ -127,20 +127,30 @@ def test_z_faces_do_not_exist_in_2d():
 
 # -- failures --------------------------------------------------------------------------------
 
-def test_crushing_the_void_raises_with_time_and_cell():
-    """A dense core growing eightfold in volume inside a clamped box of near-empty void."""
-    grid = Grid((4, 4, 4), 1.0)
+@pytest.mark.parametrize("method, krylov_budget, binding", [("direct", 400, "Newton steps spent"),
+                                                             ("multigrid", 150, "linear solver's budget is spent")])
+def test_a_hard_one_shot_load_is_refused_within_the_caps(method, krylov_budget, binding):
+    """A dense core growing eightfold in volume inside a clamped box of near-empty void, in one
+    snapshot: no equilibrium without crushing the void.  The solve must stop with time, cause, cell
+    and what it tried, after bounded work: every count within its cap (iterations, not seconds).
+    The caps are set so that once the Newton steps, once the Krylov iterations run out first."""
+    grid = Grid((6, 6, 6), 1.0)
     phi = np.zeros(grid.cells_shape)
-    phi[1:3, 1:3, 1:3] = 1.0
-    setup = MechanicsSetup(clamp=("x-", "x+", "y-", "y+", "z-", "z+"), residual_stiffness=1e-8,
-                           max_newton_iterations=8)
-    mech = GrowthMechanics(grid, PARAMS, setup, None)
+    phi[2:4, 2:4, 2:4] = 1.0
+    setup = MechanicsSetup(clamp=("x-", "x+", "y-", "y+", "z-", "z+"), residual_stiffness=1e-8, linear_solver=method)
+    caps = Settings(coarsest=100, max_load_steps=10, max_total_newton=30, krylov_budget=krylov_budget, max_builds=6)
+    mech = GrowthMechanics(grid, PARAMS, setup, settings=caps)
     with pytest.raises(MechanicsError) as failure:
         mech.solve(phi, 1.0 * phi, 0.75)
-    message = str(failure.value)
-    assert message.startswith("t = 0.75:")
+    message, tried = str(failure.value), failure.value.tried
+    assert failure.value.time == 0.75 and message.startswith("t = 0.75:")
     assert "cell (z, y, x) = (" in message and "µm" in message
-    assert failure.value.time == 0.75
+    assert "tried" in message and "Krylov iterations" in message and "load steps" in message
+    assert binding in message
+    assert 1 <= tried["load_steps"] <= caps.max_load_steps
+    assert tried["newton"] <= caps.max_total_newton
+    assert tried["krylov"] <= caps.krylov_budget
+    assert tried["builds"] <= caps.max_builds
 
 
 def test_inverted_element_is_reported_by_the_check():

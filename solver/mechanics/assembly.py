@@ -18,10 +18,13 @@ with g_ai = G_iJ dN_a/dX_J, f_ai = F_iJ dN_a/dX_J at each Gauss point q:
 The last term is the condensed pressure (Schur complement of the P0 block,
 Table 1 step 7); the rest is `material.tangent_coefficients` contracted with
 the gradients.  Fixed dofs get identity rows and columns so that the matrix
-stays symmetric.  Work is done in chunks of elements to bound the
-temporaries; element matrices go straight into the BSR data, one local
-node pair (a, b) at a time: for a fixed pair no two elements share a block,
-so a plain indexed add is exact.
+stays symmetric.
+
+Assembly uses the grid: element matrices are added into a node x stencil
+array (27 neighbours in 3-D, 9 in 2-D) one local node pair (a, b) at a time,
+each a shifted slice of the cell grid (no index arrays, no sorting), and the
+BSR data are one gather from it.  Work goes in slabs of grid planes to bound
+the temporaries.
 """
 from __future__ import annotations
 
@@ -54,18 +57,15 @@ class Assembler:
         self.mesh = mesh
         self.d = d = mesh.ndim
         self.ref = ref = mesh.reference
-        self.chunk = chunk
         self.edofs = mesh.element_dofs()
-        conn = mesh.connectivity
-        nloc = conn.shape[1]
-        # node-level pattern: one d x d block per pair of nodes sharing an element
-        keys = (conn[:, :, None].astype(np.int64) * mesh.n_nodes + conn[:, None, :]).ravel()
-        unique, block_map = np.unique(keys, return_inverse=True)
-        self.block_map = block_map.reshape(-1, nloc, nloc)
-        self.rows, cols = np.divmod(unique, mesh.n_nodes)
-        self.indices = cols.astype(np.int32)
-        self.indptr = np.searchsorted(self.rows, np.arange(mesh.n_nodes + 1)).astype(np.int32)
+        nloc = ref.gradients.shape[1]
+        self._pattern()
         self.constrain(fixed)
+        cells = mesh.grid.cells_shape
+        plane = int(np.prod(cells[1:]))
+        self.planes = max(1, chunk // plane)  # grid planes per slab
+        # first element of every plane (elements are the open cells in grid order)
+        self.plane_start = np.searchsorted(mesh.cells, np.arange(cells[0] + 1) * plane)
         Q = ref.gradients.shape[0]
         # constant per element: w_q dN_a . dN_b (the isotropic part), w_q dN_a/dX_J (the residual)
         self.gram = np.einsum("q,qaJ,qbJ->qab", ref.weights, ref.gradients, ref.gradients).reshape(Q, -1)
@@ -73,6 +73,29 @@ class Assembler:
         # displacement -> gradient at the Gauss points / corners: (nloc, Q * d) each
         self.to_points = ref.gradients.transpose(1, 0, 2).reshape(nloc, -1)
         self.to_corners = ref.corner_gradients.transpose(1, 0, 2).reshape(nloc, -1)
+
+    def _pattern(self):
+        """The BSR pattern from the grid: node x stencil slot, occupied where an open cell links them."""
+        mesh, d = self.mesh, self.d
+        cells, nodes = mesh.grid.cells_shape, mesh.grid.nodes_shape
+        corners = mesh.reference.corners[:, ::-1]  # (a, [z,] y, x)
+        self.slots = 3**d
+        strides = np.array([int(np.prod(nodes[k + 1:])) for k in range(d)])
+        self.pairs = []  # (a, b, where node a sits relative to the cell, stencil slot of b from a)
+        for a, ca in enumerate(corners):
+            for b, cb in enumerate(corners):
+                slot = int(np.dot(cb - ca + 1, 3 ** np.arange(d - 1, -1, -1)))
+                self.pairs.append((a, b, tuple(slice(c, c + n) for c, n in zip(ca, cells)), slot))
+        occupied = np.zeros(nodes + (self.slots,), bool)
+        for _, _, at, slot in self.pairs:
+            occupied[at + (slot,)] |= ~mesh.obstacle
+        self.gather = np.flatnonzero(occupied)  # rows sorted, and columns within a row (slot order)
+        row_grid, slot = np.divmod(self.gather, self.slots)
+        offsets = np.array(np.unravel_index(np.arange(self.slots), (3,) * d)).T - 1
+        col_grid = row_grid + offsets[slot] @ strides
+        self.rows = mesh.grid_to_mesh_node[row_grid]
+        self.indices = mesh.grid_to_mesh_node[col_grid].astype(np.int32)
+        self.indptr = np.searchsorted(self.rows, np.arange(mesh.n_nodes + 1)).astype(np.int32)
 
     def constrain(self, fixed: np.ndarray):
         """Hold the dofs `fixed` at zero: their rows and columns become the identity's."""
@@ -107,11 +130,15 @@ class Assembler:
         E, nloc = mesh.n_elements, self.to_points.shape[0]
         V, wq = ref.volume, ref.weights
         forces = np.zeros((E, nloc, d))
-        data = np.zeros((self.n_blocks, d, d)) if tangent else None
+        stencil = np.zeros(mesh.grid.nodes_shape + (self.slots, d, d)) if tangent else None
         pressure, theta, min_det = np.zeros(E), np.ones(E), np.empty(E)
         energy = 0.0
-        for start in range(0, E, self.chunk):
-            part = slice(start, min(start + self.chunk, E))
+        n_planes = mesh.grid.cells_shape[0]
+        for first in range(0, n_planes, self.planes):
+            last = min(first + self.planes, n_planes)
+            part = slice(self.plane_start[first], self.plane_start[last])
+            if part.start == part.stop:
+                continue
             F = self.gradient(u, part)
             J = material.determinant(F)
             min_det[part] = np.minimum(J.min(axis=1), material.determinant(self.gradient(u, part, True)).min(axis=1))
@@ -135,11 +162,11 @@ class Assembler:
                             ).reshape(n, d, nloc).transpose(0, 2, 1)
             if tangent:
                 K = self._element_matrices(Fd, Gd, J, s, c_fg, c_gg, c_swap, we * kappa / (Jg * V))
-                self._scatter(data, K, part)
+                self._scatter(stencil, K, part, first, last)
         residual = np.bincount(self.edofs.ravel(), weights=forces.ravel(), minlength=mesh.n_dofs)
         load = float(np.linalg.norm(residual))
         residual[self.fixed] = 0.0
-        matrix = self._matrix(data) if tangent and np.all(min_det > 0) else None
+        matrix = self._matrix(stencil) if tangent and np.all(min_det > 0) else None
         return Evaluation(residual, matrix, pressure, theta, min_det, energy, load)
 
     def growth_load(self, w: np.ndarray, growth: np.ndarray, kappa: float) -> float:
@@ -163,40 +190,46 @@ class Assembler:
         return out.reshape(E, Q, -1)
 
     def _element_matrices(self, Fd, Gd, J, s, c_fg, c_gg, c_swap, bulk) -> np.ndarray:
-        """(E, a, i, b, k) element tangents from the per-point vectors (see module docstring)."""
-        E, Q, d = Fd.shape[0], Fd.shape[1], self.d
+        """(E, a, b, i, k) element tangents from the per-point vectors (see module docstring)."""
+        E, d = Fd.shape[0], self.d
         wq = self.ref.weights
         f, g = self._vectors(Fd), self._vectors(Gd)
-        m = g.shape[2]
-        nloc = m // d
-        # sum_q [g f]_q [[c_gg, c_fg], [c_fg, 0]]_q [g f]_q^T as one batched product over 2Q
+        nloc = g.shape[2] // d
+        # sum_q [g f]_q [[c_gg, c_fg], [c_fg, 0]]_q [g f]_q^T as one batched product over 2Q: (E, ai, bk)
         left = np.concatenate([g, f], axis=1)
         right = np.concatenate([(wq * c_gg)[..., None] * g + (wq * c_fg)[..., None] * f,
                                 (wq * c_fg)[..., None] * g], axis=1)
-        K = np.matmul(left.transpose(0, 2, 1), right).reshape(E, nloc, d, nloc, d)
-        # c_swap g_ak g_bi: the same outer product with the component indices exchanged
+        main = np.matmul(left.transpose(0, 2, 1), right).reshape(E, nloc, d, nloc, d)
+        # c_swap g_ak g_bi: the same outer product with the component indices exchanged: (E, ak, bi)
         swap = np.matmul(g.transpose(0, 2, 1), (wq * c_swap)[..., None] * g).reshape(E, nloc, d, nloc, d)
-        K += swap.transpose(0, 1, 4, 3, 2)
+        K = np.add(main.transpose(0, 1, 3, 2, 4), swap.transpose(0, 1, 3, 4, 2))
         # s d_ik (dN_a . dN_b)
         iso = (s @ self.gram).reshape(E, nloc, nloc)
         for i in range(d):
-            K[:, :, i, :, i] += iso
+            K[..., i, i] += iso
         # condensed pressure: rank one per element
-        h = np.einsum("q,eq,eqm->em", wq, J, g)
-        K = K.reshape(E, m, m)
-        K += (bulk[:, None] * h)[:, :, None] * h[:, None, :]
-        return K.reshape(E, nloc, d, nloc, d)
+        h = np.einsum("q,eq,eqm->em", wq, J, g).reshape(E, nloc, d)
+        K += (bulk[:, None, None] * h)[:, :, None, :, None] * h[:, None, :, None, :]
+        return K
 
-    def _scatter(self, data: np.ndarray, K: np.ndarray, elements: slice):
-        """Add element matrices (E, a, i, b, k) into the BSR data, one local pair (a, b) at a time."""
-        targets = self.block_map[elements]
-        nloc = targets.shape[1]
-        for a in range(nloc):
-            for b in range(nloc):
-                data[targets[:, a, b]] += K[:, a, :, b, :]
+    def _scatter(self, stencil: np.ndarray, K: np.ndarray, elements: slice, first: int, last: int):
+        """Add the element matrices (E, a, b, i, k) of grid planes [first, last) into the stencil array."""
+        cells = self.mesh.grid.cells_shape
+        plane = int(np.prod(cells[1:]))
+        slab_shape = (last - first,) + cells[1:]
+        if K.shape[0] == (last - first) * plane:  # no obstacle in the slab: elements are its cells
+            slab = K.reshape(slab_shape + K.shape[1:])
+        else:
+            slab = np.zeros((int(np.prod(slab_shape)),) + K.shape[1:])
+            slab[self.mesh.cells[elements] - first * plane] = K
+            slab = slab.reshape(slab_shape + K.shape[1:])
+        for a, b, at, slot in self.pairs:
+            rows = (slice(at[0].start + first, at[0].start + last),) + at[1:]
+            stencil[rows + (slot,)] += slab[..., a, b, :, :]
 
-    def _matrix(self, data: np.ndarray) -> sp.bsr_matrix:
+    def _matrix(self, stencil: np.ndarray) -> sp.bsr_matrix:
         d, n = self.d, self.mesh.n_dofs
+        data = stencil.reshape(-1, d, d)[self.gather]
         data *= self.keep
         data[self.fixed_diag[0], self.fixed_diag[1], self.fixed_diag[1]] = 1.0
         return sp.bsr_matrix((data, self.indices, self.indptr), shape=(n, n))

@@ -20,6 +20,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..errors import MechanicsError, describe_cell
 from ..problem import Grid, MechanicsSetup, Parameters
@@ -93,6 +94,10 @@ class GrowthMechanics:
     # -- the solve -----------------------------------------------------------------
     def solve(self, phi: np.ndarray, alpha: np.ndarray, time: float) -> MechanicsResult:
         """Equilibrium for (phi, alpha) per cell, starting from the previous call's state."""
+        with threadpool_limits(limits=self.settings.blas_threads, user_api="blas"):
+            return self._solve(phi, alpha, time)
+
+    def _solve(self, phi: np.ndarray, alpha: np.ndarray, time: float) -> MechanicsResult:
         began = _clock()
         phi1 = self._element_values("phi", phi, time)
         alpha1 = self._element_values("alpha", alpha, time)
@@ -192,10 +197,11 @@ class GrowthMechanics:
                 worst = int(np.argmax((self.mesh.connectivity == node).any(axis=1)))
                 cause = "Newton failed"
             cause += f": {outcome.reason}"
-        tried = (f"{refusal.why}; reached {refusal.reached:.3g} of the way from the last converged state "
-                 f"(next try {refusal.target:.3g}); tried {attempts.summary()}, {krylov} Krylov iterations "
-                 f"and {builds} preconditioner builds ({self.linear.name})")
-        return MechanicsError(when, f"{cause}; {tried}", self._cell(worst))
+        summary = (f"{refusal.why}; reached {refusal.reached:.3g} of the way from the last converged state "
+                   f"(next try {refusal.target:.3g}); tried {attempts.summary()}, {krylov} Krylov iterations "
+                   f"and {builds} preconditioner builds ({self.linear.name})")
+        tried = {"load_steps": len(attempts.steps), "newton": attempts.newton, "krylov": krylov, "builds": builds}
+        return MechanicsError(when, f"{cause}; {summary}", self._cell(worst), tried)
 
 
 def _clock() -> float:

@@ -34,7 +34,11 @@ from .settings import Settings
 
 
 class LinearSolveError(RuntimeError):
-    """No step: the Krylov solve failed with a fresh preconditioner, or the budget is spent."""
+    """No step: the Krylov solve failed with a fresh preconditioner."""
+
+
+class BudgetSpent(LinearSolveError):
+    """The snapshot's Krylov iterations or preconditioner builds are spent: nothing more to try."""
 
 
 class TangentSolver:
@@ -69,7 +73,7 @@ class TangentSolver:
 
     def _build(self, A):
         if self.builds_left <= 0:
-            raise LinearSolveError(f"all {self.settings.max_builds} preconditioner builds spent")
+            raise BudgetSpent(f"all {self.settings.max_builds} preconditioner builds spent")
         self.preconditioner.build(A)
         self.builds += 1
         self.builds_left -= 1
@@ -104,7 +108,7 @@ class TangentSolver:
     def _krylov(self, method: str, A, b, x0, rtol, limit):
         limit = min(limit, self.budget)
         if limit <= 0:
-            raise LinearSolveError(f"Krylov budget of {self.settings.krylov_budget} iterations spent")
+            raise BudgetSpent(f"all {self.settings.krylov_budget} Krylov iterations spent")
         M = spla.LinearOperator(A.shape, matvec=self.preconditioner, dtype=float)
         count = [0]
 

@@ -71,8 +71,8 @@ def step_load(system: Callable[[float, float], Callable], linear, u: np.ndarray,
         target = min(1.0, s_done + ds)
         left = settings.max_total_newton - attempts.newton
         if len(attempts.steps) >= settings.max_load_steps or left <= 0:
-            why = (f"{settings.max_load_steps} load steps" if left > 0
-                   else f"{settings.max_total_newton} Newton steps") + " spent"
+            why = (f"all {settings.max_load_steps} load steps" if left > 0
+                   else f"all {settings.max_total_newton} Newton steps") + " spent"
             raise Refused(outcome, s_done, target, why)
         operator = system(target, s_done)(u, True).matrix  # the start's stress, the target's stiffness
         outcome = newton(system(target, target), linear, u, reference, tolerance, min(max_newton, left),
@@ -83,7 +83,10 @@ def step_load(system: Callable[[float, float], Callable], linear, u: np.ndarray,
             u, s_done = outcome.u, target
             ds = min(2.0 * ds, 1.0)
             continue
+        if outcome.spent:
+            raise Refused(outcome, s_done, target, "the linear solver's budget is spent")
         ds /= 2.0
         if ds < settings.smallest_load_step * (1 - 1e-12):
-            raise Refused(outcome, s_done, target, f"load step below {settings.smallest_load_step:.3g}")
+            raise Refused(outcome, s_done, target, f"no load step down to {settings.smallest_load_step:.3g} "
+                                                   "of the way converged")
     return outcome

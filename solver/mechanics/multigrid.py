@@ -14,10 +14,14 @@ two are compared in docs/mechanics.md.)
 * Coarse operators: Galerkin, A_c = P^T A P, in ndim x ndim blocks (BSR):
   they inherit the coefficient jumps (biofilm/void contrast 1e4) without
   any averaging rule.
-* Smoother: point-block Gauss-Seidel (ndim x ndim node blocks, pyamg's
-  kernel), forward before and backward after the coarse correction, so the
-  V-cycle is symmetric (a valid preconditioner for CG).
-* Coarsest level: a sparse factorisation (`preconditioners.Factoriser`).
+* Smoother: Chebyshev polynomials of degree 3 in D^-1 A (D the ndim x ndim
+  node blocks of the diagonal), aimed at the upper part [lmax/30, 1.1 lmax]
+  of its spectrum (lmax by power iteration), before and after the coarse
+  correction: the V-cycle is symmetric, a valid preconditioner for CG.  Each
+  degree costs one block-sparse product; per unit of work it smooths better
+  than pyamg's block Gauss-Seidel, whose kernel costs 3.5 products a sweep
+  (14 CG iterations instead of 23, 2.5x less time at 20^3; docs/mechanics.md).
+* Coarsest level: a sparse factorisation (SuperLU: it has < `coarsest` dofs).
 
 The transfers depend only on the mesh and the constraints and are built
 once; `build(A)` recomputes the operators for a new tangent.
@@ -26,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from pyamg.amg_core import block_gauss_seidel
+import scipy.sparse.linalg as spla
 
 from .mesh import StructuredMesh
 
@@ -49,17 +53,22 @@ class Level:
         self.P = P  # from the next coarser level
         self.R = None if P is None else P.T.tobsr(blocksize=P.blocksize[::-1])
         self.A = None
-        self.Dinv = None
+        self.Dinv = None  # (nodes, d, d) inverse diagonal blocks
+        self.bounds = None  # the smoother's target interval of the spectrum of D^-1 A
+
+    def jacobi(self, r: np.ndarray) -> np.ndarray:
+        """D^-1 r (block diagonal)."""
+        d = self.Dinv.shape[1]
+        return np.einsum("nij,nj->ni", self.Dinv, r.reshape(-1, d)).ravel()
 
 
 class Multigrid:
     """V-cycle preconditioner: `build(A)` for each new tangent, then call it on residuals."""
 
-    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, factorise, coarsest: int = 5_000,
-                 sweeps: int = 2):
+    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, coarsest: int = 1_000, degree: int = 3,
+                 ratio: float = 30.0):
         self.d = d = mesh.ndim
-        self.sweeps = sweeps
-        self.factorise = factorise  # matrix -> solve(b)
+        self.degree, self.ratio = degree, ratio
         self.coarse_solve = None
         self.levels = []
         shape, nodes = tuple(mesh.grid.cells_shape), mesh.nodes
@@ -91,18 +100,29 @@ class Multigrid:
         for level in self.levels[:-1]:
             A.sort_indices()
             level.A, level.Dinv = A, _block_diagonal_inverse(A)
+            top = 1.1 * _largest_eigenvalue(level)
+            level.bounds = (top / self.ratio, top)
             A = level.R @ (A @ level.P)
             empty = A.diagonal() == 0  # coarse dofs whose support is all fixed
             if np.any(empty):
                 A = (A + sp.diags(empty.astype(float))).tobsr(blocksize=(d, d))
-        self.coarse_solve = self.factorise(A.tocsr())
+        self.coarse_solve = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve
 
-    def _smooth(self, level: Level, x: np.ndarray, b: np.ndarray, forward: bool):
-        n = level.A.shape[0] // self.d
-        start, stop, step = (0, n, 1) if forward else (n - 1, -1, -1)
-        for _ in range(self.sweeps):
-            block_gauss_seidel(level.A.indptr, level.A.indices, level.A.data.ravel(), x, b,
-                               level.Dinv.ravel(), start, stop, step, self.d)
+    def _smooth(self, level: Level, x: np.ndarray, b: np.ndarray, zero: bool = False):
+        """`degree` Chebyshev steps on D^-1 A x = D^-1 b, in place (zero: x is 0, saves a product)."""
+        low, high = level.bounds
+        theta, delta = (high + low) / 2, (high - low) / 2
+        sigma = theta / delta
+        rho = 1.0 / sigma
+        r = level.jacobi(b if zero else b - level.A @ x)
+        step = r / theta
+        for k in range(self.degree):
+            x += step
+            if k == self.degree - 1:
+                break
+            r -= level.jacobi(level.A @ step)
+            rho, previous = 1.0 / (2.0 * sigma - rho), rho
+            step = rho * previous * step + 2.0 * rho / delta * r
 
     def __call__(self, b: np.ndarray, depth: int = 0) -> np.ndarray:
         """One V-cycle from a zero guess: an approximation of A^-1 b."""
@@ -110,10 +130,21 @@ class Multigrid:
             return self.coarse_solve(b)
         level = self.levels[depth]
         x = np.zeros_like(b)
-        self._smooth(level, x, b, forward=True)
+        self._smooth(level, x, b, zero=True)
         x += level.P @ self(level.R @ (b - level.A @ x), depth + 1)
-        self._smooth(level, x, b, forward=False)
+        self._smooth(level, x, b)
         return x
+
+
+def _largest_eigenvalue(level: Level, iterations: int = 12) -> float:
+    """Power iteration for the largest eigenvalue of D^-1 A (from a fixed start: reproducible)."""
+    v = np.random.default_rng(0).standard_normal(level.A.shape[0])
+    estimate = 1.0
+    for _ in range(iterations):
+        w = level.jacobi(level.A @ v)
+        estimate = np.linalg.norm(w) / np.linalg.norm(v)
+        v = w / np.linalg.norm(w)
+    return float(estimate)
 
 
 def _block_diagonal_inverse(A: sp.bsr_matrix) -> np.ndarray:

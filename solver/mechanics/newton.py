@@ -38,7 +38,7 @@ from typing import Callable
 import numpy as np
 
 from .assembly import Evaluation
-from .linear import LinearSolveError
+from .linear import BudgetSpent, LinearSolveError
 from .settings import Settings
 
 
@@ -51,6 +51,7 @@ class NewtonOutcome:
     history: list[float] = field(default_factory=list)
     reason: str = ""
     contraction: float | None = None  # last observed |R_k+1| / |R_k|
+    spent: bool = False  # stopped because the snapshot's linear-solver budget is spent
 
 
 def energy_norm(matrix, v: np.ndarray) -> float:
@@ -83,7 +84,8 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
         try:
             du = linear.solve(matrix, -ev.residual, eta)
         except LinearSolveError as error:
-            return NewtonOutcome(u, ev, False, k - 1, history, f"linear solver: {error}", contraction)
+            return NewtonOutcome(u, ev, False, k - 1, history, f"linear solver: {error}", contraction,
+                                 isinstance(error, BudgetSpent))
         step, slope = 1.0, float(ev.residual @ du)
         for _ in range(s.max_halvings + 1):
             trial = u + step * du

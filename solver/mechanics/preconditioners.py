@@ -76,9 +76,9 @@ class Direct:
 class GeometricMultigrid:
     """V-cycles on the grid's own coarse spaces; the coarsest level factorised."""
 
-    def __init__(self, mesh, fixed: np.ndarray, coarsest: int, sweeps: int):
-        self.cycle = Multigrid(mesh, fixed, Factoriser(), coarsest=coarsest, sweeps=sweeps)
-        self.name = f"multigrid({len(self.cycle.levels)} levels, {backend()} coarsest)"
+    def __init__(self, mesh, fixed: np.ndarray, coarsest: int, degree: int):
+        self.cycle = Multigrid(mesh, fixed, coarsest=coarsest, degree=degree)
+        self.name = f"multigrid({len(self.cycle.levels)} levels)"
 
     def build(self, A: sp.spmatrix):
         self.cycle.build(A)
@@ -158,7 +158,7 @@ def choose(method: str, n_dofs: int, mesh, fixed: np.ndarray, modes: np.ndarray,
     if method == "direct":
         inner = Direct()
     elif method == "multigrid":
-        inner = GeometricMultigrid(mesh, fixed, settings.coarsest, settings.sweeps)
+        inner = GeometricMultigrid(mesh, fixed, settings.coarsest, settings.smoothing)
     elif method == "amg":
         inner = SmoothedAggregation(modes, fixed, mesh.ndim, settings.coarsest)
     else:

@@ -44,11 +44,14 @@ class Settings:
     # -- preconditioners (preconditioners.py, multigrid.py) ----------------------------------
     direct_limit: int = 6_000  # "auto": a factorisation up to this many dofs, multigrid beyond
     coarsest: int = 1_000  # multigrid: factorise the first level with at most this many dofs (3-D fill)
-    sweeps: int = 2  # multigrid: block Gauss-Seidel sweeps before and after the coarse correction
+    smoothing: int = 3  # multigrid: degree of the Chebyshev smoother before and after the coarse correction
     deflate: bool = False  # solve the rigid motions of floating dense bodies exactly (constraints.body_modes)
 
-    # -- assembly ----------------------------------------------------------------------------
+    # -- assembly and machine --------------------------------------------------------------
     chunk: int = 4096  # elements per vectorised batch: bounds the temporaries (~40 MB in 3-D)
+    blas_threads: int | None = 1  # BLAS threads during a solve (None: the library's default). The
+    # products here are small or tall and thin; on 2 busy cores OpenBLAS threads made a CG solve 6x
+    # and a tangent 2x slower (docs/mechanics.md)
 
 
 DEFAULT = Settings()
