@@ -22,7 +22,7 @@
 Where the pins go matters to the solver, not to the answer.  Pinned in the
 void (the domain's corner), a dense body floats on the void's residual
 stiffness: its rigid motions become the softest modes of the tangent
-(eigenvalues ~1e-8 of a diagonal of ~0.2 at 20^3), and as their stiffness
+(by seven orders of magnitude, docs/mechanics.md), and as their stiffness
 depends on the body's prestress as much as on the void, a preconditioner
 built from one tangent misjudges them in the next and Newton stalls
 (docs/mechanics.md).  So `pin_rigid_modes` takes an optional node
@@ -203,10 +203,11 @@ def body_modes(mesh: StructuredMesh, dense: np.ndarray, fixed: np.ndarray) -> np
 
     `dense` marks elements (e.g. phi > 1/2).  A body that touches no
     constraint floats in the void, held only by its residual stiffness: its
-    rigid motions are the softest modes of the tangent (eigenvalues ~1e-7 of
-    its diagonal at 20^3, docs/mechanics.md), which a Krylov solve stopped on
-    the residual leaves unconverged; `preconditioners.Deflated` solves them
-    exactly instead.  Bodies held by constraints get modes too: harmless."""
+    rigid motions are the softest modes of the tangent, which a Krylov solve
+    stopped on the residual leaves unconverged; `preconditioners.Deflated`
+    can solve in their span exactly (`Settings.deflate`; with the pins inside
+    the biofilm it did not pay, docs/mechanics.md).  Bodies held by
+    constraints get modes too: harmless."""
     d, conn = mesh.ndim, mesh.connectivity
     elements = np.flatnonzero(dense)
     if elements.size == 0:

@@ -139,7 +139,7 @@ class GrowthMechanics:
 
     def _pin_where_stiff(self, phi: np.ndarray):
         """Move the rigid-body pins into the stiffest biofilm unless they are there (constraints.py)."""
-        if not self.pins:
+        if not self.pins or not self.settings.pin_in_biofilm:
             return
         stiffness = constraints.node_stiffness(self.mesh, material.weight(phi, self.setup.residual_stiffness))
         if constraints.pins_are_stiff(self.pins, stiffness, self.pieces):

@@ -14,14 +14,14 @@ when that equilibrium was stable, unlike the tangent at the target's alpha,
 which adds the prestress of the whole growth increment, ~3 kappa d(alpha),
 and is indefinite once that exceeds mu (newton.py).  From rest it is the
 stress-free, linear-elastic tangent.  (Even between the snapshots of a run,
-where that prestress is ~0.1 Pa, the tangent at the target's alpha was the
-worse operator: its Newton steps stopped descending after two steps,
-measured.)
+where that prestress is small, the tangent at the target's alpha was the
+worse operator: its Newton steps stopped descending, docs/mechanics.md.)
 
 Bounded: at most `Settings.max_load_steps` Newton solves and
 `Settings.max_total_newton` Newton steps per snapshot, no step below
-`Settings.smallest_load_step`; then `Refused`, carrying the last outcome and
-the record of what was tried.
+`Settings.smallest_load_step`, and none once the linear solver's budget
+(Krylov iterations, preconditioner builds) is spent; then `Refused`,
+carrying the last outcome and the record of what was tried.
 """
 from __future__ import annotations
 

@@ -19,8 +19,8 @@ two are compared in docs/mechanics.md.)
   of its spectrum (lmax by power iteration), before and after the coarse
   correction: the V-cycle is symmetric, a valid preconditioner for CG.  Each
   degree costs one block-sparse product; per unit of work it smooths better
-  than pyamg's block Gauss-Seidel, whose kernel costs 3.5 products a sweep
-  (14 CG iterations instead of 23, 2.5x less time at 20^3; docs/mechanics.md).
+  than pyamg's block Gauss-Seidel, whose kernel costs several products a
+  sweep (fewer CG iterations in less time: benchmarks/mechanics_linear.py).
 * Coarsest level: a sparse factorisation (SuperLU: it has < `coarsest` dofs).
 
 The transfers depend only on the mesh and the constraints and are built

@@ -3,9 +3,9 @@
 * Operator.  The first step uses the `operator` the caller gives (load
   stepping: the tangent with the start's stress, positive definite at a
   stable equilibrium) or the tangent at the start.  It is kept (a chord
-  step: a residual costs a third of a tangent) while each step cuts |R| at
-  least `1 / Settings.retangent`-fold: between snapshots the strains change
-  by ~1e-3 and the tangent hardly at all.  After a slower or damped step
+  step: a residual costs a fraction of a tangent) while each step cuts |R|
+  at least `1 / Settings.retangent`-fold: between the snapshots of a run the
+  strains change little and the tangent hardly at all.  After a slower or damped step
   the tangent is reassembled at the iterate: exact Newton, quadratic where
   the problem is nonlinear (large growth).  A step from another operator
   that finds no descent is retried once with the tangent at the iterate.

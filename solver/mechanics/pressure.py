@@ -7,8 +7,8 @@ checkerboards (-1)^(i+j), (-1)^(j+k), (-1)^(i+k) and (-1)^(i+j+k).  Around
 every interior node they do no work on any Q1 displacement (the face fluxes
 of div u cancel in pairs), so the equilibrium does not control them, and
 the element pressure p_e = w kappa (Theta_e - 1) carries them wherever the
-pressure is rough: next to a rigid square in a clamped block they reach 31 %
-of the smooth pressure, still 6 % three cells away (docs/mechanics.md).
+pressure is rough: next to the corners of a rigid square in a clamped block,
+and still several cells away (benchmarks/mechanics_pressure.py).
 
 Recovery ("recovered", the default) removes exactly those patterns, locally
 (pressure filtering in the spirit of Sani, Gresho, Lee & Griffiths 1981):

@@ -23,6 +23,8 @@ class Settings:
     max_load_steps: int = 24  # Newton solves per snapshot, failed ones included
     max_total_newton: int = 80  # Newton steps per snapshot over all load steps
 
+    pin_in_biofilm: bool = True  # rigid-body pins in the stiffest biofilm, not at the corner (constraints.py)
+
     # -- Newton (newton.py) ------------------------------------------------------------------
     max_halvings: int = 8  # backtracking: step lengths 1, 1/2, ..., 1/256
     armijo: float = 1e-4  # sufficient energy decrease
@@ -49,9 +51,9 @@ class Settings:
 
     # -- assembly and machine --------------------------------------------------------------
     chunk: int = 4096  # elements per vectorised batch: bounds the temporaries (~40 MB in 3-D)
-    blas_threads: int | None = 1  # BLAS threads during a solve (None: the library's default). The
-    # products here are small or tall and thin; on 2 busy cores OpenBLAS threads made a CG solve 6x
-    # and a tangent 2x slower (docs/mechanics.md)
+    blas_threads: int | None = 1  # BLAS threads during a solve (None: the library's default): the
+    # products here are small or tall and thin, and on busy cores threads cost more than they
+    # bring (docs/mechanics.md)
 
 
 DEFAULT = Settings()
