@@ -32,14 +32,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import re
-import shutil
-import subprocess
-import sys
 import time
 
 import numpy as np
+from fresh import header, run_case
 
 
 def scene(n: int):
@@ -118,42 +114,15 @@ def in_run(n: int, changes: list[str]) -> dict:
             "wall_s": report["wall_time"]}
 
 
-def run_case(arguments: list[str], baseline: str | None, timeout: float) -> dict:
-    """One case in a fresh process (under /usr/bin/time -v when it is there), with `baseline` first on the path."""
-    command = [sys.executable, os.path.abspath(__file__), *arguments]
-    timer = shutil.which("time") or ("/usr/bin/time" if os.path.exists("/usr/bin/time") else None)
-    if timer:
-        command = [timer, "-v", *command]
-    env = dict(os.environ)
-    if baseline:
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [os.path.abspath(baseline), env.get("PYTHONPATH")]))
-    load = os.getloadavg()[0]
-    try:
-        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return {"error": f"stopped after {timeout:.0f} s", "load": load}
-    if done.returncode != 0:
-        lines = done.stderr.strip().splitlines()
-        last = next((line for line in reversed(lines) if not line.startswith("\t")), "failed")
-        return {"error": last[:100], "load": load}
-    result = json.loads(done.stdout.strip().splitlines()[-1])
-    peak = re.search(r"Maximum resident set size \(kbytes\): (\d+)", done.stderr)
-    result["peak_gb"] = int(peak.group(1)) / 1024**2 if peak else float("nan")
-    result["load"] = load
-    return result
-
-
 def static_table(args):
     versions = [("this", None)] + ([("first", args.baseline)] if args.baseline else [])
     extra = ["--settings", *args.settings] if args.settings else []
-    header = (f"{'cells':>6} {'dofs':>7} {'k':>6} {'version':<7} {'load':>4} {'setup s':>7} {'snap1 s':>7} {'cpu':>6} "
-              f"{'newton':>6} {'krylov':>6} {'snap2 s':>7} {'cpu':>6} {'newton':>6} {'krylov':>6} {'peak GB':>7}  solver")
-    print(header)
-    print("-" * len(header))
+    header(f"{'cells':>6} {'dofs':>7} {'k':>6} {'version':<7} {'load':>4} {'setup s':>7} {'snap1 s':>7} {'cpu':>6} "
+           f"{'newton':>6} {'krylov':>6} {'snap2 s':>7} {'cpu':>6} {'newton':>6} {'krylov':>6} {'peak GB':>7}  solver")
     for n in args.sizes:
         for k in args.k:
             for label, path in versions:
-                r = run_case(["--case", str(n), str(k)] + (extra if path is None else []), path, args.timeout)
+                r = run_case(__file__, ["--case", str(n), str(k)] + (extra if path is None else []), path, args.timeout)
                 if "error" in r:
                     print(f"{n:>4}^3 {'':>7} {k:>6.0e} {label:<7} {r['load']:>4.1f} {r['error']}", flush=True)
                     continue
@@ -167,8 +136,8 @@ def static_table(args):
 def in_run_table(args):
     versions = [("this", None)] + ([("first", args.baseline)] if args.baseline else [])
     extra = ["--settings", *args.settings] if args.settings else []
-    results = {label: run_case(["--run", str(args.in_run)] + (extra if path is None else []), path, args.timeout)
-               for label, path in versions}
+    results = {label: run_case(__file__, ["--run", str(args.in_run)] + (extra if path is None else []), path,
+                               args.timeout) for label, path in versions}
     print(f"directional scene {args.in_run}^3 in its time loop (TVD, 200 steps), mechanics at every 0.2 T*")
     for label, r in results.items():
         if "error" in r:

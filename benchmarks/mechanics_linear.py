@@ -25,13 +25,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
-import shutil
-import subprocess
-import sys
 import time
 
 import numpy as np
+from fresh import header, run_case
 
 METHODS = ("direct", "multigrid", "multigrid-2", "multigrid-gs", "amg", "amg-scalar")
 
@@ -99,20 +96,6 @@ def measure(n: int, method: str, rtol: float) -> dict:
             "achieved": float(np.linalg.norm(b - A @ x) / np.linalg.norm(b))}
 
 
-def run_case(n: int, method: str, rtol: float) -> dict:
-    command = [sys.executable, __file__, "--case", str(n), method, str(rtol)]
-    timer = shutil.which("time") or ("/usr/bin/time" if os.path.exists("/usr/bin/time") else None)
-    if timer:
-        command = [timer, "-v", *command]
-    done = subprocess.run(command, capture_output=True, text=True)
-    if done.returncode != 0:
-        return {"error": done.stderr.strip().splitlines()[-1] if done.stderr.strip() else "failed"}
-    result = json.loads(done.stdout.strip().splitlines()[-1])
-    peak = re.search(r"Maximum resident set size \(kbytes\): (\d+)", done.stderr)
-    result["peak_gb"] = int(peak.group(1)) / 1024**2 if peak else float("nan")
-    return result
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--sizes", type=int, nargs="+", default=[20, 40])
@@ -124,15 +107,13 @@ def main():
         print(json.dumps(measure(int(args.case[0]), args.case[1], float(args.case[2]))))
         return
     print(f"load average {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores); CG to |r| <= {args.rtol:g} |b|")
-    header = (f"{'cells':>6} {'dofs':>7} {'preconditioner':<12} {'build s':>7} {'its':>4} {'solve s':>7} "
-              f"{'ms/it':>6} {'peak GB':>7}")
-    print(header)
-    print("-" * len(header))
+    header(f"{'cells':>6} {'dofs':>7} {'preconditioner':<12} {'build s':>7} {'its':>4} {'solve s':>7} "
+           f"{'ms/it':>6} {'peak GB':>7}")
     for n in args.sizes:
         for method in args.methods:
             if method == "direct" and n > 30:
                 continue
-            r = run_case(n, method, args.rtol)
+            r = run_case(__file__, ["--case", str(n), method, str(args.rtol)])
             if "error" in r:
                 print(f"{n:>4}^3 {'':>7} {method:<12} failed: {r['error']}")
                 continue
