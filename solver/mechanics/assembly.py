@@ -44,10 +44,8 @@ class Evaluation:
     residual: np.ndarray  # (dofs,), zero at fixed dofs
     matrix: sp.bsr_matrix | None  # consistent tangent, identity at fixed dofs
     pressure: np.ndarray  # (elements,) Cauchy hydrostatic stress p = w kappa (Theta - 1), Pa
-    theta: np.ndarray  # (elements,) mean elastic volume ratio
     min_det: np.ndarray  # (elements,) smallest det F over Gauss points and corners
     energy: float
-    load: float  # |internal forces| over all dofs, reactions of fixed ones included
 
 
 class Assembler:
@@ -131,7 +129,7 @@ class Assembler:
         V, wq = ref.volume, ref.weights
         forces = np.zeros((E, nloc, d))
         stencil = np.zeros(mesh.grid.nodes_shape + (self.slots, d, d)) if tangent else None
-        pressure, theta, min_det = np.zeros(E), np.ones(E), np.empty(E)
+        pressure, min_det = np.zeros(E), np.empty(E)
         energy = 0.0
         n_planes = mesh.grid.cells_shape[0]
         for first in range(0, n_planes, self.planes):
@@ -149,7 +147,7 @@ class Assembler:
             we, Jg = w[part], growth[part]
             th = J @ wq / (Jg * V)
             p = we * kappa * (th - 1.0)
-            theta[part], pressure[part] = th, p
+            pressure[part] = p
             shear = (Jg * we * mu)[:, None]
             energy += float((material.isochoric_energy(J, I1, shear) @ wq).sum()
                             + (Jg * V * we * kappa / 2 * (th - 1.0) ** 2).sum())
@@ -164,10 +162,9 @@ class Assembler:
                 K = self._element_matrices(Fd, Gd, J, s, c_fg, c_gg, c_swap, we * kappa / (Jg * V))
                 self._scatter(stencil, K, part, first, last)
         residual = np.bincount(self.edofs.ravel(), weights=forces.ravel(), minlength=mesh.n_dofs)
-        load = float(np.linalg.norm(residual))
         residual[self.fixed] = 0.0
         matrix = self._matrix(stencil) if tangent and np.all(min_det > 0) else None
-        return Evaluation(residual, matrix, pressure, theta, min_det, energy, load)
+        return Evaluation(residual, matrix, pressure, min_det, energy)
 
     def growth_load(self, w: np.ndarray, growth: np.ndarray, kappa: float) -> float:
         """|internal forces| at u = 0, reactions included: the force scale of Newton's tolerance.

@@ -50,7 +50,6 @@ class NewtonOutcome:
     iterations: int = 0
     history: list[float] = field(default_factory=list)
     reason: str = ""
-    contraction: float | None = None  # last observed |R_k+1| / |R_k|
     spent: bool = False  # stopped because the snapshot's linear-solver budget is spent
 
 
@@ -84,7 +83,7 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
         try:
             du = linear.solve(matrix, -ev.residual, eta)
         except LinearSolveError as error:
-            return NewtonOutcome(u, ev, False, k - 1, history, f"linear solver: {error}", contraction,
+            return NewtonOutcome(u, ev, False, k - 1, history, f"linear solver: {error}",
                                  isinstance(error, BudgetSpent))
         step, slope = 1.0, float(ev.residual @ du)
         for _ in range(s.max_halvings + 1):
@@ -104,7 +103,7 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
                 continue
             reason = (f"every step length down to 2^-{s.max_halvings} inverts an element"
                       if np.min(ev_trial.min_det) <= 0 else "no step length lowers the residual or the energy")
-            return NewtonOutcome(u, ev_trial, False, k, history, reason, contraction)
+            return NewtonOutcome(u, ev_trial, False, k, history, reason)
         size = step * energy_norm(matrix, du)
         contraction = r_trial / r
         shrink = size / previous_size if previous_size else contraction
@@ -112,11 +111,10 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
         history.append(r)
         relative = size / max(energy_norm(matrix, u), 1e-300)
         if r <= tolerance * reference and relative * min(shrink, 1.0) <= tolerance:
-            return NewtonOutcome(u, ev, True, k, history, contraction=contraction)
+            return NewtonOutcome(u, ev, True, k, history)
         exact = False
         if contraction > s.retangent or step < 1.0:  # slow or damped: the tangent at the iterate
             ev, exact = evaluate(u, True), True  # (the residual again: cheaper than a tangent per trial)
             matrix = ev.matrix
     return NewtonOutcome(u, ev, False, max_iterations, history,
-                         f"not converged in {max_iterations} iterations (|R|/|R_ref| = {r / reference:.2e})",
-                         contraction)
+                         f"not converged in {max_iterations} iterations (|R|/|R_ref| = {r / reference:.2e})")
