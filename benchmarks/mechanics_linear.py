@@ -8,8 +8,9 @@ smooth edge, no clamp), alpha = 1e-3 phi solved to equilibrium; then the
 system of the next snapshot (alpha grown by 10 %): the tangent with the
 start's stress and its residual, which is what a snapshot of a run solves
 first.  Each preconditioner in a fresh process (peak memory from
-/usr/bin/time -v): its build time, then scipy's CG to |r| <= rtol |b|:
-iterations, time, time per iteration.  The direct factorisation is skipped
+/usr/bin/time -v), with one BLAS thread as in a mechanics solve: its build
+time, then scipy's CG to |r| <= rtol |b|: iterations, time, time per
+iteration.  The direct factorisation is skipped
 beyond 30^3 (it needs several GB there).
 
 Preconditioners (solver/mechanics/preconditioners.py): "direct" (PARDISO or
@@ -81,17 +82,19 @@ def gauss_seidel(level, x, b, zero=False, sweeps=2):
 
 def measure(n: int, method: str, rtol: float) -> dict:
     import scipy.sparse.linalg as spla
+    from threadpoolctl import threadpool_limits
 
     mechanics, A, b = system(n)
     M = preconditioner(method, mechanics)
-    began = time.perf_counter()
-    M.build(A)
-    build = time.perf_counter() - began
-    count = [0]
-    began = time.perf_counter()
-    x, info = spla.cg(A, b, rtol=rtol, atol=0.0, maxiter=500, M=spla.LinearOperator(A.shape, M, dtype=float),
-                      callback=lambda _: count.__setitem__(0, count[0] + 1))
-    seconds = time.perf_counter() - began
+    with threadpool_limits(limits=1, user_api="blas"):  # as in a mechanics solve (Settings.blas_threads)
+        began = time.perf_counter()
+        M.build(A)
+        build = time.perf_counter() - began
+        count = [0]
+        began = time.perf_counter()
+        x, info = spla.cg(A, b, rtol=rtol, atol=0.0, maxiter=500, M=spla.LinearOperator(A.shape, M, dtype=float),
+                          callback=lambda _: count.__setitem__(0, count[0] + 1))
+        seconds = time.perf_counter() - began
     return {"dofs": int(A.shape[0]), "build_s": build, "iterations": count[0], "solve_s": seconds, "info": int(info),
             "achieved": float(np.linalg.norm(b - A @ x) / np.linalg.norm(b))}
 
