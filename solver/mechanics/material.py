@@ -7,7 +7,7 @@ C~e = Je^(-2/3) Fe^T Fe = J^(-2/3) F^T F, and growth enters the energy only
 through the volume ratio.
 
 Energy (paper Eq. 20 with the constraint Eq. 15 condensed by a perturbed
-Lagrangian, SPEC 1), per unit volume of the grown (intermediate)
+Lagrangian, docs/mechanics.md), per unit volume of the grown (intermediate)
 configuration, each part weighted by w = eps + (1 - eps) phi^2:
 
     psi = w mu / 2 (tr C~e - 3)  +  w kappa / 2 (Je - 1)^2.
@@ -25,9 +25,11 @@ pressure p = w kappa (Theta - 1), eliminated by static condensation (paper
 Table 1, step 7).  This module holds the pointwise pieces; `assembly` adds
 the element-level ones.
 
-Arrays: F has shape (..., 3, 3) (plane strain: F[..., 2, 2] = 1); 4th-order
-tangents are (..., 3, 3, 3, 3) indexed [i, J, k, L] = dP_iJ / dF_kL.
-Coefficients broadcast against the leading dimensions.
+Arrays: F has shape (..., 3, 3) (plane strain: F[..., 2, 2] = 1); the
+tangent dP_iJ/dF_kL is never formed, only its scalar coefficients
+(`tangent_coefficients`), which broadcast against the leading dimensions.
+The tests check residual and tangent against central differences of the
+energy and the residual.
 """
 from __future__ import annotations
 
@@ -62,10 +64,12 @@ def isochoric_energy(J: np.ndarray, I1: np.ndarray, shear) -> np.ndarray:
 
 
 def tangent_coefficients(J: np.ndarray, I1: np.ndarray, shear, pressure):
-    """`isochoric_tangent` + `pressure_tangent` written as scalars times products of F and G.
+    """The pointwise tangent dP/dF at fixed pressure, as scalars times products of F and G = F^-T.
 
-    With s = shear J^(-2/3):
-        A = s d_ik d_JL  +  c_fg (F_kL G_iJ + G_kL F_iJ)  +  c_gg G_iJ G_kL  +  c_swap G_iL G_kJ,
+    P = s (F - I1/3 G) + p J G is the first Piola-Kirchhoff stress (isochoric part plus a Cauchy
+    pressure p; the change of the element pressure itself is `assembly`'s rank-one term).  With
+    s = shear J^(-2/3):
+        dP_iJ/dF_kL = s d_ik d_JL + c_fg (F_kL G_iJ + G_kL F_iJ) + c_gg G_iJ G_kL + c_swap G_iL G_kJ,
         c_fg = -2/3 s,   c_gg = 2/9 s I1 + p J,   c_swap = s I1/3 - p J.
     Contracted with basis gradients these become outer products of per-node vectors,
     which is how the element matrices are built without forming 81 numbers per point.
