@@ -5,6 +5,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 
@@ -22,16 +23,21 @@ def run_case(script: str, arguments: list[str], baseline: str | None = None, tim
     if baseline:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [os.path.abspath(baseline), env.get("PYTHONPATH")]))
     load = os.getloadavg()[0]
-    try:
-        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return {"error": f"stopped after {timeout:.0f} s", "load": load}
-    if done.returncode != 0:
-        lines = done.stderr.strip().splitlines()
+    # a session of its own: on timeout the case is killed with /usr/bin/time, not left running as an orphan
+    with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                          start_new_session=True) as process:
+        try:
+            stdout, stderr = process.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+            return {"error": f"stopped after {timeout:.0f} s", "load": load}
+    if process.returncode != 0:
+        lines = stderr.strip().splitlines()
         last = next((line for line in reversed(lines) if not line.startswith("\t")), "failed")
         return {"error": last[:100], "load": load}
-    result = json.loads(done.stdout.strip().splitlines()[-1])
-    peak = re.search(r"Maximum resident set size \(kbytes\): (\d+)", done.stderr)
+    result = json.loads(stdout.strip().splitlines()[-1])
+    peak = re.search(r"Maximum resident set size \(kbytes\): (\d+)", stderr)
     result["peak_gb"] = int(peak.group(1)) / 1024**2 if peak else float("nan")
     result["load"] = load
     return result

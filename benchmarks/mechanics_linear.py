@@ -10,7 +10,8 @@ start's stress and its residual, which is what a snapshot of a run solves
 first.  Each preconditioner in a fresh process (peak memory from
 /usr/bin/time -v), with one BLAS thread as in a mechanics solve: its build
 time, then scipy's CG to |r| <= rtol |b|: iterations, time, time per
-iteration.  The direct factorisation is skipped
+iteration (wall and CPU seconds of the process: the machine is shared; the
+load average before each case is printed).  The direct factorisation is skipped
 beyond 30^3 (it needs several GB there).
 
 Preconditioners (solver/mechanics/preconditioners.py): "direct" (PARDISO or
@@ -87,15 +88,16 @@ def measure(n: int, method: str, rtol: float) -> dict:
     mechanics, A, b = system(n)
     M = preconditioner(method, mechanics)
     with threadpool_limits(limits=1, user_api="blas"):  # as in a mechanics solve (Settings.blas_threads)
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         M.build(A)
-        build = time.perf_counter() - began
+        build, build_cpu = time.perf_counter() - began, time.process_time() - cpu
         count = [0]
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         x, info = spla.cg(A, b, rtol=rtol, atol=0.0, maxiter=500, M=spla.LinearOperator(A.shape, M, dtype=float),
                           callback=lambda _: count.__setitem__(0, count[0] + 1))
-        seconds = time.perf_counter() - began
-    return {"dofs": int(A.shape[0]), "build_s": build, "iterations": count[0], "solve_s": seconds, "info": int(info),
+        seconds, solve_cpu = time.perf_counter() - began, time.process_time() - cpu
+    return {"dofs": int(A.shape[0]), "build_s": build, "build_cpu": build_cpu, "iterations": count[0],
+            "solve_s": seconds, "solve_cpu": solve_cpu, "info": int(info),
             "achieved": float(np.linalg.norm(b - A @ x) / np.linalg.norm(b))}
 
 
@@ -110,8 +112,8 @@ def main():
         print(json.dumps(measure(int(args.case[0]), args.case[1], float(args.case[2]))))
         return
     print(f"load average {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores); CG to |r| <= {args.rtol:g} |b|")
-    header(f"{'cells':>6} {'dofs':>7} {'preconditioner':<12} {'build s':>7} {'its':>4} {'solve s':>7} "
-           f"{'ms/it':>6} {'peak GB':>7}")
+    header(f"{'cells':>6} {'dofs':>7} {'preconditioner':<12} {'load':>4} {'build s':>7} {'cpu':>6} {'its':>4} "
+           f"{'solve s':>7} {'cpu':>6} {'cpu ms/it':>9} {'peak GB':>7}")
     for n in args.sizes:
         for method in args.methods:
             if method == "direct" and n > 30:
@@ -121,8 +123,9 @@ def main():
                 print(f"{n:>4}^3 {'':>7} {method:<12} failed: {r['error']}")
                 continue
             its = f"{r['iterations']:>4}" if r["info"] == 0 else f"{'>' + str(r['iterations']):>4}"
-            print(f"{n:>4}^3 {r['dofs']:>7} {method:<12} {r['build_s']:>7.2f} {its} {r['solve_s']:>7.2f} "
-                  f"{1e3 * r['solve_s'] / max(r['iterations'], 1):>6.0f} {r['peak_gb']:>7.2f}", flush=True)
+            print(f"{n:>4}^3 {r['dofs']:>7} {method:<12} {r['load']:>4.1f} {r['build_s']:>7.2f} {r['build_cpu']:>6.2f} "
+                  f"{its} {r['solve_s']:>7.2f} {r['solve_cpu']:>6.2f} "
+                  f"{1e3 * r['solve_cpu'] / max(r['iterations'], 1):>9.0f} {r['peak_gb']:>7.2f}", flush=True)
 
 
 if __name__ == "__main__":

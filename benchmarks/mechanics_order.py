@@ -10,6 +10,7 @@ solve): Q1/P0's element pressure and the recovered one (solver/mechanics/pressur
 The observed order from successive differences, log2(|Q_h - Q_h/2| / |Q_h/2 - Q_h/4|),
 and the Richardson estimate of the limit.  Prints a table for docs/mechanics.md.
 """
+import os
 import time
 
 import numpy as np
@@ -20,16 +21,16 @@ from solver.mechanics import GrowthMechanics, material
 L, A = 8.0, 4.0
 
 
-def quantities(n: int) -> tuple[dict, float, float]:
+def quantities(n: int) -> tuple[dict, float, tuple[float, float]]:
     grid = Grid((n, n, n), L / n)
     x, y, z = grid.cell_coordinates()
     r = np.sqrt(x**2 + y**2 + z**2)
     phi = 0.5 * (1 - np.tanh(r - A))
     setup = MechanicsSetup(slide=("x-", "y-", "z-"), newton_tolerance=1e-8, pressure="element")
-    began = time.perf_counter()
+    began, cpu = time.perf_counter(), time.process_time()
     mechanics = GrowthMechanics(grid, Parameters(), setup)
     element = mechanics.solve(phi, 0.01 * phi, 1.0).p.ravel()
-    seconds = time.perf_counter() - began
+    seconds = (time.perf_counter() - began, time.process_time() - cpu)
     recovered = mechanics.pressure.recover(element[mechanics.mesh.cells],
                                            material.weight(phi.ravel(), setup.residual_stiffness))
     weight = np.exp(-(r.ravel() / 2) ** 2)
@@ -38,9 +39,10 @@ def quantities(n: int) -> tuple[dict, float, float]:
 
 
 def main():
+    print(f"load average {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores); solve: wall and CPU seconds")
     names = ("element", "recovered")
     print(f"{'cells':>6} {'h um':>6} " + " ".join(f"{'Q ' + n + ' Pa':>16} {'|dQ|':>9} {'order':>6}" for n in names)
-          + f" {'solve s':>8}")
+          + f" {'solve s':>8} {'cpu s':>6}")
     series = {name: [] for name in names}
     for n in (6, 12, 24, 48):
         Q, _, seconds = quantities(n)
@@ -51,7 +53,7 @@ def main():
             diff = abs(q[-1] - q[-2]) if len(q) > 1 else float("nan")
             order = np.log2(abs(q[-3] - q[-2]) / diff) if len(q) > 2 else float("nan")
             cells.append(f"{q[-1]:>16.7f} {diff:>9.2e} {order:>6.2f}")
-        print(f"{n:>4}^3 {L / n:>6.3f} " + " ".join(cells) + f" {seconds:>8.2f}", flush=True)
+        print(f"{n:>4}^3 {L / n:>6.3f} " + " ".join(cells) + f" {seconds[0]:>8.2f} {seconds[1]:>6.2f}", flush=True)
     for name in names:
         q = series[name]
         order = np.log2(abs(q[-3] - q[-2]) / abs(q[-2] - q[-1]))
