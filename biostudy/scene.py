@@ -149,8 +149,8 @@ class MechanicsSpec(BaseModel):
                     "multigrid beyond; docs/mechanics.md)")
     pressure: Literal[tuple(PRESSURES)] = Field(
         _MECHANICS.pressure,
-        description="the p in the dataset: recovered (Q1/P0 dilatations averaged to the nodes and back, no "
-                    "checkerboard modes) or element (the paper's Q1/P0 element pressure); docs/mechanics.md")
+        description="the p in the dataset: recovered (Q1/P0's element pressure with its checkerboard modes "
+                    "filtered out at interior nodes) or element (the paper's Q1/P0 element pressure); docs/mechanics.md")
 
     @model_validator(mode="after")
     def _faces(self):

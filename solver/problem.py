@@ -156,9 +156,9 @@ class MechanicsSetup:
         "multigrid" (geometric, on the grid), "direct" (sparse factorisation),
         "amg" (pyamg smoothed aggregation) or "auto" (direct for small
         problems, multigrid beyond; docs/mechanics.md).
-    pressure: which p the dataset holds: "recovered" (Q1/P0 dilatations
-        averaged to the nodes and back: no checkerboard modes) or "element"
-        (the paper's Q1/P0 element pressure); see docs/mechanics.md.
+    pressure: which p the dataset holds: "recovered" (Q1/P0's element
+        pressure with its checkerboard modes filtered out at interior nodes)
+        or "element" (the paper's Q1/P0 element pressure); docs/mechanics.md.
     """
 
     clamp: tuple[str, ...] = ()
