@@ -24,7 +24,8 @@ KEY=VALUE changes this version's `solver.mechanics.Settings` (a heuristic
 or a cap), to measure what it is worth.
 
 --in-run N runs the bundled directional scene (studies/directional.toml,
-TVD, 200 steps to T* = 1, mechanics at every 0.2 T*) on N^3 cells: there phi
+TVD, 200 steps to T* = 1 unless --steps says otherwise (the scene itself
+has 1000), mechanics at every 0.2 T*) on N^3 cells: there phi
 itself moves between snapshots, which the static cases leave out.  Prints
 each snapshot's seconds and the run's total mechanics time.  Asserts nothing.
 """
@@ -81,13 +82,13 @@ def measure(n: int, k: float, changes: list[str]) -> dict:
     return out
 
 
-def in_run(n: int, changes: list[str]) -> dict:
+def in_run(n: int, steps: int, changes: list[str]) -> dict:
     from biostudy import catalog
     from biostudy.scene import load_scene
     from solver import Run
 
     scene = load_scene(catalog.resolve("directional"), [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}",
-                                                        "time.steps=200", "time.outputs=6", "mechanics.every=1"])
+                                                        f"time.steps={steps}", "time.outputs=6", "mechanics.every=1"])
     problem = scene.problem()
     run = Run(problem)
     if changes:
@@ -136,9 +137,9 @@ def static_table(args):
 def in_run_table(args):
     versions = [("this", None)] + ([("first", args.baseline)] if args.baseline else [])
     extra = ["--settings", *args.settings] if args.settings else []
-    results = {label: run_case(__file__, ["--run", str(args.in_run)] + (extra if path is None else []), path,
-                               args.timeout) for label, path in versions}
-    print(f"directional scene {args.in_run}^3 in its time loop (TVD, 200 steps), mechanics at every 0.2 T*")
+    results = {label: run_case(__file__, ["--run", str(args.in_run), "--steps", str(args.steps)]
+                               + (extra if path is None else []), path, args.timeout) for label, path in versions}
+    print(f"directional scene {args.in_run}^3 in its time loop (TVD, {args.steps} steps), mechanics at every 0.2 T*")
     for label, r in results.items():
         if "error" in r:
             print(f"{label} version (load {r['load']:.1f}): {r['error']}")
@@ -157,6 +158,7 @@ def main():
     parser.add_argument("--baseline", help="directory holding the first version's solver/ and biostudy/")
     parser.add_argument("--timeout", type=float, default=900.0, help="seconds before a case is stopped")
     parser.add_argument("--in-run", type=int, metavar="N", help="the directional scene's run on N^3")
+    parser.add_argument("--steps", type=int, default=200, help="--in-run: time steps (the bundled scene: 1000)")
     parser.add_argument("--settings", nargs="+", default=[], metavar="KEY=VALUE",
                         help="this version's solver.mechanics.Settings changed")
     parser.add_argument("--case", nargs=2, help=argparse.SUPPRESS)
@@ -165,7 +167,7 @@ def main():
     if args.case:
         print(json.dumps(measure(int(args.case[0]), float(args.case[1]), args.settings)))
     elif args.run:
-        print(json.dumps(in_run(args.run, args.settings)))
+        print(json.dumps(in_run(args.run, args.steps, args.settings)))
     elif args.in_run:
         in_run_table(args)
     else:

@@ -129,7 +129,8 @@ def cost():
         began, cpu = time.perf_counter(), time.process_time()
         for _ in range(5):
             mechanics.pressure.recover(p, w)
-        print(f"{n:>4}^3 {1e3 * (time.perf_counter() - began) / 5:>12.1f} {1e3 * (time.process_time() - cpu) / 5:>7.1f}")
+        wall, cpu = time.perf_counter() - began, time.process_time() - cpu
+        print(f"{n:>4}^3 {1e3 * wall / 5:>12.1f} {1e3 * cpu / 5:>7.1f}")
 
 
 def main():
