@@ -28,7 +28,7 @@ from pathlib import Path
 import psutil
 import xarray as xr
 
-from biostudy import catalog, runner, store
+from biostudy import catalog, combine, runner, store
 from biostudy.study import load_study
 
 
@@ -93,7 +93,7 @@ def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
     # the parts, timed again one by one on the finished cases
     began = time.perf_counter()
     for case in plan.cases:
-        store.fingerprint(plan.scenes[case.id].problem())
+        runner.fingerprint(plan.scenes[case.id].problem())
     compile_ = time.perf_counter() - began
     began = time.perf_counter()
     for case in plan.cases:
@@ -102,7 +102,7 @@ def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
         store.write_atomic(ds, path)
     write = time.perf_counter() - began
     began = time.perf_counter()
-    store.write_study(plan, out)
+    combine.write_study(plan, out)
     combine = time.perf_counter() - began
     n = len(plan.cases)
     return [("cases", n), ("sweep wall time (s)", total), ("simulations' own wall time (s)", simulated),

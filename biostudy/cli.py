@@ -77,7 +77,7 @@ def run(
         except SimulationError as error:
             raise _fail(f"simulation failed: {path}: {error}", 1) from None
         text = overrides_text([parse_override(o) for o in overrides])
-        store.write_atomic(store.stamp(ds, loaded, path, text, **worker.provenance()), target)
+        store.write_atomic(store.stamp(ds, loaded.to_toml(), path, text, **worker.provenance()), target)
         err.print(f"wrote {target} (wall time {ds.attrs['wall_time']:.3g} s, {ds.attrs['steps_taken']} steps, "
                   f"{ds.attrs['steps_bisected']} bisected)")
 

@@ -116,9 +116,8 @@ def run(data: dict, scene_file: Path, out_dir: Path, levels: int, series: tuple[
     jobs = [Job(job_id, scene, scene_file, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
     report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
     ds = measure(wanted, out_dir, levels, series, base)
-    ds.attrs.update(store.legal_attrs({"scene": base.to_toml(), "scene_file": str(scene_file.resolve()),
-                                       "overrides": text, "biostudy_version": store.version(),
-                                       "created": store.now()}))
+    ds.attrs = store.with_provenance({**ds.attrs, "scene": base.to_toml(), "scene_file": str(scene_file.resolve()),
+                                      "overrides": text})
     store.write_atomic(ds, out_dir / "convergence.nc")
     return ds, report
 

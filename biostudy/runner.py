@@ -16,6 +16,7 @@ workers itself.  What runs in a worker is in `biostudy.worker`.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import multiprocessing
 import os
 import uuid
@@ -25,7 +26,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
-from . import store, worker
+import numpy as np
+
+from . import combine, store, worker
 from .errors import BadInput
 from .scene import Scene, overrides_text
 from .study import Plan
@@ -83,31 +86,49 @@ def _context():
     return multiprocessing.get_context("spawn")
 
 
+def _windowed(ids: list[str], compile_: Compile, window: int, submit: Callable, first_done: Callable,
+              result: Callable, running: dict) -> Iterator[tuple[str, Outcome]]:
+    """The submit loop every pool shares: at most `window` cases in flight, each compiled just before it
+    is handed out; yields (case id, Outcome) as cases finish.
+
+    submit(problem, case id) -> future; first_done(futures) -> the finished ones (at least one);
+    result(future) -> its Outcome.  `running` (future -> case id) is the caller's, so that it can end
+    what is still in flight when the loop is left early.
+    """
+    waiting = list(reversed(ids))
+
+    def fill():
+        while waiting and len(running) < window:
+            case_id = waiting.pop()
+            running[submit(compile_(case_id), case_id)] = case_id
+
+    fill()
+    while running:
+        for future in first_done(list(running)):
+            case_id = running.pop(future)
+            yield case_id, result(future)
+        fill()
+
+
 def _local(ids: list[str], compile_: Compile, workers: int) -> Iterator[tuple[str, Outcome]]:
-    context = _context()
-    executor = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=worker.start)
-    waiting, running = list(reversed(ids)), {}
+    executor = ProcessPoolExecutor(max_workers=workers, mp_context=_context(), initializer=worker.start)
+    running: dict = {}
     finished = False
 
-    def submit():
-        while waiting and len(running) < 2 * workers:
-            case_id = waiting.pop()
-            with _environment(WORKER_ENV):  # worker processes are spawned on submit
-                running[executor.submit(solve, compile_(case_id))] = case_id
+    def submit(problem, case_id):
+        with _environment(WORKER_ENV):  # worker processes are spawned on submit
+            return executor.submit(solve, problem)
+
+    def result(future) -> Outcome:
+        try:
+            return future.result()
+        except BrokenProcessPool:
+            raise SweepError("a worker process died (out of memory?); finished cases are kept, run "
+                             "the sweep again to resume") from None
 
     try:
-        submit()
-        while running:
-            done, _ = wait(running, return_when=FIRST_COMPLETED)
-            for future in done:
-                case_id = running.pop(future)
-                try:
-                    outcome = future.result()
-                except BrokenProcessPool:
-                    raise SweepError("a worker process died (out of memory?); finished cases are kept, run "
-                                     "the sweep again to resume") from None
-                yield case_id, outcome
-            submit()
+        yield from _windowed(ids, compile_, 2 * workers, submit,
+                             lambda futures: wait(futures, return_when=FIRST_COMPLETED).done, result, running)
         finished = True
     finally:
         if finished:
@@ -121,32 +142,28 @@ def _local(ids: list[str], compile_: Compile, workers: int) -> Iterator[tuple[st
 
 def _dask(ids: list[str], compile_: Compile, address: str) -> Iterator[tuple[str, Outcome]]:
     from distributed import Client
-    from distributed import as_completed as dask_completed
+    from distributed import wait as dask_wait
 
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as error:
         raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", "--scheduler") from None
     run = uuid.uuid4().hex[:8]
-    waiting, running = list(reversed(ids)), {}
-    window = max(4, 2 * sum(client.nthreads().values()))
+    running: dict = {}
 
-    def submit(case_id):
-        future = client.submit(solve, compile_(case_id), key=f"biostudy-{case_id}-{run}", pure=False)
-        running[future] = case_id
-        return future
+    def submit(problem, case_id):
+        return client.submit(solve, problem, key=f"biostudy-{case_id}-{run}", pure=False)
+
+    def result(future) -> Outcome:
+        try:
+            return future.result()
+        except Exception as error:  # e.g. KilledWorker: the case took its worker down
+            return Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
 
     try:
-        completed = dask_completed([submit(waiting.pop()) for _ in range(min(window, len(waiting)))])
-        for future in completed:
-            case_id = running.pop(future)
-            try:
-                outcome = future.result()
-            except Exception as error:  # e.g. KilledWorker: the case took its worker down
-                outcome = Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
-            if waiting:
-                completed.add(submit(waiting.pop()))
-            yield case_id, outcome
+        yield from _windowed(ids, compile_, max(4, 2 * sum(client.nthreads().values())), submit,
+                             lambda futures: dask_wait(futures, return_when="FIRST_COMPLETED").done, result,
+                             running)
     finally:
         if running:
             client.cancel(list(running))
@@ -182,6 +199,18 @@ class Job:
     attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
 
 
+def fingerprint(problem: "solver.Problem") -> str:
+    """sha256 of everything that determines a run's result (not its name)."""
+    digest = hashlib.sha256()
+    for part in (problem.grid, problem.params, problem.numerics, problem.mechanics, problem.consumption,
+                 problem.t_end, problem.steps):
+        digest.update(repr(part).encode())
+    for array in (problem.phi0, problem.nutrient_fixed, problem.nutrient_value, problem.obstacle,
+                  problem.output_times):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()
+
+
 def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
              retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
     """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
@@ -201,7 +230,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
 
     ids, prints = [], {}
     for job in jobs:
-        prints[job.id] = store.fingerprint(job.scene.problem())
+        prints[job.id] = fingerprint(job.scene.problem())
         record = store.recorded(store.case_file(out_dir, job.id))
         if record and record.get("fingerprint") == prints[job.id] and (
                 record.get("status") == "done" or (record.get("status") == "failed" and not retry_failed)):
@@ -242,7 +271,7 @@ def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler
                 overrides_text({**plan.fixed, **case.overrides()}), {"case_id": case.id, "study_file": study_file})
             for case in plan.cases]
     report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify)
-    store.write_study(plan, Path(out_dir))
+    combine.write_study(plan, Path(out_dir))
     return report
 
 
@@ -250,9 +279,9 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     """Write one case's file: its dataset, or the failure record."""
     extra = {**job.attrs, "fingerprint": fingerprint}
     if outcome.status == "done":
-        ds = store.stamp(outcome.dataset, job.scene, job.scene_file, job.overrides, status="done", message="",
-                         **extra)
+        ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
+                         message="", **extra)
     else:
-        ds = store.failure_record(outcome.message, outcome.seconds, job.scene, job.scene_file, job.overrides,
-                                  error=outcome.error, **extra)
+        ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
+                                  job.scene_file, job.overrides, error=outcome.error, **extra)
     store.write_atomic(ds, store.case_file(out_dir, job.id))

@@ -193,11 +193,10 @@ def run(path: Path, out_dir: Path, overrides=(), workers=None, scheduler=None, n
     catalogue, scene_file, jobs = load(path, overrides)
     report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
     ds = verdicts(jobs, out_dir)
-    ds.attrs = store.legal_attrs({
+    ds.attrs = store.with_provenance({
         "Conventions": "CF-1.10", "title": f"stability catalogue: {catalogue.name}",
         "catalogue": path.read_text(encoding="utf-8"), "catalogue_file": str(path.resolve()),
-        "scene_file": str(scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum()),
-        "biostudy_version": store.version(), "created": store.now()})
+        "scene_file": str(scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
     store.write_atomic(ds, out_dir / "stability.nc")
     return ds, report
 

@@ -10,8 +10,9 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from biostudy import runner, store
+from biostudy import combine, runner, store
 from biostudy.cli import app
+from biostudy.scene import load_scene
 from biostudy.study import load_study
 
 cli = CliRunner()
@@ -58,7 +59,7 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     (out / "cases" / "g=1e+09_r=100.nc").unlink()
     (out / "cases" / ".g=1e+09_r=100.nc.4242.dead.tmp").write_bytes(b"\x89HDF half")
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.nc")}
-    store.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
+    combine.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
     partial = xr.open_dataset(out / "study.nc")
     assert partial.status.sel(g=1e9, r=100).item() == "missing" and partial.attrs["cases_missing"] == 1
     assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
@@ -71,6 +72,14 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     # a changed scene makes the recorded cases stale: they run again
     changed = runner.sweep(load_study(tiny_study, ["time.steps=10"]), out)
     assert len(changed.ran) == 4
+
+
+def test_fingerprint_follows_what_changes_the_result(tiny_scene):
+    base = runner.fingerprint(load_scene(tiny_scene).problem())
+    assert base == runner.fingerprint(load_scene(tiny_scene).problem())
+    assert base == runner.fingerprint(load_scene(tiny_scene, ["name=other", "description=x"]).problem())
+    assert base != runner.fingerprint(load_scene(tiny_scene, ["params.g=2e8"]).problem())
+    assert base != runner.fingerprint(load_scene(tiny_scene, ["biofilm.0.radius=2"]).problem())
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
