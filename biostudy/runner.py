@@ -19,6 +19,8 @@ import contextlib
 import hashlib
 import multiprocessing
 import os
+import signal
+import threading
 import uuid
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -76,6 +78,29 @@ def _environment(values: dict[str, str]):
                 os.environ[name] = value
 
 
+@contextlib.contextmanager
+def _interruptions_deferred():
+    """Ctrl-C and SIGTERM wait until the block is done, then act as they would have.
+
+    Around the start of a worker process: a process the fork server is still starting when its parent
+    goes away dies with a traceback (it cannot read its start-up data), and one that started but is not
+    yet registered with the pool would never be ended.  Signal handlers exist in the main thread only.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    previous = {number: signal.signal(number, lambda signum, frame: received.append(signum))
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        if received:
+            signal.raise_signal(received[0])
+
+
 def _context():
     """Workers forked from a fork server that imported the solver once (start-up ~0.1 s instead of ~1.2 s of
     imports per worker); fresh interpreters (spawn) where there is no fork server."""
@@ -116,7 +141,7 @@ def _local(ids: list[str], compile_: Compile, workers: int) -> Iterator[tuple[st
     finished = False
 
     def submit(problem, case_id):
-        with _environment(WORKER_ENV):  # worker processes are spawned on submit
+        with _environment(WORKER_ENV), _interruptions_deferred():  # worker processes start on submit
             return executor.submit(solve, problem)
 
     def result(future) -> Outcome:
