@@ -10,8 +10,9 @@ from __future__ import annotations
 import contextlib
 import re
 import signal
+from dataclasses import dataclass
 from pathlib import Path
-from typing import List, Optional
+from typing import Callable, List, Optional
 
 import typer
 from rich.console import Console
@@ -107,36 +108,23 @@ def sweep(
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Run every case of a study; re-running skips finished cases."""
-    with _guarded():
+
+    def start():
         from . import runner
         from .study import load_study
 
-        _one_pool(workers, scheduler)
         plan = load_study(catalog.resolve(study), overrides)
-        directory = output or Path(plan.study.name)
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err,
-                      disable=quiet) as progress:
-            task = progress.add_task(plan.study.name, total=0, last="")
+        directory = output or Path(plan.spec.name)
 
-            def notify(event: str, case_id: str, message: str):
-                if event == "start":
-                    progress.update(task, total=progress.tasks[0].total + 1)
-                elif event in ("done", "failed"):
-                    progress.update(task, advance=1, last=f"{case_id} {event}")
-                    if event == "failed":
-                        progress.console.print(f"case {case_id} failed: {message}", markup=False, highlight=False)
+        def run(notify) -> _Finished:
+            report = runner.sweep(plan, directory, workers=workers, scheduler=scheduler,
+                                  retry_failed=retry_failed, notify=notify)
+            return _Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
+                             f"{len(report.failed)} failed; wrote {report.study}", report.failed, len(plan.cases))
 
-            try:
-                report = runner.sweep(plan, directory, workers=workers, scheduler=scheduler,
-                                      retry_failed=retry_failed, notify=notify)
-            except runner.SweepError as error:
-                raise _fail(f"sweep stopped: {error}", 1) from None
-        err.print(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
-                  f"{len(report.failed)} failed; wrote {report.study}")
-        if report.failed:
-            raise _fail(f"{len(report.failed)} of {len(plan.cases)} cases failed: "
-                        + "; ".join(f"{k}: {v}" for k, v in list(report.failed.items())[:3]), 1)
+        return plan.spec.name, run
+
+    _job_command("sweep", workers, scheduler, quiet, start)
 
 
 @app.command()
@@ -224,32 +212,31 @@ def convergence(
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Refine grid, time step and both; measure each level's error and cost (work-precision)."""
-    with _guarded():
-        from . import convergence as study
+
+    def start():
+        from . import convergence as refinement
         from .plots.accuracy import work_precision
         from .scene import apply_overrides, read_scene_data
 
-        _one_pool(workers, scheduler)
-        chosen = tuple(s.strip() for s in series.split(",") if s.strip())
-        unknown = [s for s in chosen if s not in study.SERIES]
-        if unknown or not chosen:
-            raise BadInput(f"unknown series {', '.join(unknown) or '(none)'}; choose from {', '.join(study.SERIES)}",
-                           None, "--series")
+        chosen = refinement.chosen_series(series)
         path = catalog.resolve(scene)
         data = read_scene_data(path)
         fixed = dict(apply_overrides(data, overrides))
         directory = output or Path(f"{path.stem}-convergence")
-        with _job_progress(f"convergence {path.stem}", quiet) as notify:
-            ds, report = study.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
-                                   notify, fixed)
-        (directory / "convergence.md").write_text(study.table_text(ds))
-        work_precision(ds, directory / "work_precision.png")
-        typer.echo(study.table_text(ds))
-        err.print(f"wrote {directory / 'convergence.nc'}, convergence.md, work_precision.png "
-                  f"({len(report.ran)} runs, {len(report.skipped)} finished before)")
-        if report.failed:
-            raise _fail(f"{len(report.failed)} levels failed: "
-                        + "; ".join(f"{k}: {v}" for k, v in list(report.failed.items())[:3]), 1)
+
+        def run(notify) -> _Finished:
+            ds, report = refinement.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
+                                        notify, fixed)
+            table = refinement.table_text(ds)
+            (directory / "convergence.md").write_text(table)
+            work_precision(ds, directory / "work_precision.png")
+            return _Finished(f"wrote {directory / 'convergence.nc'}, convergence.md, work_precision.png "
+                             f"({len(report.ran)} runs, {len(report.skipped)} finished before)", report.failed,
+                             len(report.ran) + len(report.skipped), table, "runs")
+
+        return f"convergence {path.stem}", run
+
+    _job_command("convergence", workers, scheduler, quiet, start)
 
 
 def _one_pool(workers: int | None, scheduler: str | None) -> None:
@@ -260,7 +247,8 @@ def _one_pool(workers: int | None, scheduler: str | None) -> None:
 
 @contextlib.contextmanager
 def _job_progress(title: str, quiet: bool):
-    """A progress bar over the jobs of a convergence or stability run; yields run_jobs' notify."""
+    """A progress bar over the jobs of a sweep, convergence or stability run; yields run_jobs' notify.
+    A job that fails is told at once (also with --quiet): the others go on."""
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err, disable=quiet) as progress:
         task = progress.add_task(title, total=0, last="")
@@ -270,8 +258,47 @@ def _job_progress(title: str, quiet: bool):
                 progress.update(task, total=progress.tasks[0].total + 1)
             elif event in ("done", "failed"):
                 progress.update(task, advance=1, last=f"{job_id} {event}")
+                if event == "failed":
+                    progress.console.print(f"{job_id} failed: {message}", markup=False, highlight=False)
 
         yield notify
+
+
+@dataclass
+class _Finished:
+    """What a job command has to say when its jobs are over."""
+
+    summary: str  # one line on stderr: what ran, what was written
+    failures: dict[str, str]  # job -> why it failed; any makes the exit status 1
+    total: int  # jobs in all
+    table: str = ""  # printed on stdout
+    noun: str = "cases"
+
+
+def _job_command(command: str, workers: int | None, scheduler: str | None, quiet: bool,
+                 start: Callable[[], tuple[str, Callable[..., _Finished]]]) -> None:
+    """The one path of every job command (sweep, convergence, stability).
+
+    start() loads and validates (bad input: exit 2 before anything runs) and returns the progress bar's
+    title and run(notify), which runs the jobs on the chosen pool and says what came of them.  A job that
+    failed, or a pool that broke down, is exit status 1.
+    """
+    with _guarded():
+        from .runner import SweepError
+
+        _one_pool(workers, scheduler)
+        title, run = start()
+        with _job_progress(title, quiet) as notify:
+            try:
+                finished = run(notify)
+            except SweepError as error:
+                raise _fail(f"{command} stopped: {error}", 1) from None
+        if finished.table:
+            typer.echo(finished.table)
+        err.print(finished.summary)
+        if finished.failures:
+            raise _fail(f"{len(finished.failures)} of {finished.total} {finished.noun} failed: "
+                        + "; ".join(f"{k}: {v}" for k, v in list(finished.failures.items())[:3]), 1)
 
 
 @app.command()
@@ -285,20 +312,23 @@ def stability(
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
-    with _guarded():
+
+    def start():
         from . import stability as catalogue_run
 
-        _one_pool(workers, scheduler)
         path = catalog.resolve(catalogue)
+        plan = catalogue_run.load(path, overrides)
         directory = output or Path(f"{path.stem}-results")
-        with _job_progress(f"stability {path.stem}", quiet) as notify:
-            ds, report = catalogue_run.run(path, directory, overrides, workers, scheduler, notify)
-        text = catalogue_run.table_text(ds)
-        (directory / "stability.md").write_text(text)
-        typer.echo(text)
-        bad = [str(c) for c, ok in zip(ds.case.values, ds.ok.values) if not ok]
-        err.print(f"wrote {directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of {ds.sizes['case']} "
-                  f"cases completed within bounds or stopped with a diagnosis")
-        if bad:
-            raise _fail(f"{len(bad)} cases failed: " + "; ".join(
-                f"{c}: {m}" for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok), 1)
+
+        def run(notify) -> _Finished:
+            ds, _ = catalogue_run.run(plan, directory, workers, scheduler, notify)
+            table = catalogue_run.table_text(ds)
+            (directory / "stability.md").write_text(table)
+            failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}
+            return _Finished(f"wrote {directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of "
+                             f"{ds.sizes['case']} cases completed within bounds or stopped with a diagnosis",
+                             failed, ds.sizes["case"], table)
+
+        return f"stability {path.stem}", run
+
+    _job_command("stability", workers, scheduler, quiet, start)

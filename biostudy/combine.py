@@ -122,16 +122,16 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
     keys = plan.keys
     if plan.mode == "grid":
         dims = [dimension(k) for k in keys]
-        sizes = [len(plan.study.sweep.values[k]) for k in keys]
+        sizes = [len(plan.spec.sweep.values[k]) for k in keys]
         combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
-        combined = combined.assign_coords({d: (d, *_coordinate(k, plan.study.sweep.values[k]))
+        combined = combined.assign_coords({d: (d, *_coordinate(k, plan.spec.sweep.values[k]))
                                            for d, k in zip(dims, keys)})
         combined = combined.transpose(*dims, ...)
     else:
         combined = xr.concat(parts, dim="case", combine_attrs="override")
         combined = combined.assign_coords(case=("case", np.array([c.id for c in plan.cases], dtype=object),
                                                 {"long_name": "case id (file under cases/)", "units": "1"}))
-        combined = combined.assign_coords({dimension(k): ("case", *_coordinate(k, plan.study.sweep.values[k]))
+        combined = combined.assign_coords({dimension(k): ("case", *_coordinate(k, plan.spec.sweep.values[k]))
                                            for k in keys})
     swept = {dimension(k) for k in keys} | {k.split(".")[-1] for k in keys}  # e.g. g, advection, grid_shape
     common = {k: v for k, v in _common_attrs([ds.attrs for ds in done]).items() if k not in swept}
@@ -139,7 +139,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
     statuses = [records[c.id][0] for c in plan.cases]
     combined.attrs = store.with_provenance({
         **common,
-        "title": f"biofilm growth study: {plan.study.name}",
+        "title": f"biofilm growth study: {plan.spec.name}",
         "study": plan.file.read_text(encoding="utf-8"),
         "study_file": str(plan.file.resolve()),
         "scene": plan.base.to_toml(),

@@ -63,6 +63,16 @@ class Level:
         return text + (f"_tol={self.tolerance:.3g}" if self.tolerance is not None else "")
 
 
+def chosen_series(text: str) -> tuple[str, ...]:
+    """'space,time' -> ('space', 'time'); an unknown or empty choice is `BadInput`."""
+    chosen = tuple(s.strip() for s in text.split(",") if s.strip())
+    unknown = [s for s in chosen if s not in SERIES]
+    if unknown or not chosen:
+        raise BadInput(f"unknown series {', '.join(unknown) or '(none)'}; choose from {', '.join(SERIES)}",
+                       None, "--series")
+    return chosen
+
+
 def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES, tolerance: float = FIRST_TOLERANCE) -> list[Level]:
     """The levels of every requested series (plus the fixed-step reference the adaptive series needs)."""
     steps = base.time.steps

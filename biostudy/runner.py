@@ -288,13 +288,18 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     return report
 
 
+def plan_jobs(plan: Plan, **attrs) -> list[Job]:
+    """One job per case of a study or catalogue; each case file records the case's id and its own
+    attributes, the overrides that made it and `attrs` (e.g. the study file)."""
+    return [Job(case.id, plan.scenes[case.id], plan.scene_file, overrides_text({**plan.fixed, **case.overrides()}),
+                {"case_id": case.id, **attrs, **case.attrs})
+            for case in plan.cases]
+
+
 def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
           retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
     """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`)."""
-    study_file = str(plan.file.resolve())
-    jobs = [Job(case.id, plan.scenes[case.id], plan.scene_file,
-                overrides_text({**plan.fixed, **case.overrides()}), {"case_id": case.id, "study_file": study_file})
-            for case in plan.cases]
+    jobs = plan_jobs(plan, study_file=str(plan.file.resolve()))
     report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify)
     combine.write_study(plan, Path(out_dir))
     return report

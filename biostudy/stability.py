@@ -25,13 +25,11 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-from pydantic import ConfigDict, Field, ValidationError, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from . import store
-from .errors import BadInput, from_validation_error, read_toml
-from .runner import Job, SweepReport, run_jobs
-from .scene import overrides_text
-from .study import FlatSet, base_scene, case_scene
+from .runner import Job, SweepReport, plan_jobs, run_jobs
+from .study import Case, FlatSet, ManyCases, Plan, load_plan
 
 ROUNDOFF = 1e-9
 PARAMETERS = ("d", "g", "r", "beta", "k_alpha", "mu")
@@ -46,14 +44,10 @@ class StabilityCase(FlatSet):
     set: dict[str, Any] = Field({}, description="overrides (dotted keys, like --set)")
 
 
-class Catalogue(FlatSet):
+class Catalogue(ManyCases):
     """A list of stiff and extreme cases of one base scene."""
 
     model_config = ConfigDict(extra="forbid")
-    name: str = Field("", description="short name (default: the file's name)")
-    description: str = Field("", description="one line shown by `biostudy scenes`")
-    scene: str = Field(description="base scene file, relative to this file")
-    set: dict[str, Any] = Field({}, description="overrides applied to every case")
     case: list[StabilityCase] = Field(description="the cases", min_length=1)
 
     @model_validator(mode="after")
@@ -64,28 +58,19 @@ class Catalogue(FlatSet):
             raise ValueError(f"case name {repeated!r} comes twice")
         return self
 
+    def cases(self) -> list[Case]:
+        return [Case(job_id(c.name), dict(c.set), (i,), {"case_id": c.name, "case_why": c.why})
+                for i, c in enumerate(self.case)]
+
 
 def job_id(name: str) -> str:
     return re.sub(r"[^\w.+=-]", "_", name)
 
 
-def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> tuple[Catalogue, Path, list[Job]]:
+def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
     """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case."""
-    data = read_toml(path)
-    if "case" not in data:
-        raise BadInput("not a stability catalogue (it has no [[case]] list)", path)
-    data.setdefault("name", path.stem)
-    try:
-        catalogue = Catalogue.model_validate(data)
-    except ValidationError as error:
-        raise from_validation_error(error, path, known_keys=Catalogue.model_fields) from None
-    scene_file, base, fixed = base_scene(path, catalogue.scene, catalogue.set, overrides)
-    jobs = []
-    for case in catalogue.case:
-        scene = case_scene(base, case.set, scene_file, path, case.name)
-        jobs.append(Job(job_id(case.name), scene, scene_file, overrides_text({**fixed, **case.set}),
-                        {"case_id": case.name, "case_why": case.why, "catalogue_file": str(path.resolve())}))
-    return catalogue, scene_file, jobs
+    return load_plan(path, Catalogue, overrides,
+                     lambda data: "" if "case" in data else "not a stability catalogue (it has no [[case]] list)")
 
 
 def examine(ds: xr.Dataset) -> dict:
@@ -188,16 +173,16 @@ def _dataset(rows: list[dict]) -> xr.Dataset:
     return xr.Dataset(data, coords=coords)
 
 
-def run(path: Path, out_dir: Path, overrides=(), workers=None, scheduler=None, notify=None) -> tuple[xr.Dataset, SweepReport]:
-    """Run the catalogue, judge every case, write DIR/stability.nc."""
-    catalogue, scene_file, jobs = load(path, overrides)
+def run(plan: Plan, out_dir: Path, workers=None, scheduler=None, notify=None) -> tuple[xr.Dataset, SweepReport]:
+    """Run a loaded catalogue (see `load`), judge every case, write DIR/stability.nc."""
+    jobs = plan_jobs(plan, catalogue_file=str(plan.file.resolve()))
     report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
     ds = verdicts(jobs, out_dir)
     ds.attrs = store.with_provenance({
-        "Conventions": "CF-1.10", "title": f"stability catalogue: {catalogue.name}",
-        "catalogue": path.read_text(encoding="utf-8"), "catalogue_file": str(path.resolve()),
-        "scene_file": str(scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
-    store.write_atomic(ds, out_dir / "stability.nc")
+        "Conventions": "CF-1.10", "title": f"stability catalogue: {plan.spec.name}",
+        "catalogue": plan.file.read_text(encoding="utf-8"), "catalogue_file": str(plan.file.resolve()),
+        "scene_file": str(plan.scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
+    store.write_atomic(ds, Path(out_dir) / "stability.nc")
     return ds, report
 
 

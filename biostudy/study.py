@@ -22,9 +22,9 @@ import hashlib
 import itertools
 import json
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Callable, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -128,27 +128,44 @@ class FlatSet(BaseModel):
         return data
 
 
-class Study(FlatSet):
-    """Many cases of one base scene (SPEC 3)."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-    name: str = Field("", description="short name (default: the file's name without .toml)")
-    description: str = Field("", description="one line shown by `biostudy scenes`")
-    scene: str = Field(description="base scene file, relative to this study file")
-    set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
-    sweep: Sweep
-
-
 @dataclass(frozen=True)
 class Case:
-    """One simulation of a study: its id, the swept values, its position in the sweep."""
+    """One simulation of a study or catalogue: its id, its overrides of the base scene, its position.
+
+    attrs: what its case file records about it besides the id (a catalogue case: its name and why).
+    """
 
     id: str
     values: dict[str, Any]
     index: tuple[int, ...]
+    attrs: dict[str, Any] = field(default_factory=dict)
 
     def overrides(self) -> dict[str, Any]:
         return dict(self.values)
+
+
+class ManyCases(FlatSet):
+    """What study files and stability catalogues share: many cases of one base scene."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field("", description="short name (default: the file's name without .toml)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    scene: str = Field(description="base scene file, relative to this file")
+    set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
+
+    def cases(self) -> list[Case]:
+        """Every case, in the order they run and are recorded."""
+        raise NotImplementedError
+
+
+class Study(ManyCases):
+    """Many cases of one base scene: a sweep over scene keys."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    sweep: Sweep
+
+    def cases(self) -> list[Case]:
+        return expand(self.sweep)
 
 
 def expand(sweep: Sweep) -> list[Case]:
@@ -170,10 +187,10 @@ def expand(sweep: Sweep) -> list[Case]:
 
 @dataclass
 class Plan:
-    """A validated study: every case compiled to a `Scene`, nothing run yet."""
+    """A validated study or catalogue: every case compiled to a `Scene`, nothing run yet."""
 
     file: Path
-    study: Study
+    spec: ManyCases  # the Study or Catalogue as read
     scene_file: Path
     base: Scene
     cases: list[Case]
@@ -182,11 +199,13 @@ class Plan:
 
     @property
     def keys(self) -> list[str]:
-        return list(self.study.sweep.values)
+        """The swept keys (a study)."""
+        return list(self.spec.sweep.values)
 
     @property
     def mode(self) -> str:
-        return self.study.sweep.mode
+        """grid or zip (a study)."""
+        return self.spec.sweep.mode
 
 
 def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
@@ -215,23 +234,35 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
         raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {label}", error.key)))) from None
 
 
-def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
-    """Read a study file, its base scene and every case; any bad input is a `BadInput`."""
+def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
+              wrong_kind: Callable[[dict], str] = lambda data: "") -> Plan:
+    """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
+
+    wrong_kind(data) says why the file is not of this kind ("" if it is), before it is validated.
+    """
     path = Path(path)
     data = read_toml(path)
-    if "grid" in data and "scene" not in data:
-        raise BadInput("this is a scene file (it has [grid]); run it with `biostudy run`", path)
+    problem = wrong_kind(data)
+    if problem:
+        raise BadInput(problem, path)
     data.setdefault("name", path.stem)
     try:
-        study = Study.model_validate(data)
+        spec = model.model_validate(data)
     except ValidationError as error:
-        raise from_validation_error(error, path, known_keys=Study.model_fields) from None
-    scene_file, base_data, fixed = base_scene(path, study.scene, study.set, overrides)
+        raise from_validation_error(error, path, known_keys=model.model_fields) from None
+    scene_file, base_data, fixed = base_scene(path, spec.scene, spec.set, overrides)
     base = scene_from_data(base_data, scene_file)
-    cases = expand(study.sweep)
+    cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)
     if repeated:
-        raise BadInput(f"case {repeated} comes twice", path, "sweep")
-    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.id) for case in cases}
-    return Plan(path, study, scene_file, base, cases, scenes, fixed)
+        raise BadInput(f"case {repeated} comes twice", path, "sweep" if isinstance(spec, Study) else "case")
+    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.attrs.get("case_id", case.id))
+              for case in cases}
+    return Plan(path, spec, scene_file, base, cases, scenes, fixed)
+
+
+def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
+    """Read a study file, its base scene and every case; any bad input is a `BadInput`."""
+    return load_plan(path, Study, overrides, lambda data: "this is a scene file (it has [grid]); run it with "
+                     "`biostudy run`" if "grid" in data and "scene" not in data else "")

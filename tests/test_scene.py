@@ -158,10 +158,10 @@ def test_every_bundled_file_validates():
         elif entry.kind == "study":
             assert load_study(entry.path).cases
         else:
-            _, _, jobs = stability.load(entry.path)
-            assert jobs
-            for job in jobs:
-                job.scene.problem()
+            plan = stability.load(entry.path)
+            assert plan.cases
+            for scene in plan.scenes.values():
+                scene.problem()
 
 
 def test_directional_scene_is_the_papers_4_1():
