@@ -24,15 +24,15 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
 
 import solver
-from solver.problem import FACES
+from solver.problem import FACES, parameter_infos
 
 from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
+from .formatting import units_text
 from .geometry import SHAPES, AnyShape, Shape
 from .tomltext import dumps as toml_dumps
 
 CONFIG = ConfigDict(extra="forbid", strict=True)
 DEFAULT_OUTPUTS = 11
-_PARAMS = solver.Parameters()
 _NUMERICS = solver.Numerics()
 _MECHANICS = solver.MechanicsSetup()
 
@@ -53,20 +53,19 @@ class GridSpec(BaseModel):
         return solver.Grid(tuple(self.shape), self.spacing)
 
 
-class Params(BaseModel):
-    """Model parameters (SPEC 1, paper Table 2); unspecified keys take the paper's values."""
-
-    model_config = CONFIG
-    mu: float = _field(_PARAMS.mu, "shear modulus mu, Pa", "Pa", gt=0)
-    nu: float = _field(_PARAMS.nu, "Poisson ratio nu", "1", ge=0, lt=0.5)
-    d: float = _field(_PARAMS.d, "nutrient diffusivity d, µm²/T*", "um2/T*", gt=0)
-    beta: float = _field(_PARAMS.beta, "phase-field regularisation beta, µm²/T*", "um2/T*", ge=0)
-    k_alpha: float = _field(_PARAMS.k_alpha, "growth factor k_alpha, 1/T*", "1/T*", ge=0)
-    k: float = _field(_PARAMS.k, "half-velocity constant k (Monod)", "1", gt=0)
-    g: float = _field(_PARAMS.g, "consumption g, 1/T*; 0 switches consumption off", "1/T*", ge=0)
-    r: float = _field(_PARAMS.r, "growth parameter r, µm/T*; 0 switches directed growth off", "um/T*", ge=0)
+def _parameters_model() -> type[BaseModel]:
+    """The [params] table, derived from the declarations of `solver.Parameters`: each parameter's
+    default, units, meaning and allowed range (`solver.problem.parameter`)."""
+    fields = {}
+    for info in parameter_infos():
+        shown = units_text(info.units)
+        fields[info.name] = (float, _field(info.default, f"{info.long_name}{', ' + shown if shown else ''}",
+                                           info.units, **info.bounds))
+    return create_model("Params", __config__=CONFIG, __doc__="Model parameters (paper Table 2 by default; "
+                        "docs/model.md); unspecified keys take their defaults.", **fields)
 
 
+Params = _parameters_model()
 PARAMETER_NAMES = tuple(Params.model_fields)
 
 

@@ -13,8 +13,10 @@ from rich.console import Console, Group
 from rich.table import Table
 from rich.text import Text
 
-PARAMETERS = (("mu", "Pa"), ("nu", ""), ("d", "µm²/T*"), ("beta", "µm²/T*"), ("k_alpha", "1/T*"),
-              ("k", ""), ("g", "1/T*"), ("r", "µm/T*"))
+from solver.problem import parameter_infos
+
+from .formatting import units_text
+
 AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")
 
 
@@ -68,8 +70,8 @@ def _header(attrs: dict) -> list[tuple[str, str]]:
         rows.append(("grid", f"{grid} cells of {_num(attrs.get('grid_spacing'))} µm"))
     model = [f"{k} {attrs[k]}" for k in ("consumption", "advection", "mechanics") if k in attrs]
     rows.append(("model", ", ".join(model)))
-    params = [f"{name} = {_num(attrs[name])}{' ' + unit if unit else ''}" for name, unit in PARAMETERS
-              if name in attrs]
+    params = [f"{p.name} = {_num(attrs[p.name])}{' ' + units_text(p.units) if units_text(p.units) else ''}"
+              for p in parameter_infos() if p.name in attrs]
     rows.append(("parameters", ", ".join(params)))
     return rows
 

@@ -27,12 +27,13 @@ import numpy as np
 import xarray as xr
 from pydantic import ConfigDict, Field, model_validator
 
+from solver.problem import parameter_infos
+
 from . import store
 from .runner import Job, SweepReport, plan_jobs, run_jobs
 from .study import Case, FlatSet, ManyCases, Plan, load_plan
 
 ROUNDOFF = 1e-9
-PARAMETERS = ("d", "g", "r", "beta", "k_alpha", "mu")
 
 
 class StabilityCase(FlatSet):
@@ -118,7 +119,7 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
         row = {"name": job.attrs["case_id"], "why": job.attrs["case_why"], "mechanics": int(mechanics),
                "cells": int(np.prod(job.scene.grid.shape)), "steps_nominal": job.scene.time.steps,
                "consumption": job.scene.model.consumption, "advection": job.scene.numerics.advection,
-               **{p: float(getattr(job.scene.params, p)) for p in PARAMETERS}}
+               **{p.name: float(getattr(job.scene.params, p.name)) for p in parameter_infos()}}
         status = record.get("status", "missing")
         if status == "done":
             ds = store.open_dataset(path)
@@ -153,8 +154,8 @@ NUMBERS = {"ok": ("1", "1 = completed within bounds or refused by the mechanics 
            "newton_max": ("1", "most Newton iterations of a mechanics solve")}
 LABELS = {"verdict": "completed, refused (mechanics diagnosis) or failed", "message": "diagnosis or check result",
           "why": "what the case stresses"}
-COORDS = {"d": "um2/T*", "g": "1/T*", "r": "um/T*", "beta": "um2/T*", "k_alpha": "1/T*", "mu": "Pa",
-          "cells": "1", "steps_nominal": "1", "mechanics": "1"}
+COORDS = {"cells": ("1", "grid cells"), "steps_nominal": ("1", "nominal steps"),
+          "mechanics": ("1", "1 = the mechanics was solved")}
 
 
 def _dataset(rows: list[dict]) -> xr.Dataset:
@@ -166,8 +167,11 @@ def _dataset(rows: list[dict]) -> xr.Dataset:
         data[name] = ("case", np.array([str(r.get(name, "")) for r in rows], dtype=object),
                       {"units": "1", "long_name": long_name})
     coords = {"case": ("case", np.array([r["name"] for r in rows], dtype=object), {"units": "1", "long_name": "case"})}
-    for name, units in COORDS.items():
-        coords[name] = ("case", np.array([r[name] for r in rows]), {"units": units, "long_name": f"{name} of the case"})
+    for info in parameter_infos():
+        coords[info.name] = ("case", np.array([r[info.name] for r in rows]),
+                             {"units": info.units, "long_name": info.long_name})
+    for name, (units, long_name) in COORDS.items():
+        coords[name] = ("case", np.array([r[name] for r in rows]), {"units": units, "long_name": long_name})
     for name in ("consumption", "advection"):
         coords[name] = ("case", np.array([r[name] for r in rows], dtype=object), {"units": "1", "long_name": name})
     return xr.Dataset(data, coords=coords)

@@ -15,7 +15,7 @@ import platform
 import numpy as np
 import xarray as xr
 
-from .problem import AXES, Problem
+from .problem import AXES, Problem, parameter_infos
 
 BIOFILM_THRESHOLD = 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
@@ -59,7 +59,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, SPEC 1)",
         "grid_shape": np.array(problem.grid.shape, dtype=np.int32),
         "grid_spacing": problem.grid.spacing,
-        **{name: float(getattr(p, name)) for name in ("mu", "nu", "d", "beta", "k_alpha", "k", "g", "r")},
+        **{info.name: float(getattr(p, info.name)) for info in parameter_infos(p)},
         "kappa": p.kappa,
         "consumption": problem.consumption,
         "advection": n.advection,

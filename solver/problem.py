@@ -12,7 +12,7 @@ flattening is FiPy's cell order (x fastest).  Per-node arrays have shape
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Literal
 
 import numpy as np
@@ -89,23 +89,51 @@ class Grid:
         return tuple(reversed(grids))
 
 
+def parameter(default: float, units: str, long_name: str, **bounds: float):
+    """A field of `Parameters`: default, units (CF spelling: um2/T*), meaning and allowed range
+    (bounds: gt, ge, lt, le).  The scene schema, the dataset's attributes and the tables of `show` and
+    `stability` are all derived from these declarations, so a new parameter is declared here once."""
+    unknown = set(bounds) - {"gt", "ge", "lt", "le"}
+    if unknown:
+        raise TypeError(f"unknown bounds {sorted(unknown)}; use gt, ge, lt, le")
+    return field(default=default, metadata={"units": units, "long_name": long_name, "bounds": bounds})
+
+
 @dataclass(frozen=True)
 class Parameters:
-    """Model parameters, paper Table 2 (defaults) in µm and normalised time T*."""
+    """Model parameters, paper Table 2 (defaults) in µm and normalised time T*; see `parameter`."""
 
-    mu: float = 3.3557  # shear modulus, Pa
-    nu: float = 0.49  # Poisson ratio
-    d: float = 1e10  # nutrient diffusivity, µm²/T*
-    beta: float = 2.0  # phase-field regularisation, µm²/T*
-    k_alpha: float = 1e-3  # growth factor, 1/T*
-    k: float = 1.0  # half-velocity constant
-    g: float = 1e8  # consumption, 1/T*
-    r: float = 100.0  # growth parameter, µm/T*
+    mu: float = parameter(3.3557, "Pa", "shear modulus mu", gt=0)
+    nu: float = parameter(0.49, "1", "Poisson ratio nu", ge=0, lt=0.5)
+    d: float = parameter(1e10, "um2/T*", "nutrient diffusivity d", gt=0)
+    beta: float = parameter(2.0, "um2/T*", "phase-field regularisation beta", ge=0)
+    k_alpha: float = parameter(1e-3, "1/T*", "growth factor k_alpha", ge=0)
+    k: float = parameter(1.0, "1", "half-velocity constant k (Monod)", gt=0)
+    g: float = parameter(1e8, "1/T*", "consumption g (0: no consumption)", ge=0)
+    r: float = parameter(100.0, "um/T*", "growth parameter r (0: no directed growth)", ge=0)
 
     @property
     def kappa(self) -> float:
         """Bulk modulus kappa = 2 mu (1 + nu) / (3 (1 - 2 nu)), Pa."""
         return 2.0 * self.mu * (1.0 + self.nu) / (3.0 * (1.0 - 2.0 * self.nu))
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """One declared model parameter (see `parameter`)."""
+
+    name: str
+    default: float
+    units: str
+    long_name: str
+    bounds: dict
+
+
+def parameter_infos(parameters=None) -> tuple[ParameterInfo, ...]:
+    """The declared parameters of a `Parameters` class or instance (default: `Parameters`), in order."""
+    return tuple(ParameterInfo(f.name, f.default, f.metadata["units"], f.metadata["long_name"],
+                               dict(f.metadata["bounds"]))
+                 for f in fields(Parameters if parameters is None else parameters) if "units" in f.metadata)
 
 
 @dataclass(frozen=True)
