@@ -31,6 +31,7 @@ import xarray as xr
 
 from . import measures, store
 from .errors import BadInput
+from .formatting import number
 from .runner import Job, SweepReport, run_jobs
 from .scene import Scene, overrides_text, scene_from_data, set_key
 
@@ -252,11 +253,10 @@ def table_text(ds: xr.Dataset) -> str:
             row = ds.sel(series=name, level=level)
             if not np.isfinite(float(row.cells)):
                 continue
-            cells = [str(name), str(int(level)), f"{int(row.cells)}", f"{float(row.h):.4g}", f"{float(row.dt):.3g}",
-                     f"{float(row.tolerance):.0e}" if np.isfinite(float(row.tolerance)) else "-",
-                     f"{int(row.steps)}" if np.isfinite(float(row.steps)) else "-",
-                     f"{float(row.wall_time):.2f}" if np.isfinite(float(row.wall_time)) else "failed"]
-            cells += [f"{float(row[f'error_{q}']):.2e}" if np.isfinite(float(row[f"error_{q}"])) else "ref"
+            cells = [str(name), str(int(level)), number(row.cells, 12), number(row.h), number(row.dt, 3),
+                     number(row.tolerance, 1, exponent=True), number(row.steps, 9),
+                     number(row.wall_time, 3) if np.isfinite(float(row.wall_time)) else "failed"]
+            cells += [number(row[f"error_{q}"], 3, exponent=True) if np.isfinite(float(row[f"error_{q}"])) else "ref"
                       for q in present]
             lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
@@ -266,11 +266,5 @@ def table_text(ds: xr.Dataset) -> str:
     lines.append("|---|" + "---|" * len(present))
     for name in ds.series.values:
         values = [ds.attrs.get(f"order_{name}_{q}", float("nan")) for q in present]
-        lines.append(f"| {name} | " + " | ".join(_order_text(v) for v in values) + " |")
+        lines.append(f"| {name} | " + " | ".join(v if isinstance(v, str) else number(v, 3) for v in values) + " |")
     return "\n".join(lines) + "\n"
-
-
-def _order_text(value) -> str:
-    if isinstance(value, str):
-        return value
-    return f"{float(value):.2f}" if math.isfinite(float(value)) else "-"

@@ -15,6 +15,8 @@ from typing import Iterable
 
 from pydantic import ValidationError
 
+from .formatting import value_text
+
 # Tags of the shape union: pydantic puts them into error locations
 # (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.
 SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
@@ -60,21 +62,6 @@ def key_path(loc: Iterable) -> str:
     return text
 
 
-def show(value) -> str:
-    """A value as a user wrote it in TOML (short)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    if isinstance(value, str):
-        return repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(show(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{...}"
-    return str(value)
-
-
 _BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
            "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
 
@@ -94,12 +81,12 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         return "", "required key is missing"
     if kind in _BOUNDS:
         name, sign = _BOUNDS[kind]
-        return "", f"must be {sign} {show(ctx[name])} (got {show(given)})"
+        return "", f"must be {sign} {value_text(ctx[name])} (got {value_text(given)})"
     if kind == "union_tag_invalid":
-        return "", f"unknown shape {show(ctx.get('tag'))}; shapes are {ctx.get('expected_tags')}"
+        return "", f"unknown shape {value_text(ctx.get('tag'))}; shapes are {ctx.get('expected_tags')}"
     if kind in ("too_short", "too_long"):
         bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
-        return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {show(given)})"
+        return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {value_text(given)})"
     if kind == "union_tag_not_found":
         return "", "needs a 'shape' key (box, sphere, cylinder or mask; obstacles also maze or grate)"
     message = error["msg"]
@@ -108,7 +95,7 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         if message.startswith(before):
             message = after + message[len(before):]
     if not isinstance(given, dict):
-        message += f" (got {show(given)})"
+        message += f" (got {value_text(given)})"
     return "", message
 
 

@@ -28,7 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, 
 from solver import Grid
 
 from . import structures
-from .errors import InvalidAt, show
+from .errors import InvalidAt
+from .formatting import value_text
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
 EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)
@@ -194,8 +195,8 @@ class Mask(Shape):
 
     def check(self, grid):
         if self._array.shape != grid.shape:
-            raise InvalidAt("path", f"array has shape {show(list(self._array.shape))}; the grid is "
-                                    f"{show(list(grid.shape))} [nx, ny(, nz)]")
+            raise InvalidAt("path", f"array has shape {value_text(list(self._array.shape))}; the grid is "
+                                    f"{value_text(list(grid.shape))} [nx, ny(, nz)]")
         super().check(grid)
 
     def cells(self, grid):

@@ -26,8 +26,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 import solver
 from solver.problem import FACES, parameter_infos
 
-from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
-from .formatting import units_text
+from .errors import BadInput, InvalidAt, from_validation_error, read_toml
+from .formatting import units_text, value_text
 from .geometry import SHAPES, AnyShape, Shape
 from .tomltext import dumps as toml_dumps
 
@@ -150,10 +150,10 @@ class MechanicsSpec(BaseModel):
         for name in ("clamp", "slide"):
             faces = getattr(self, name)
             if len(set(faces)) != len(faces):
-                raise InvalidAt(name, f"lists a face twice ({show(faces)})")
+                raise InvalidAt(name, f"lists a face twice ({value_text(faces)})")
         both = sorted(set(self.clamp) & set(self.slide))
         if both:
-            raise InvalidAt("slide", f"{show(both)} already clamped")
+            raise InvalidAt("slide", f"{value_text(both)} already clamped")
         return self
 
     def solver_setup(self) -> solver.MechanicsSetup | None:

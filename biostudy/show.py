@@ -15,16 +15,9 @@ from rich.text import Text
 
 from solver.problem import parameter_infos
 
-from .formatting import units_text
+from .formatting import number, units_text
 
 AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")
-
-
-def _num(value) -> str:
-    try:
-        return f"{float(value):.4g}"
-    except (TypeError, ValueError):
-        return str(value)
 
 
 def _rows(rows: list[tuple[str, str]]) -> Table:
@@ -67,10 +60,10 @@ def _header(attrs: dict) -> list[tuple[str, str]]:
         ("overrides", str(attrs.get("overrides", "")).replace("\n", "; ")),
     ]
     if grid:
-        rows.append(("grid", f"{grid} cells of {_num(attrs.get('grid_spacing'))} µm"))
+        rows.append(("grid", f"{grid} cells of {number(attrs.get('grid_spacing'))} µm"))
     model = [f"{k} {attrs[k]}" for k in ("consumption", "advection", "mechanics") if k in attrs]
     rows.append(("model", ", ".join(model)))
-    params = [f"{p.name} = {_num(attrs[p.name])}{' ' + units_text(p.units) if units_text(p.units) else ''}"
+    params = [f"{p.name} = {number(attrs[p.name])}{' ' + units_text(p.units) if units_text(p.units) else ''}"
               for p in parameter_infos() if p.name in attrs]
     rows.append(("parameters", ", ".join(params)))
     return rows
@@ -91,9 +84,9 @@ def run_summary(ds: xr.Dataset) -> Group:
     if status != "done":
         rows.append(("status", f"[red]{status}[/red]: {attrs.get('message', '')}"))
     rows += [
-        ("run", f"wall time {_num(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
+        ("run", f"wall time {number(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
                 f"{attrs.get('steps_bisected', '-')} bisected" if "steps_taken" in attrs
-         else f"wall time {_num(attrs.get('wall_time'))} s"),
+         else f"wall time {number(attrs.get('wall_time'))} s"),
         ("created", str(attrs.get("created", ""))),
         ("software", _software(attrs)),
     ]
@@ -101,12 +94,12 @@ def run_summary(ds: xr.Dataset) -> Group:
     if "time" in ds.dims and all(v in ds for v in AVERAGES):
         table = Table(title=None, show_edge=False)
         table.add_column("")
-        table.add_column(f"T* = {_num(ds.time.values[0])}", justify="right")
-        table.add_column(f"T* = {_num(ds.time.values[-1])}", justify="right")
+        table.add_column(f"T* = {number(ds.time.values[0])}", justify="right")
+        table.add_column(f"T* = {number(ds.time.values[-1])}", justify="right")
         table.add_column("units")
         for var in AVERAGES:
             values = ds[var].values
-            table.add_row(var, _num(values[0]), _num(values[-1]), str(ds[var].attrs.get("units", "")))
+            table.add_row(var, number(values[0]), number(values[-1]), units_text(ds[var].attrs.get("units", "1")))
         parts.append(table)
     return Group(*parts)
 
@@ -118,7 +111,7 @@ def study_summary(ds: xr.Dataset) -> Group:
     rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
     names = [n.strip() for n in str(attrs.get("sweep_keys", "")).split(",") if n.strip()]
     swept = [c for c in ds.coords if c not in ds.dims or c in dims]
-    values = [f"{c} = " + ", ".join(_num(v) for v in np.unique(ds[c].values)) for c in swept
+    values = [f"{c} = " + ", ".join(number(v) for v in np.unique(ds[c].values)) for c in swept
               if c not in ("case", "time", "x", "y", "z", "component") and not c.endswith("_node")]
     rows += [
         ("sweep", f"{attrs.get('sweep_mode')} over {', '.join(names)}"),
@@ -146,9 +139,9 @@ def study_summary(ds: xr.Dataset) -> Group:
     for i, case in enumerate(columns["case_id"]):
         status = str(columns["status"][i])
         colour = {"done": "green", "failed": "red"}.get(status, "yellow")
-        table.add_row(str(case), f"[{colour}]{status}[/{colour}]", _num(columns["wall_time"][i]),
-                      _num(columns["steps"][i]),
-                      *(_num(columns[v][i]) if v in columns else "-" for v in AVERAGES),
+        table.add_row(str(case), f"[{colour}]{status}[/{colour}]", number(columns["wall_time"][i]),
+                      number(columns["steps"][i]),
+                      *(number(columns[v][i]) if v in columns else "-" for v in AVERAGES),
                       str(columns["message"][i]))
     return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
 

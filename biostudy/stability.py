@@ -30,6 +30,7 @@ from pydantic import ConfigDict, Field, model_validator
 from solver.problem import parameter_infos
 
 from . import store
+from .formatting import number
 from .runner import Job, SweepReport, plan_jobs, run_jobs
 from .study import Case, FlatSet, ManyCases, Plan, load_plan
 
@@ -197,12 +198,11 @@ def table_text(ds: xr.Dataset) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for i in range(ds.sizes["case"]):
         row = ds.isel(case=i)
-        number = lambda v, f: f.format(float(v)) if np.isfinite(float(v)) else "-"
         lines.append("| " + " | ".join([
             str(row.case.values), str(row.why.values), f"{int(row.cells)}", str(row.verdict.values),
-            number(row.steps, "{:.0f}"), number(row.bisections, "{:.0f}"), number(row.wall_time, "{:.2f}"),
-            f"[{number(row.phi_min, '{:.3g}')}, {number(row.phi_max, '{:.4g}')}]",
-            f"[{number(row.c_min, '{:.3g}')}, {number(row.c_max, '{:.3g}')}]",
+            number(row.steps, 9), number(row.bisections, 9), number(row.wall_time, 3),
+            f"[{number(row.phi_min, 3)}, {number(row.phi_max, 4)}]",
+            f"[{number(row.c_min, 3)}, {number(row.c_max, 3)}]",
             str(row.message.values).replace("|", "/"),
         ]) + " |")
     return "\n".join(lines) + "\n"

@@ -28,9 +28,10 @@ from typing import Any, Callable, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
+from .errors import BadInput, InvalidAt, from_validation_error, read_toml
+from .formatting import value_text
 from .scene import Scene, apply_overrides, key_parts, read_scene_data, scene_from_data, set_key
-from .tomltext import number
+from .tomltext import float_literal
 
 RESERVED_DIMS = frozenset({"time", "x", "y", "z", "x_node", "y_node", "z_node", "component", "case"})
 
@@ -59,7 +60,7 @@ def label(value: Any) -> str:
     if isinstance(value, bool):
         text = "true" if value else "false"
     elif isinstance(value, float):
-        text = f"{value:g}" if float(f"{value:g}") == value else number(value)
+        text = f"{value:g}" if float(f"{value:g}") == value else float_literal(value)
     elif isinstance(value, int):
         text = str(value)
     elif isinstance(value, (list, tuple)):
@@ -90,7 +91,7 @@ class Sweep(BaseModel):
             raise InvalidAt("", "sweeps no key: add e.g. g = [1e8, 1e10]")
         for key, options in values.items():
             if not isinstance(options, list) or not options:
-                raise InvalidAt(key, f"must be a non-empty list of values (got {show(options)})")
+                raise InvalidAt(key, f"must be a non-empty list of values (got {value_text(options)})")
         return {"mode": mode, "values": values}
 
     @model_validator(mode="after")
@@ -104,7 +105,7 @@ class Sweep(BaseModel):
             labels = [label(v) for v in options]
             repeated = next((v for v, n in zip(options, labels) if labels.count(n) > 1), None)
             if repeated is not None and self.mode == "grid":
-                raise InvalidAt(key, f"lists {show(repeated)} twice")
+                raise InvalidAt(key, f"lists {value_text(repeated)} twice")
         seen: dict[str, str] = {}
         for key in self.values:
             try:

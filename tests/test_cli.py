@@ -44,7 +44,7 @@ def test_show_summarises_a_run(tiny_scene, tmp_path):
     result = invoke("show", out)
     assert result.exit_code == 0, result.output
     text = result.stdout
-    for expected in ("tiny", "tiny test scene", "16 × 16 cells", "g = 1e+08", "wall time", "20 taken",
+    for expected in ("tiny", "tiny test scene", "16 × 16 cells", "g = 1e8 1/T*", "wall time", "20 taken",
                      "phi_mean", "c_mean", "biofilm_volume", "T* = 0.2", "fipy"):
         assert expected in text, expected
     ds = xr.open_dataset(out)

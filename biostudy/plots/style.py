@@ -22,6 +22,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
+from ..formatting import number, units_text  # noqa: E402
+
 OBSTACLE_GREY = "0.6"
 SOURCE_GREEN = "#2ca02c"
 FIELD_NAMES = ("phi", "c", "alpha", "p")
@@ -29,15 +31,13 @@ SERIES_NAMES = ("phi_mean", "c_mean", "biofilm_volume")
 SYMBOLS = {"phi": "φ", "c": "c", "alpha": "α", "p": "p", "phi_mean": "mean φ", "c_mean": "mean c",
            "biofilm_volume": "biofilm volume"}
 CMAPS = {"phi": "viridis", "c": "plasma", "alpha": "magma", "p": "RdBu_r"}
-UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "Pa": "Pa", "s": "s"}
 DPI = 110
 C_FLOOR = 1e-3  # lowest nutrient concentration the log colour scale resolves
 
 
 def units(var: xr.DataArray) -> str:
     """Display form of a variable's `units` attribute ('' for dimensionless)."""
-    raw = str(var.attrs.get("units", ""))
-    return UNITS.get(raw, raw)
+    return units_text(var.attrs.get("units", "1"))
 
 
 def label(var: xr.DataArray, name: str | None = None) -> str:
@@ -105,16 +105,11 @@ def time_title(ds: xr.Dataset, index: int) -> str:
     return f"T* = {float(ds['time'].values[index]):.3g}"
 
 
-def number(value: float) -> str:
-    """1e+08 -> 1e8: a parameter value as a physicist writes it."""
-    return f"{value:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
-
-
 def run_title(ds: xr.Dataset) -> str:
     """One line naming the run, for figure titles."""
     title = str(ds.attrs.get("title", "biofilm growth"))
     keys = [k for k in ("g", "r", "k_alpha") if k in ds.attrs]
-    params = ", ".join(f"{k} = {number(float(ds.attrs[k]))}" for k in keys)
+    params = ", ".join(f"{k} = {number(ds.attrs[k], 6)}" for k in keys)
     return f"{title}  ({params})" if params else title
 
 

@@ -18,7 +18,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from .style import SERIES_NAMES, label, number, suptitle
+from ..formatting import number
+from .style import SERIES_NAMES, label, suptitle
 
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
 NOT_PARAMETERS = {"status", "message", "error", "time"}
@@ -103,7 +104,7 @@ def _numeric(values) -> bool:
 
 
 def _fmt(value) -> str:
-    return number(value) if _numeric([value]) else str(value)
+    return number(value, 6) if _numeric([value]) else str(value)
 
 
 def _order(value):
