@@ -8,6 +8,7 @@ convergence, stability) are added to `app` by their own modules.
 from __future__ import annotations
 
 import contextlib
+import os
 import re
 import signal
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from . import catalog
+from . import catalog, worker
 from .errors import BadInput
 
 app = typer.Typer(name="biostudy", no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
@@ -28,6 +29,14 @@ err = Console(stderr=True)
 out = Console()
 
 SET_HELP = "override a scene key, KEY=VALUE with the value as TOML (params.g=1e10, grid.shape=[40,40,40]); repeatable"
+
+
+@app.callback()
+def _process() -> None:
+    # Where a biostudy process starts, before FiPy or matplotlib is imported: FiPy's scipy solver suite,
+    # and pictures drawn to files, never to a screen.
+    worker.pin_solvers()
+    os.environ["MPLBACKEND"] = "Agg"
 
 
 def _fail(message: str, status: int) -> typer.Exit:
@@ -65,7 +74,7 @@ def run(
     with _guarded():
         from solver import SimulationError, simulate
 
-        from . import store, worker
+        from . import store
         from .scene import load_scene, overrides_text, parse_override
 
         path = catalog.resolve(scene)

@@ -40,8 +40,7 @@ if TYPE_CHECKING:
     import solver
 
 CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-              "FIPY_SOLVERS": "scipy"}
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", **worker.SOLVER_ENV}
 
 
 class SweepError(RuntimeError):

@@ -20,6 +20,17 @@ if TYPE_CHECKING:
     import xarray as xr
 
 
+# FiPy picks its solver suite once, when it is first imported; the solver reads FiPy's matrices as scipy
+# ones, so every process that simulates pins the scipy suite before that (whatever else is installed).
+SOLVER_ENV = {"FIPY_SOLVERS": "scipy"}
+
+
+def pin_solvers() -> None:
+    """At the start of a process that simulates (the command line, a worker): FiPy's scipy suite."""
+    for name, value in SOLVER_ENV.items():
+        os.environ.setdefault(name, value)
+
+
 @dataclass
 class Outcome:
     """What a worker sends back for one case."""
@@ -46,7 +57,7 @@ def provenance() -> dict[str, str]:
 
 def solve(problem: "solver.Problem") -> Outcome:
     """Simulate one problem; a failure becomes an `Outcome`, never an exception."""
-    os.environ.setdefault("FIPY_SOLVERS", "scipy")  # before FiPy is first imported (Dask workers)
+    pin_solvers()  # a Dask worker's process was not started by biostudy: before FiPy is first imported
     from solver import SimulationError, simulate
 
     began = time.perf_counter()

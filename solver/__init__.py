@@ -5,13 +5,9 @@ xarray.Dataset out.  FiPy builds the finite-volume operators of the
 transport (phi, c, alpha); scikit-fem the growth mechanics (u, p).
 Nothing here knows about files, schemas or command lines.
 """
-import os
-
-os.environ.setdefault("FIPY_SOLVERS", "scipy")
-
-from .errors import MechanicsError, SimulationError, StepFailure  # noqa: E402
-from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem  # noqa: E402
-from .timeloop import Progress, Run, Snapshot, evolve, simulate  # noqa: E402
+from .errors import MechanicsError, SimulationError, StepFailure
+from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
+from .timeloop import Progress, Run, Snapshot, evolve, simulate
 
 __all__ = [
     "Grid", "Parameters", "Numerics", "MechanicsSetup", "Problem",

@@ -14,10 +14,7 @@ It is the one matrix both the nutrient and the biofilm equations reuse.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-
-os.environ.setdefault("FIPY_SOLVERS", "scipy")
 
 import numpy as np
 import scipy.sparse as sp
@@ -39,6 +36,11 @@ class Faces:
 def fipy_mesh(grid: Grid):
     """FiPy Grid2D/Grid3D with the scene's cells (x fastest, as our arrays)."""
     import fipy
+
+    if fipy.solvers.solver_suite != "scipy":  # FiPy picks its suite once, when it is first imported
+        raise RuntimeError(f"FiPy uses its {fipy.solvers.solver_suite} solver suite; the solver reads FiPy's "
+                           "matrices as scipy ones: set FIPY_SOLVERS=scipy before FiPy is imported (the "
+                           "biostudy command and its workers do)")
 
     h = grid.spacing
     if grid.ndim == 2:

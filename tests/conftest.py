@@ -1,6 +1,13 @@
 """Shared fixtures: tiny scene and study files, and tiny runs for the picture and export tests."""
 from __future__ import annotations
 
+import os
+
+# Where the test process starts, as the biostudy command does (biostudy.cli): FiPy's scipy solver suite
+# before FiPy is first imported, and pictures drawn to files only.
+os.environ.setdefault("FIPY_SOLVERS", "scipy")
+os.environ["MPLBACKEND"] = "Agg"
+
 import textwrap
 from pathlib import Path
 

@@ -148,3 +148,17 @@ def test_sigterm_during_a_run_leaves_no_file(tmp_path):
     assert process.returncode == 130, stderr
     assert "interrupted" in stderr and "Traceback" not in stderr
     assert os.listdir(tmp_path) == []
+
+
+def test_importing_sets_nothing_and_the_command_pins_the_solver_suite(tiny_scene, tmp_path):
+    """No side effects on import: FiPy's solver suite and the picture backend are set where a biostudy
+    process starts (the command, a worker), not by importing solver or biostudy."""
+    env = {k: v for k, v in os.environ.items() if k not in ("FIPY_SOLVERS", "MPLBACKEND")}
+    imported = subprocess.run([sys.executable, "-c", "import os, solver, biostudy.cli, biostudy.runner, "
+                               "biostudy.plots; print(sorted({'FIPY_SOLVERS', 'MPLBACKEND'} & set(os.environ)))"],
+                              env=env, capture_output=True, text=True, check=True)
+    assert imported.stdout.strip() == "[]"
+    out = tmp_path / "run.nc"
+    subprocess.run([sys.executable, "-m", "biostudy", "run", str(tiny_scene), "-o", str(out), "-q"], env=env,
+                   check=True, capture_output=True)
+    assert xr.open_dataset(out).attrs["fipy_solvers"] == "scipy"

@@ -1,4 +1,4 @@
-"""What every figure shares: the headless backend, names and units, colour scales, times, file names.
+"""What every figure shares: names and units, colour scales, times, file names.
 
 Colour scales are shared by all times of a figure so that growth and depletion
 read across it: phi on [0, 1] (its physical range); c logarithmic from its
@@ -13,16 +13,12 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
-import matplotlib
+import matplotlib.colors as mcolors
+import matplotlib.pyplot as plt
+import numpy as np
+import xarray as xr
 
-matplotlib.use("Agg")  # files only, never a screen
-
-import matplotlib.colors as mcolors  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
-
-from ..formatting import number, units_text  # noqa: E402
+from ..formatting import number, units_text
 
 OBSTACLE_GREY = "0.6"
 SOURCE_GREEN = "#2ca02c"
