@@ -28,14 +28,14 @@ from pathlib import Path
 import psutil
 import xarray as xr
 
-from biostudy import catalog, combine, runner, store
+from biostudy import bundled, combine, runner, store
 from biostudy.study import load_study
 
 
 def write_study(directory: Path, name: str, scene_overrides: dict, values: list[float]) -> Path:
     """A study of the bundled directional scene sweeping r, with fixed overrides."""
     scene = directory / "directional.toml"
-    shutil.copy(catalog.resolve("directional"), scene)
+    shutil.copy(bundled.resolve("directional"), scene)
     fixed = "\n".join(f'"{k}" = {v}' for k, v in scene_overrides.items())
     path = directory / f"{name}.toml"
     path.write_text(f'scene = "directional.toml"\n[set]\n"mechanics.enabled" = false\n"numerics.advection" = "upwind"\n{fixed}\n[sweep]\nr = {values}\n')

@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from . import catalog, worker
+from . import bundled, worker
 from .errors import BadInput
 
 app = typer.Typer(name="biostudy", no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
@@ -77,7 +77,7 @@ def run(
         from . import store
         from .scene import load_scene, overrides_text, parse_override
 
-        path = catalog.resolve(scene)
+        path = bundled.resolve(scene)
         loaded = load_scene(path, overrides)
         problem = loaded.problem()
         target = output or Path(re.sub(r"[^\w.+-]", "-", loaded.name) + ".nc")
@@ -122,7 +122,7 @@ def sweep(
         from . import runner
         from .study import load_study
 
-        plan = load_study(catalog.resolve(study), overrides)
+        plan = load_study(bundled.resolve(study), overrides)
         directory = output or Path(plan.spec.name)
 
         def run(notify) -> _Finished:
@@ -139,12 +139,12 @@ def sweep(
 @app.command()
 def scenes():
     """List the bundled scenes and studies with their descriptions."""
-    directory = catalog.studies_dir()
+    directory = bundled.studies_dir()
     table = Table(title=f"bundled scenes and studies in {directory}", show_edge=False)
     table.add_column("file", no_wrap=True)
     table.add_column("kind", no_wrap=True)
     table.add_column("description")
-    for entry in catalog.entries(directory):
+    for entry in bundled.entries(directory):
         table.add_row(entry.path.name, entry.kind, entry.description)
     out.print(table)
 
@@ -154,7 +154,7 @@ def show(path: Path = typer.Argument(..., help="dataset written by run or sweep 
                                                   "sweep's directory)")):
     """Print a readable summary: scene, parameters, run time, final averages."""
     with _guarded():
-        from .show import summarize
+        from .summary import summarize
         from .store import open_dataset
 
         summarize(open_dataset(path / "study.nc" if path.is_dir() else path), out)
@@ -228,7 +228,7 @@ def convergence(
         from .scene import apply_overrides, read_scene_data
 
         chosen = refinement.chosen_series(series)
-        path = catalog.resolve(scene)
+        path = bundled.resolve(scene)
         data = read_scene_data(path)
         fixed = dict(apply_overrides(data, overrides))
         directory = output or Path(f"{path.stem}-convergence")
@@ -325,7 +325,7 @@ def stability(
     def start():
         from . import stability as catalogue_run
 
-        path = catalog.resolve(catalogue)
+        path = bundled.resolve(catalogue)
         plan = catalogue_run.load(path, overrides)
         directory = output or Path(f"{path.stem}-results")
 

@@ -18,7 +18,7 @@ import xarray as xr
 
 from . import store
 from .scene import key_info, overrides_text
-from .study import Plan, dimension, label
+from .study import Plan, dimension, id_text
 
 # Per-case attributes that are not shared by a study (they stay in cases/*.nc).
 PER_CASE = {"case_id", "status", "message", "error", "created", "scene", "overrides", "fingerprint", "title",
@@ -36,7 +36,7 @@ def _coordinate(key: str, values: list) -> tuple[np.ndarray, dict]:
         return np.array(values, dtype=np.int64), attrs
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         return np.array(values, dtype=float), attrs
-    return np.array([v if isinstance(v, str) else label(v) for v in values], dtype=object), attrs
+    return np.array([v if isinstance(v, str) else id_text(v) for v in values], dtype=object), attrs
 
 
 def _shared_variables(datasets: list[xr.Dataset]) -> list[str]:

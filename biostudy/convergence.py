@@ -51,7 +51,9 @@ LONG_NAMES = {
 
 
 @dataclass(frozen=True)
-class Level:
+class Refinement:
+    """One level of one refinement series: how much finer than the scene as given (level 0) it is."""
+
     series: str
     index: int
     refine: int  # grid refinement factor against level 0
@@ -74,26 +76,26 @@ def chosen_series(text: str) -> tuple[str, ...]:
     return chosen
 
 
-def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES, tolerance: float = FIRST_TOLERANCE) -> list[Level]:
+def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES, tolerance: float = FIRST_TOLERANCE) -> list[Refinement]:
     """The levels of every requested series (plus the fixed-step reference the adaptive series needs)."""
     steps = base.time.steps
     out = []
     for name in series:
         for i in range(levels):
             if name == "space":
-                out.append(Level(name, i, 2**i, steps, None))
+                out.append(Refinement(name, i, 2**i, steps, None))
             elif name == "time":
-                out.append(Level(name, i, 1, steps * 2**i, None))
+                out.append(Refinement(name, i, 1, steps * 2**i, None))
             elif name == "both":
-                out.append(Level(name, i, 2**i, steps * 2**i, None))
+                out.append(Refinement(name, i, 2**i, steps * 2**i, None))
             else:
-                out.append(Level(name, i, 1, steps, tolerance / 4**i))
+                out.append(Refinement(name, i, 1, steps, tolerance / 4**i))
     if "adaptive" in series and "time" not in series:
-        out.append(Level("time", levels - 1, 1, steps * 2 ** (levels - 1), None))
+        out.append(Refinement("time", levels - 1, 1, steps * 2 ** (levels - 1), None))
     return out
 
 
-def refined(data: dict, scene_file: Path, level: Level) -> Scene:
+def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:
     """The base scene's data with the level's grid, steps and tolerance."""
     data = copy.deepcopy(data)
     grid = data["grid"]
@@ -163,7 +165,7 @@ def _errors(result: dict, reference: dict, factor_result: int, factor_reference:
     return errors
 
 
-def _successive(mine: list[Level], results: dict) -> list[dict]:
+def _successive(mine: list[Refinement], results: dict) -> list[dict]:
     """Errors of each level against the next finer one (on the series' coarsest grid)."""
     coarse = mine[0].refine
     out = []
@@ -176,7 +178,7 @@ def _successive(mine: list[Level], results: dict) -> list[dict]:
     return out
 
 
-def measure(wanted: list[Level], out_dir: Path, levels: int, series: tuple[str, ...], base: Scene) -> xr.Dataset:
+def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[str, ...], base: Scene) -> xr.Dataset:
     """convergence.nc from the finished levels: dimensions (series, level)."""
     results = {level.job_id: _final(store.case_file(out_dir, level.job_id)) for level in wanted}
     shape = (len(series), levels)

@@ -6,7 +6,7 @@
 * `units_text`: datasets keep CF spellings (``um2/T*``, ``1`` for dimensionless);
   what is printed or drawn shows ``µm²/T*`` and leaves dimensionless units out.
 
-Case ids are not formatted here: they must never change (`study.label`), and
+Case ids are not formatted here: they must never change (`study.id_text`), and
 scene text written back to files is exact (`tomltext`).
 """
 from __future__ import annotations

@@ -55,7 +55,7 @@ def dimension(key: str) -> str:
     return f"sweep_{name}" if name in RESERVED_DIMS else name
 
 
-def label(value: Any) -> str:
+def id_text(value: Any) -> str:
     """A swept value in a case id: 1e8 -> '1e+08', 50 -> '50', [20, 20, 20] -> '20x20x20'."""
     if isinstance(value, bool):
         text = "true" if value else "false"
@@ -64,7 +64,7 @@ def label(value: Any) -> str:
     elif isinstance(value, int):
         text = str(value)
     elif isinstance(value, (list, tuple)):
-        text = "x".join(label(v) for v in value)
+        text = "x".join(id_text(v) for v in value)
     elif isinstance(value, str):
         text = value
     else:
@@ -102,7 +102,7 @@ class Sweep(BaseModel):
             if self.mode == "zip" and lengths[key] != lengths[first]:
                 raise InvalidAt(key, f"has {lengths[key]} values but {first} has {lengths[first]} "
                                      f"(zip mode pairs them element-wise)")
-            labels = [label(v) for v in options]
+            labels = [id_text(v) for v in options]
             repeated = next((v for v, n in zip(options, labels) if labels.count(n) > 1), None)
             if repeated is not None and self.mode == "grid":
                 raise InvalidAt(key, f"lists {value_text(repeated)} twice")
@@ -181,7 +181,7 @@ def expand(sweep: Sweep) -> list[Case]:
         combos = [((i,), values) for i, values in enumerate(zip(*lists))]
     cases = []
     for index, values in combos:
-        case_id = "_".join(f"{n}={label(v)}" for n, v in zip(names, values))
+        case_id = "_".join(f"{n}={id_text(v)}" for n, v in zip(names, values))
         cases.append(Case(case_id, dict(zip(keys, values)), index))
     return cases
 
@@ -224,7 +224,7 @@ def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) 
     return scene_file, data, {**fixed_set, **dict(apply_overrides(data, overrides))}
 
 
-def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, label: str) -> Scene:
+def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str) -> Scene:
     """One case's validated scene: the base data with the case's values; errors name the case."""
     data = copy.deepcopy(base_data)
     try:
@@ -232,7 +232,7 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
             set_key(data, key, value)
         return scene_from_data(data, scene_file)
     except BadInput as error:
-        raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {label}", error.key)))) from None
+        raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {case_name}", error.key)))) from None
 
 
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),

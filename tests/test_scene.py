@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import solver
-from biostudy import catalog, stability
+from biostudy import bundled, stability
 from biostudy.errors import BadInput
 from biostudy.scene import Scene, key_info, load_scene, parse_override
 from biostudy.study import load_study
@@ -148,7 +148,7 @@ def test_json_schema_documents_units_and_meaning():
 
 
 def test_every_bundled_file_validates():
-    entries = catalog.entries()
+    entries = bundled.entries()
     assert any(e.kind == "scene" for e in entries) and any(e.kind == "study" for e in entries)
     for entry in entries:
         assert entry.kind in ("scene", "study", "stability"), entry
@@ -165,7 +165,7 @@ def test_every_bundled_file_validates():
 
 
 def test_directional_scene_is_the_papers_4_1():
-    problem = load_scene(catalog.resolve("directional")).problem()
+    problem = load_scene(bundled.resolve("directional")).problem()
     assert problem.grid.shape == (20, 20, 20) and problem.grid.spacing == 1.0
     assert problem.t_end == 1.0 and problem.steps == 1000 and len(problem.output_times) == 21
     x, y, z = problem.grid.cell_coordinates()

@@ -2,7 +2,7 @@
 import pytest
 
 from biostudy.errors import BadInput
-from biostudy.study import dimension, label, load_study
+from biostudy.study import dimension, id_text, load_study
 
 
 def test_grid_sweep_expands_every_combination_last_key_fastest(tiny_study):
@@ -39,7 +39,7 @@ def test_zip_sweep_pairs_values_and_reaches_any_dotted_key(write_toml, tiny_scen
 
 
 def test_labels_and_dimension_names():
-    assert [label(v) for v in (1e8, 50, 50.0, 0.0025, 1 / 3, True, [20, 20, 20], "zero-order", "a b/c")] == \
+    assert [id_text(v) for v in (1e8, 50, 50.0, 0.0025, 1 / 3, True, [20, 20, 20], "zero-order", "a b/c")] == \
         ["1e+08", "50", "50", "0.0025", "0.3333333333333333", "true", "20x20x20", "zero-order", "a-b-c"]
     assert dimension("g") == dimension("params.g") == "g"
     assert dimension("grid.shape") == "grid_shape" and dimension("biofilm.0.radius") == "biofilm_0_radius"

@@ -36,7 +36,7 @@ def units(var: xr.DataArray) -> str:
     return units_text(var.attrs.get("units", "1"))
 
 
-def label(var: xr.DataArray, name: str | None = None) -> str:
+def axis_label(var: xr.DataArray, name: str | None = None) -> str:
     """Short axis/colourbar label: symbol and units, e.g. 'p (Pa)', 'φ'."""
     name = name or str(var.name)
     text, unit = SYMBOLS.get(name, name), units(var)

@@ -19,7 +19,7 @@ import numpy as np
 import xarray as xr
 
 from ..formatting import number
-from .style import SERIES_NAMES, label, suptitle
+from .style import SERIES_NAMES, axis_label, suptitle
 
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
 NOT_PARAMETERS = {"status", "message", "error", "time"}
@@ -27,7 +27,9 @@ LINESTYLES = ("-", "--", ":", "-.")
 
 
 @dataclass
-class Case:
+class SweepPoint:
+    """One case of a sweep as drawn: its swept values, its output time series, whether it finished."""
+
     params: dict  # swept key -> value, in sweep order
     series: dict  # output name -> values over time
     ok: bool
@@ -47,7 +49,7 @@ def _status_ok(status) -> bool:
     return str(_value(status)).strip().lower() in OK_STATUS
 
 
-def cases(ds: xr.Dataset, names: list[str]) -> tuple[list[Case], list[str]]:
+def cases(ds: xr.Dataset, names: list[str]) -> tuple[list[SweepPoint], list[str]]:
     """The sweep as a flat list of cases, and the names of the parameters that vary."""
     dims = [d for d in ds[names[0]].dims if d != "time"]
     keys = []
@@ -62,12 +64,12 @@ def cases(ds: xr.Dataset, names: list[str]) -> tuple[list[Case], list[str]]:
         ok = all(np.isfinite(s[-1]) for s in series.values())
         if "status" in ds:
             ok = ok and _status_ok(ds["status"].isel({d: i for d, i in at.items() if d in ds["status"].dims}))
-        found.append(Case(params, series, ok))
+        found.append(SweepPoint(params, series, ok))
     varying = [k for k in keys if len({repr(c.params[k]) for c in found}) > 1] or keys[:1]
     return found, varying
 
 
-def roles(found: list[Case], varying: list[str]) -> tuple[str, list[str], list[str]]:
+def roles(found: list[SweepPoint], varying: list[str]) -> tuple[str, list[str], list[str]]:
     """The horizontal-axis parameter, the ones that split cases into lines, and the ones that follow it.
 
     A parameter fixed by the first one (a zip sweep: g and r changing together) does not split
@@ -89,7 +91,7 @@ def _layout(ds: xr.Dataset, names: list[str]):
     return found, x_key, others, follow, groups
 
 
-def _axis_label(ds: xr.Dataset, found: list[Case], x_key: str, follow: list[str]) -> str:
+def _x_axis_text(ds: xr.Dataset, found: list[SweepPoint], x_key: str, follow: list[str]) -> str:
     text = x_key
     if x_key in ds and ds[x_key].attrs.get("units", "1") != "1":
         text += f" ({ds[x_key].attrs['units']})"
@@ -146,8 +148,8 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
             if failed:
                 ax.plot(failed, [0.03] * len(failed), "x", color="red", ms=8, mew=2,
                         transform=ax.get_xaxis_transform(), label="failed" if g == 0 else None)
-        ax.set_xlabel(_axis_label(ds, found, x_key, follow), fontsize=9)
-        ax.set_ylabel(label(ds[name]))
+        ax.set_xlabel(_x_axis_text(ds, found, x_key, follow), fontsize=9)
+        ax.set_ylabel(axis_label(ds[name]))
         ax.set_title(ds[name].attrs.get("long_name", name), fontsize=8)
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
@@ -169,7 +171,7 @@ def series_figure(ds: xr.Dataset, names: list[str]):
             style = LINESTYLES[groups.index(tuple(c.params[k] for k in others)) % len(LINESTYLES)]
             ax.plot(time, c.series[name], color=colour, ls=style, lw=1.2 if c.ok else 0.6)
         ax.set_xlabel("normalised time T*")
-        ax.set_ylabel(label(ds[name]))
+        ax.set_ylabel(axis_label(ds[name]))
         ax.grid(alpha=0.3)
 
     def case_label(v):
