@@ -33,12 +33,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .bounds import ROUNDOFF, Projection
 from .errors import StepFailure
 from .finite_volume import FiniteVolumeGrid
 from .linear import jacobi_bicgstab
 from .problem import Numerics, Parameters
-
-ROUNDOFF = 1e-9
 
 
 class Velocity:
@@ -135,6 +134,7 @@ class Biofilm:
                 upper_out=p.position(f.upper, out_upper) if self.tvd else None,
             ))
         self.iterations = 0
+        self.projection = Projection()  # what _checked projected onto [0, upper]
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
         """CSR data of the advection operator (per unit volume) for face velocities w."""
@@ -191,7 +191,7 @@ class Biofilm:
             where = int(np.argmax(outside))
             raise StepFailure(f"biofilm phi = {phi[where]:.6g} outside [0, {upper:.6g}]",
                               self.fv.describe(where))
-        return np.clip(phi, 0.0, upper)
+        return self.projection.onto(phi, 0.0, upper)
 
     def numerical_diffusion(self, w: list[np.ndarray]) -> float:
         """Upwind's artificial diffusivity max |w| h / 2 (µm²/T*), to set beside beta."""

@@ -28,12 +28,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .bounds import ROUNDOFF, Projection
 from .errors import StepFailure
 from .finite_volume import FiniteVolumeGrid
 from .linear import ReusedAMG
 from .problem import Consumption, Parameters
 
-ROUNDOFF = 1e-8
 MAX_ACTIVE_SET_ITERATIONS = 100
 
 
@@ -58,7 +58,7 @@ class Nutrient:
         self.amg = ReusedAMG(tolerance)
         self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
         self.active_set_iterations = 0
-        self._diag = self.stiffness.diagonal()
+        self.projection = Projection()  # what _checked projected onto [0, upper]
 
     @staticmethod
     def _unreachable(laplacian: sp.csr_matrix, fixed: np.ndarray) -> np.ndarray:
@@ -111,4 +111,4 @@ class Nutrient:
         if low.any() or high.any():
             where = int(np.argmax(low | high))
             raise StepFailure(f"nutrient c = {c[where]:.6g} outside [0, {self.upper:g}]", self.fv.describe(where))
-        return np.clip(c, 0.0, self.upper)
+        return self.projection.onto(c, 0.0, self.upper)

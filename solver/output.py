@@ -15,6 +15,7 @@ import platform
 import numpy as np
 import xarray as xr
 
+from .bounds import ROUNDOFF
 from .problem import AXES, Problem, parameter_infos
 
 BIOFILM_THRESHOLD = 0.5
@@ -80,7 +81,11 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         "steps_rejected": report["steps_rejected"],
         "nutrient_cg_iterations": report["nutrient_cg_iterations"],
         "nutrient_amg_rebuilds": report["nutrient_amg_rebuilds"],
+        "nutrient_active_set_iterations": report["nutrient_active_set_iterations"],
         "biofilm_iterations": report["biofilm_iterations"],
+        **{key: report[key] for key in ("projected_c_count", "projected_c_largest", "projected_phi_count",
+                                        "projected_phi_largest")},
+        "bounds_roundoff": ROUNDOFF,
         "numerical_diffusion_max": report["numerical_diffusion_max"],
         "largest_step_error": report["largest_step_error"],
         **{f"wall_time_{stage}": seconds for stage, seconds in report["timings"].items()},

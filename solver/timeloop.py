@@ -179,6 +179,9 @@ class Run:
             "nutrient_cg_iterations": t.nutrient.amg.iterations,
             "nutrient_amg_rebuilds": t.nutrient.amg.rebuilds,
             "biofilm_iterations": t.biofilm.iterations,
+            "nutrient_active_set_iterations": t.nutrient.active_set_iterations,
+            "projected_c_count": t.nutrient.projection.count, "projected_c_largest": t.nutrient.projection.largest,
+            "projected_phi_count": t.biofilm.projection.count, "projected_phi_largest": t.biofilm.projection.largest,
             "numerical_diffusion_max": t.largest_numerical_diffusion,
             "largest_step_error": c.largest_error,
         }

@@ -1,4 +1,7 @@
-"""Dataset layout (SPEC 5): dimensions, units and long names, masks, attributes, netCDF round trip."""
+"""Dataset layout (docs/model.md, "The dataset"): dimensions, units and long names, masks, attributes, netCDF
+round trip."""
+from dataclasses import replace
+
 import numpy as np
 import xarray as xr
 
@@ -54,3 +57,16 @@ def test_two_dimensional_dataset_has_no_z_and_volumes_per_micrometre_of_thicknes
     assert "z" not in ds.dims and ds.phi.dims == ("time", "y", "x")
     phi = ds.phi.values[0]
     assert float(ds.biofilm_volume[0]) == np.sum(phi[np.isfinite(phi)] >= 0.5) * 1.5**2 * 1.0
+
+
+def test_the_dataset_says_what_the_solver_projected_onto_the_bounds_and_how_c_was_solved():
+    """Round-off the solver projected onto 0 <= c <= 1 and 0 <= phi (count, largest correction: far below
+    the round-off tolerance), and the zero-order law's active-set iterations."""
+    base = small_problem(obstacle=False)
+    stiff = simulate(replace(base, params=Parameters(d=1.0, g=1e10)))
+    attrs = stiff.attrs
+    assert attrs["projected_c_count"] > 0 and 0 < attrs["projected_c_largest"] < 1e-3 * attrs["bounds_roundoff"]
+    assert attrs["projected_phi_count"] >= 0 and attrs["projected_phi_largest"] <= attrs["bounds_roundoff"]
+    assert attrs["nutrient_active_set_iterations"] == 0  # first-order consumption: no active set
+    zero = simulate(replace(base, consumption="zero-order", params=Parameters(g=1e10)))
+    assert zero.attrs["nutrient_active_set_iterations"] > zero.attrs["steps_taken"]  # every solve iterates
