@@ -6,7 +6,7 @@ import xarray as xr
 
 from biostudy.plots import plot
 from biostudy.plots.cuts import axis_plane, cell_axes, diagonal_plane, plane_for, sample
-from biostudy.plots.isosurface import isosurface, surface_area
+from biostudy.plots.isosurface import isosurface
 from biostudy.plots.style import colour_scale, on_scale
 from biostudy.plots.sweep import cases, roles
 
@@ -185,6 +185,12 @@ def test_axis_cut_is_exact_and_obstacles_are_not_interpolated():
     assert np.isnan(values[points[..., 0] < 1.2]).all()
     far = points[..., 0] >= 1.75  # weights entirely on open cells: still exact
     assert np.allclose(values[far & inner], exact(points[far & inner]), atol=1e-12)
+
+
+def surface_area(verts: np.ndarray, faces: np.ndarray) -> float:
+    """Sum of the triangle areas (µm²)."""
+    a, b, c = (verts[faces[:, i]] for i in range(3))
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
 
 
 def test_isosurface_of_a_sphere_has_its_radius_area_and_centre():
