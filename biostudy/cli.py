@@ -1,4 +1,4 @@
-"""The `biostudy` command line (SPEC 4): load, validate, call; nothing else.
+"""The `biostudy` command line (README, "Commands"): load, validate, call; nothing else.
 
 Exit status: 0 done, 1 a simulation failed (the message says why), 2 bad
 input (one line: file, key, problem; no traceback), 130 interrupted (no

@@ -1,16 +1,16 @@
-"""A scene file (SPEC 2): one simulation, validated, then compiled to a `solver.Problem`.
+"""A scene file (README, "Scene and study files"): one simulation, validated, then compiled to a `solver.Problem`.
 
 The pydantic models below are the schema: every key, its unit and meaning,
-its allowed range (SPEC 1 table for the parameters), and the cross-field
+its allowed range (the parameters' from `solver.Parameters`, docs/model.md), and the cross-field
 rules (shapes inside the grid, nutrient sources not inside obstacles, output
 times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
 ``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
 validates; `Scene.problem()` builds the solver's plain description.
 
-Keys beyond SPEC 2 that map onto the solver: ``[numerics]`` (advection,
-time_tolerance, gradient_floor, max_substeps), ``[mechanics]``
-residual_stiffness and every, ``[time] output_times`` (an explicit list
-instead of ``outputs = N``).
+Besides the model's keys, ``[numerics]`` (advection, time_tolerance,
+gradient_floor, max_substeps), ``[mechanics]`` residual_stiffness, every and
+linear_solver, and ``[time] output_times`` (an explicit list instead of
+``outputs = N``) map onto the solver's own settings.
 """
 from __future__ import annotations
 
@@ -192,7 +192,7 @@ def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
 
 
 class Scene(BaseModel):
-    """One simulation (SPEC 2)."""
+    """One simulation: grid, parameters, laws, clocks, regions, numerics, mechanics."""
 
     model_config = CONFIG
     name: str = Field("", description="short name (default: the file's name without .toml)")

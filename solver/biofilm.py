@@ -1,7 +1,7 @@
 """Biofilm density phi: one implicit step of paper Eq. 34.
 
     dphi/dt + v . grad(phi) = beta lap(phi) + k_alpha alpha,
-    v = r c/(k+c) grad(c)/|grad(c)|                  (SPEC 1; Eq. 34 with Eqs. 22-23)
+    v = r c/(k+c) grad(c)/|grad(c)|                  (docs/model.md; Eq. 34 with Eqs. 22-23)
 
 The growth term is advection in *non-conservative* form: the interface moves
 toward the nutrient, mass is created, not carried.  On a face f between a

@@ -4,8 +4,9 @@
   hierarchy (pyamg, Ruge-Stueben) that is kept across time steps.  The
   nutrient matrix changes only on its diagonal, and only where the biofilm
   moves, so a stale hierarchy stays a good preconditioner; it is rebuilt when
-  the iteration count grows (NUMERICS.md: rebuilt every 10-50 steps with a
-  warm start, 7-10 CG iterations at 20^3-60^3).
+  the iteration count exceeds both 12 and 1.6 times its count right after the last
+  rebuild (measured: once per run, 6-8 CG iterations per solve at
+  20^3-60^3; docs/transport.md).
 * `jacobi_bicgstab`: the biofilm matrix is dominated by 1/dt, so a diagonal
   preconditioner is enough (2-5 iterations at the nominal step).
 

@@ -3,7 +3,7 @@
 The nutrient diffuses orders of magnitude faster than the biofilm grows
 (eta_c << eta_phi), so at every step c solves the steady problem
 
-    first-order:  d lap(c) = g phi c                     (SPEC 1, default)
+    first-order:  d lap(c) = g phi c                     (default; docs/model.md)
     zero-order:   d lap(c) = g phi  where c > 0,  c >= 0  (paper Eq. 35)
 
 with zero flux on walls and obstacles and c held in the source cells.

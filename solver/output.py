@@ -1,4 +1,4 @@
-"""Snapshots -> xarray.Dataset in the layout of SPEC 5.
+"""Snapshots -> xarray.Dataset (layout: docs/model.md, "The dataset").
 
 Dimensions time, [z,] y, x (cell centres, µm) and [z_node,] y_node, x_node,
 component for the displacement.  Units and long names travel with every
@@ -57,7 +57,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         "Conventions": "CF-1.10",
         "title": f"biofilm growth: {problem.name}",
         "source": "biostudy solver (FiPy transport, scikit-fem growth mechanics)",
-        "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, SPEC 1)",
+        "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, as in docs/model.md)",
         "grid_shape": np.array(problem.grid.shape, dtype=np.int32),
         "grid_spacing": problem.grid.spacing,
         **{info.name: float(getattr(p, info.name)) for info in parameter_infos(p)},
@@ -108,7 +108,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
 
 
 def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
-    """The run as a Dataset (SPEC 5): fields, time series, static masks, attributes."""
+    """The run as a Dataset: fields, time series, static masks, attributes."""
     grid = problem.grid
     cell_dims = tuple(reversed(grid.axes))
     node_dims = tuple(f"{a}_node" for a in cell_dims)

@@ -192,7 +192,7 @@ class MechanicsSetup:
 
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """One simulation (SPEC 1): initial state, sources, obstacles, clocks.
+    """One simulation (docs/model.md): initial state, sources, obstacles, clocks.
 
     phi0: initial biofilm density per cell (0 in obstacles).
     nutrient_fixed: cells where c is held at ``nutrient_value`` at all times.

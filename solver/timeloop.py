@@ -193,7 +193,7 @@ def evolve(problem: Problem, progress: Callable[[Progress], None] | None = None)
 
 
 def simulate(problem: Problem, progress: Callable[[Progress], None] | None = None):
-    """Run `problem` to t_end and return the dataset of SPEC 5 (see `output.to_dataset`)."""
+    """Run `problem` to t_end and return its dataset (see `output.to_dataset`)."""
     from .output import to_dataset
 
     run = Run(problem, progress)

@@ -100,7 +100,7 @@ def tiny_run():
 @pytest.fixture(scope="session")
 def with_mechanics():
     """with_mechanics(ds, unsolved=None) -> a run's dataset with p (Pa, cells) and u (µm, nodes) added in the
-    layout of SPEC 5, distinct in every entry; both NaN at output index `unsolved` (mechanics not solved)."""
+    layout of a run's dataset, distinct in every entry; both NaN at output index `unsolved` (mechanics not solved)."""
 
     def add(ds, unsolved=None):
         ds = ds.copy()

@@ -1,4 +1,4 @@
-"""Quasi-steady nutrient against exact steady profiles (paper Eq. 35, SPEC 1)."""
+"""Quasi-steady nutrient against exact steady profiles (paper Eq. 35; docs/model.md)."""
 import numpy as np
 import pytest
 

@@ -1,10 +1,13 @@
 """The parameter registry: a parameter declared once on `solver.Parameters` reaches the scene schema,
 the dataset's attributes, `biostudy show` and the stability and sweep tables, with no other edit."""
 import json
+import re
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
+from biostudy.formatting import number, units_text
 from solver import Parameters
 from solver.problem import parameter_infos
 
@@ -74,3 +77,18 @@ def test_a_parameter_added_to_the_registry_reaches_schema_dataset_show_and_table
     assert "q = 3 1/T*" in found["show"], found["show"]
     assert found["stability_q"] == [[0.5, 2.5], {"units": "1/T*", "long_name": "test rate q"}]
     assert found["sweep_coordinate"]["units"] == "1/T*" and "test rate q" in found["sweep_coordinate"]["long_name"]
+
+
+def test_the_parameters_table_of_docs_model_md_is_the_registry():
+    """docs/model.md lists every declared parameter with its meaning, units, default and range."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "model.md").read_text(encoding="utf-8")
+    rows = {}
+    for line in text.splitlines():
+        match = re.match(r"^\| `(\w+)` \| (.+?) \| (.+?) \| (.+?) \| (.+?) \|$", line)
+        if match:
+            rows[match.group(1)] = match.groups()[1:]
+    signs = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+    expected = {p.name: (p.long_name, units_text(p.units) or "1", number(p.default, 6),
+                         ", ".join(f"{signs[k]} {number(v, 6)}" for k, v in p.bounds.items()))
+                for p in parameter_infos()}
+    assert rows == expected
