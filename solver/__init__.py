@@ -1,8 +1,11 @@
 """biostudy's numerical core: Hamilton-principle biofilm growth (paper Eqs. 34-36).
 
 A plain numerical library: numpy arrays and frozen dataclasses in, an
-xarray.Dataset out.  FiPy builds the finite-volume operators of the
-transport (phi, c, alpha); scikit-fem the growth mechanics (u, p).
+xarray.Dataset out.  FiPy builds the finite-volume Laplacian of the
+transport once per run; scikit-fem supplies the Q1 reference element of the
+growth mechanics; the rest (advection, assembly, time loop, every linear
+solver) is written here, for speed (docs/transport.md, docs/mechanics.md).
+The equations and where they depart from the paper: docs/model.md.
 Nothing here knows about files, schemas or command lines.
 """
 from .errors import MechanicsError, SimulationError, StepFailure

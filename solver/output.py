@@ -56,7 +56,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
     attrs = {
         "Conventions": "CF-1.10",
         "title": f"biofilm growth: {problem.name}",
-        "source": "biostudy solver (FiPy transport, scikit-fem growth mechanics)",
+        "source": "biostudy solver (finite-volume transport on a FiPy-built Laplacian, Q1/P0 growth mechanics)",
         "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, as in docs/model.md)",
         "grid_shape": np.array(problem.grid.shape, dtype=np.int32),
         "grid_spacing": problem.grid.spacing,
