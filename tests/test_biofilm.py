@@ -6,6 +6,8 @@ from scipy.integrate import solve_ivp
 
 from solver import Grid, Numerics, Parameters, Problem, evolve, simulate
 from solver.finite_volume import fipy_mesh
+from solver.errors import StepFailure
+from solver.timeloop import Clock
 from solver.transport import Transport
 
 
@@ -180,20 +182,54 @@ def test_diffusion_alone_conserves_biofilm_mass_with_obstacles():
     assert np.isnan(ds.phi.values[:, obstacle]).all() and np.isnan(ds.c.values[:, obstacle]).all()
 
 
+class MoreThanOneStep(AssertionError):
+    """The giant step was bisected (the bounds may still hold)."""
+
+
+# Measured: at dt = 1 the nutrient's CG (d = 1, g = 1e10) or the biofilm's Jacobi-preconditioned BiCGSTAB
+# (r = 1e4: advection outweighs 1/dt) does not converge, so the clock bisects the step (1 and 3 times).
+# The bounds hold all the same; strict, so that a solver that manages the step makes the test say so.
+LINEAR_SOLVER_GIVES_UP = pytest.mark.xfail(raises=MoreThanOneStep, strict=True,
+                                           reason="a linear solver does not converge at dt = 1: bisected")
+
+
 @pytest.mark.parametrize("advection", ["upwind", "tvd"])
-@pytest.mark.parametrize("params", [dict(d=1e13, g=1e10), dict(d=1.0, g=1e10), dict(d=1e10, g=1e8, r=1e4),
+@pytest.mark.parametrize("params", [dict(d=1e13, g=1e10),
+                                    pytest.param(dict(d=1.0, g=1e10), marks=LINEAR_SOLVER_GIVES_UP),
+                                    pytest.param(dict(d=1e10, g=1e8, r=1e4), marks=LINEAR_SOLVER_GIVES_UP),
                                     dict(d=1e10, g=0.0, r=1e4, beta=0.0)])
-def test_bounds_hold_on_stiff_cases_with_one_giant_step(advection, params):
-    """Stiff consumption, fast fronts, no diffusion, a single step over [0, 1]: 0 <= c <= 1, 0 <= phi <= 1."""
+def test_bounds_hold_on_stiff_cases_with_one_giant_step(advection, params, monkeypatch):
+    """Stiff consumption, fast fronts, no diffusion, a single step over [0, 1]: 0 <= c <= 1, 0 <= phi <= 1.
+
+    The written fields are projected onto their bounds, so they alone prove little: every step attempted
+    (the giant one, and any bisection of it) must have kept its raw solutions within the bounds up to
+    round-off (what the run projected; a bound broken beyond it would have failed the step), and the
+    step must have been taken in one go."""
+    failures = []
+    attempt = Clock._attempt
+
+    def recording(clock, state, dt):
+        try:
+            return attempt(clock, state, dt)
+        except StepFailure as failure:
+            failures.append(failure.cause)
+            raise
+
+    monkeypatch.setattr(Clock, "_attempt", recording)
     grid = Grid((10, 10, 10), 2.0)
     x, y, z = grid.cell_coordinates()
     phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
     held = (x > 16) & (y > 16) & (z > 16)
     ds = simulate(problem_on(grid, phi0, held, t_end=1.0, steps=1, params=Parameters(k_alpha=0.0, **params),
                              numerics=Numerics(advection=advection)))
+    assert not [cause for cause in failures if "outside" in cause], failures  # no bound broken, at any dt
+    assert ds.attrs["projected_phi_largest"] < 1e-10 and ds.attrs["projected_c_largest"] < 1e-10
     for name in ("phi", "c"):
         values = ds[name].values
         assert np.isfinite(values).all() and values.min() >= 0.0 and values.max() <= 1.0, name
+    assert ds.attrs["steps_bisected"] == len(failures)
+    if ds.attrs["steps_taken"] != 1 or failures:
+        raise MoreThanOneStep(f"{ds.attrs['steps_taken']} steps: {failures}")
 
 
 def test_directional_growth_moves_toward_the_nutrient_corner():
