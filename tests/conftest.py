@@ -116,3 +116,25 @@ def with_mechanics():
         return ds.assign_coords(nodes).assign_coords(component=list("xyz"[: len(cell_dims)]))
 
     return add
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures `biostudy.plots.plot` draws, by file name, kept open so a test can read what is on them
+    (images, lines, colour scales, titles); each is still written to its file.  Closed afterwards."""
+    import matplotlib.pyplot as plt
+
+    import biostudy.plots as plots
+
+    figures = {}
+
+    def keep(fig, path):
+        figures[Path(path).name] = fig
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=20)
+        return Path(path)
+
+    monkeypatch.setattr(plots, "save", keep)
+    yield figures
+    for fig in figures.values():
+        plt.close(fig)

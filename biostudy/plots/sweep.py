@@ -145,9 +145,10 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
             text = ", ".join(f"{k} = {_fmt(v)}" for k, v in zip(others, group)) or None
             ax.plot(xs, ys, "o", ls=LINESTYLES[g % len(LINESTYLES)], label=text)
             failed = [x for x, c in zip(xs, members) if not c.ok]
-            if failed:
+            if failed:  # the legend names the red crosses once, whichever line they belong to
+                named = "failed" in ax.get_legend_handles_labels()[1]
                 ax.plot(failed, [0.03] * len(failed), "x", color="red", ms=8, mew=2,
-                        transform=ax.get_xaxis_transform(), label="failed" if g == 0 else None)
+                        transform=ax.get_xaxis_transform(), label=None if named else "failed")
         ax.set_xlabel(_x_axis_text(ds, found, x_key, follow), fontsize=9)
         ax.set_ylabel(axis_label(ds[name]))
         ax.set_title(ds[name].attrs.get("long_name", name), fontsize=8)
