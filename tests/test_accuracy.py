@@ -2,6 +2,7 @@
 from pathlib import Path
 
 import numpy as np
+import pytest
 import xarray as xr
 
 from biostudy import stability
@@ -39,6 +40,7 @@ def test_convergence_of_the_front_scene(tmp_path):
     assert again.exit_code == 0 and "0 runs, " in again.stderr  # every level was finished before
 
 
+@pytest.mark.slow
 def test_space_convergence_on_a_smooth_front_shows_each_schemes_order(tmp_path):
     """Front scene with a smooth edge (tanh, 2 µm), 5 levels h = 1 ... 1/16 µm at a fixed dt (the
     reference shares it, so the time error cancels): upwind at least first order in phi, TVD clearly
@@ -61,6 +63,7 @@ def test_convergence_rejects_bad_options(tmp_path):
     assert result.exit_code == 2 and result.stderr.startswith("error: --series: unknown series sideways")
 
 
+@pytest.mark.slow
 def test_stability_catalogue_at_reduced_size(tmp_path):
     """Every case completes within bounds, or (mechanics only) stops with its diagnosis; exit 0."""
     out = tmp_path / "stab"

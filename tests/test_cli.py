@@ -1,5 +1,8 @@
 """The `biostudy` command line: run, show, scenes; exit statuses; the catalogue of bad input."""
 import os
+import pty
+import re
+import select
 import signal
 import subprocess
 import sys
@@ -137,17 +140,44 @@ def test_bad_input_is_one_line_exit_2_no_traceback(tiny_scene, tiny_study, write
 
 
 def test_sigterm_during_a_run_leaves_no_file(tmp_path):
-    """SIGTERM mid-run: exit 130, no dataset and no temporary left (a file is complete or absent)."""
+    """SIGTERM mid-run: exit 130, no dataset and no temporary left (a file is complete or absent).
+
+    The run's progress bar goes to a terminal (a pseudo-terminal here), so the signal is sent as soon as
+    it shows steps being taken: mid-run on a fast machine or a slow one, instead of after a guessed delay."""
     out = tmp_path / "directional.nc"
-    process = subprocess.Popen([sys.executable, "-m", "biostudy", "run", "directional", "-o", str(out), "-q",
-                                "--set", "time.steps=3000"], cwd=tmp_path, stderr=subprocess.PIPE, text=True)
-    time.sleep(6)
-    assert process.poll() is None, process.stderr.read()
+    terminal, its_end = pty.openpty()
+    process = subprocess.Popen([sys.executable, "-m", "biostudy", "run", "directional", "-o", str(out),
+                                "--set", "time.steps=3000"], cwd=tmp_path, stdin=subprocess.DEVNULL,
+                               stdout=subprocess.DEVNULL, stderr=its_end)
+    os.close(its_end)
+    shown = _read_until(terminal, rb"steps [1-9]", process, timeout=120)
+    assert process.poll() is None, shown
     process.send_signal(signal.SIGTERM)
-    _, stderr = process.communicate(timeout=30)
-    assert process.returncode == 130, stderr
-    assert "interrupted" in stderr and "Traceback" not in stderr
+    process.wait(timeout=30)
+    shown += _read_until(terminal, None, process, timeout=5)
+    os.close(terminal)
+    text = shown.decode(errors="replace")
+    assert process.returncode == 130, text[-300:]
+    assert "interrupted" in text and "Traceback" not in text, text[-300:]
     assert os.listdir(tmp_path) == []
+
+
+def _read_until(terminal: int, pattern: bytes | None, process, timeout: float) -> bytes:
+    """What a process writes to the terminal, until `pattern` shows (None: until it has gone quiet)."""
+    seen, deadline = b"", time.monotonic() + timeout
+    while time.monotonic() < deadline and not (pattern and re.search(pattern, seen)):
+        ready, _, _ = select.select([terminal], [], [], 0.2)
+        if not ready:
+            if pattern is None and process.poll() is not None:
+                break
+            continue
+        try:
+            seen += os.read(terminal, 65536)
+        except OSError:  # the process closed the terminal: nothing more to read
+            break
+    if pattern and not re.search(pattern, seen):
+        raise AssertionError(f"no {pattern!r} within {timeout} s: {seen[-500:]!r}")
+    return seen
 
 
 def test_importing_sets_nothing_and_the_command_pins_the_solver_suite(tiny_scene, tmp_path):

@@ -166,6 +166,7 @@ def _wait_for(condition, timeout):
         time.sleep(0.05)
 
 
+@pytest.mark.slow
 def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_scene, tmp_path):
     study = _slow_study(write_toml, 600)
     out = tmp_path / "out"
