@@ -192,9 +192,18 @@ def test_sigterm_stops_local_workers_and_exits_130(write_toml, tiny_scene, tmp_p
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q",
                                 "--workers", "2"], stderr=subprocess.PIPE, text=True)
     parent = psutil.Process(process.pid)
-    _wait_for(lambda: len(parent.children()) >= 2, 30)
+
+    def simulating():  # worker processes (forked from the fork server, or spawned) that are computing
+        try:
+            helpers = [p for p in parent.children() if "forkserver" in " ".join(p.cmdline())]
+            workers = [p for p in parent.children(recursive=True) if p not in helpers
+                       and "resource_tracker" not in " ".join(p.cmdline())]
+            return [p for p in workers if p.cpu_times().user > 0.2]
+        except psutil.Error:  # a process came or went while we looked
+            return []
+
+    _wait_for(lambda: len(simulating()) >= 2, 60)  # both workers have started on a case
     workers = parent.children(recursive=True)
-    time.sleep(1.0)
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=30)
     assert process.returncode == 130, stderr
