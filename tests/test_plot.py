@@ -95,7 +95,8 @@ def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, with_mecha
     by_field = rows(drawn["run_cut.png"], names, indices, ds)
     check_scales(by_field)
     if mechanics:  # p was not solved at output 1: the panel says so instead of looking like an obstacle
-        assert [[t.get_text() for t in ax.texts] for ax in by_field["p"]] == [[], ["mechanics not\nsolved at this time"], []]
+        notes = [[t.get_text() for t in ax.texts] for ax in by_field["p"]]
+        assert notes == [[], ["mechanics not\nsolved at this time"], []]
 
     # the isosurface panels: phi >= 0.8 at each shown time, closed around every cell that reaches it
     views = [ax for ax in drawn["run_isosurface.png"].axes if ax.name == "3d"]
@@ -113,8 +114,9 @@ def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, with_mecha
         if dense.size:
             verts, faces = mesh
             assert len(orange) == 1 and len(orange[0].get_paths()) == len(faces)
-            assert (verts.min(axis=0) <= dense.min(axis=0)).all() and (verts.max(axis=0) >= dense.max(axis=0)).all()
-            assert (verts.min(axis=0) >= dense.min(axis=0) - h).all() and (verts.max(axis=0) <= dense.max(axis=0) + h).all()
+            low, high = verts.min(axis=0), verts.max(axis=0)  # around every dense cell, within a cell of them
+            assert (low <= dense.min(axis=0)).all() and (high >= dense.max(axis=0)).all()
+            assert (low >= dense.min(axis=0) - h).all() and (high <= dense.max(axis=0) + h).all()
         else:
             assert mesh is None and not orange and texts == [f"nowhere φ ≥ {iso.LEVEL}"]
 

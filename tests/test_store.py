@@ -55,7 +55,8 @@ def test_remove_temporaries_touches_only_temporaries(tmp_path):
 
 
 def test_dataset_layout_after_a_netcdf_round_trip(write_toml, tmp_path):
-    """docs/model.md, "The dataset": dims, units and long_name everywhere, obstacles NaN, the scene and its provenance in attrs."""
+    """docs/model.md, "The dataset": dims, units and long_name everywhere, obstacles NaN, the scene and its
+    provenance in attrs."""
     path = write_toml("cube.toml", """\
         name = "cube"
         [grid]

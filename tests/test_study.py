@@ -23,7 +23,8 @@ def test_case_ids_do_not_depend_on_when_or_where_they_are_made(tiny_study, tmp_p
     """Resume finds a case by its id: another process, with another hash seed and working directory, on
     another day, makes the same ids (nothing random, hashed per process or from the clock goes in)."""
     here = [c.id for c in load_study(tiny_study).cases]
-    script = "import sys; from biostudy.study import load_study; print(' '.join(c.id for c in load_study(sys.argv[1]).cases))"
+    script = ("import sys; from biostudy.study import load_study; "
+              "print(' '.join(c.id for c in load_study(sys.argv[1]).cases))")
     for seed in ("1", "2"):
         there = subprocess.run([sys.executable, "-c", script, str(tiny_study)], cwd=tmp_path, check=True, text=True,
                                capture_output=True, env={**os.environ, "PYTHONHASHSEED": seed}).stdout.split()

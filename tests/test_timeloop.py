@@ -101,8 +101,8 @@ def test_two_dimensional_scene_is_solved_in_two_dimensions():
     common = dict(t_end=0.1, steps=10, output_times=[0, 0.05, 0.1], params=Parameters(g=1e9))
     flat = simulate(Problem(grid=Grid((12, 8), 1.0), phi0=phi0, nutrient_fixed=x2 > 11, **common))
     assert flat.phi.dims == ("time", "y", "x") and "z" not in flat.dims and flat.phi.shape == (3, 8, 12)
-    thick = simulate(Problem(grid=Grid((12, 8, 3), 1.0), phi0=np.stack([phi0] * 3), nutrient_fixed=np.stack([x2 > 11] * 3),
-                             **common))
+    thick = simulate(Problem(grid=Grid((12, 8, 3), 1.0), phi0=np.stack([phi0] * 3),
+                             nutrient_fixed=np.stack([x2 > 11] * 3), **common))
     for name in ("phi", "c", "alpha"):
         for layer in range(3):
             np.testing.assert_allclose(flat[name].values, thick[name].values[:, layer], rtol=0, atol=1e-9)
