@@ -171,6 +171,8 @@ def plot(
     time: Optional[float] = typer.Option(None, "--time", help="draw the output nearest to this T*"),
     cut: Optional[str] = typer.Option(None, "--cut", help="3-D: 'diagonal' (toward the nutrient, default), "
                                                           "'xy-diagonal', or a plane such as 'x=10' or 'z=5.5' (µm)"),
+    warp: Optional[float] = typer.Option(None, "--warp", help="also draw the deformed body with the displacement "
+                                                             "magnified by this factor (e.g. 500, paper Fig. 13)"),
 ):
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with _guarded():
@@ -180,7 +182,7 @@ def plot(
         source = path / "study.nc" if path.is_dir() else path
         ds = open_dataset(source)
         try:
-            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut)
+            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut, warp=warp)
         except ValueError as error:
             raise BadInput(str(error), source) from None
         for picture in written:
@@ -218,6 +220,11 @@ def convergence(
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="run levels on N local processes"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running Dask scheduler"),
     overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to level 0"),
+    reference: Optional[Path] = typer.Option(None, "--reference", help="measure every level against this run of "
+                                                                       "the same scene (e.g. refined, another "
+                                                                       "scheme) instead of the finest level"),
+    time: Optional[float] = typer.Option(None, "--time", help="compare at the output nearest this T* "
+                                                              "(default: the last)"),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Refine grid, time step and both; measure each level's error and cost (work-precision)."""
@@ -235,7 +242,7 @@ def convergence(
 
         def run(notify) -> _Finished:
             ds, report = refinement.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
-                                        notify, fixed)
+                                        notify, fixed, reference, time)
             table = refinement.table_text(ds)
             (directory / "convergence.md").write_text(table)
             work_precision(ds, directory / "work_precision.png")

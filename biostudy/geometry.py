@@ -26,6 +26,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from solver import Grid
+from solver.problem import FACES
 
 from . import structures
 from .errors import InvalidAt
@@ -283,4 +284,19 @@ class Grate(Shape):
 
 
 AnyShape = Annotated[Union[Box, Sphere, Cylinder, Mask, Maze, Grate], Field(discriminator="shape")]
+class BoundaryFace(Shape):
+    """An outer face of the grid: for a nutrient source held on the face itself (the paper's nodes on the
+    bottom plane), a Dirichlet condition half a cell from the cells beside it, which stay free."""
+
+    shape: Literal["face"] = Field(description="an outer face of the grid (nutrient sources only)")
+    face: Literal[FACES] = Field(description="which face: x-, x+, y-, y+, z-, z+")
+
+    def check(self, grid):
+        if self.face[0] not in grid.axes:
+            raise InvalidAt("face", f"'{self.face}' is not a face of a {grid.ndim}-D grid")
+
+    def cells(self, grid):
+        return np.zeros(grid.cells_shape, bool)  # no cell is held: the face is
+
+
 SHAPES = (Box, Sphere, Cylinder, Mask)  # for regions of biofilm and nutrient; obstacles take any shape

@@ -28,7 +28,7 @@ from solver.problem import FACES, parameter_infos
 
 from .errors import BadInput, InvalidAt, from_validation_error, read_toml
 from .formatting import units_text, value_text
-from .geometry import SHAPES, AnyShape, Shape
+from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
 from .tomltext import dumps as toml_dumps
 
 CONFIG = ConfigDict(extra="forbid", strict=True)
@@ -122,10 +122,18 @@ class NumericsSpec(BaseModel):
                                    "1", gt=0, lt=1)
     max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
                                                        "a run needing less stops with a diagnosis", "1", ge=1)
+    growth_velocity: Literal["front", "pointwise"] = Field(
+        _NUMERICS.growth_velocity, description="front: the growth speed taken at the phi = 1/2 front and extended "
+                                               "along its normals (dense biofilm stays dense on 1 µm cells); "
+                                               "pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
+                                               "written; needs cells of 1/8 µm to keep dense biofilm dense)")
+    front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
+                                                     "the front take the front's speed", "1", ge=1, le=10)
 
     def solver_numerics(self) -> solver.Numerics:
         return solver.Numerics(advection=self.advection, gradient_floor=self.gradient_floor,
-                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance)
+                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance,
+                               growth_velocity=self.growth_velocity, front_band=self.front_band)
 
 
 Face = Literal[FACES]
@@ -164,11 +172,11 @@ class MechanicsSpec(BaseModel):
                                      linear_solver=self.linear_solver)
 
 
-def _valued(role: str, description: str, **extra):
+def _valued(role: str, description: str, shapes=SHAPES, **extra):
     """The shape union with a `value` key (0..1, default 1) for one kind of region."""
     members = tuple(create_model(f"{role}{shape.__name__}", __base__=shape,
                                  value=(float, Field(1.0, ge=0, le=1, description=description)), **extra)
-                    for shape in SHAPES)
+                    for shape in shapes)
     return Annotated[Union[members], Field(discriminator="shape")]
 
 
@@ -176,7 +184,8 @@ BiofilmRegion = _valued("Biofilm", "initial phi inside the shape, 0..1", edge=(f
     0.0, ge=0, description="width of a smooth edge, µm: phi = value (1 - tanh(distance / edge)) / 2 across the "
                            "surface instead of a step (0: a step); smooth data show the schemes' asymptotic "
                            "convergence orders", json_schema_extra={"units": "um"})))
-NutrientRegion = _valued("Nutrient", "nutrient c held inside the shape at all times, 0..1")
+NutrientRegion = _valued("Nutrient", "nutrient c held inside the shape (or on the face) at all times, 0..1",
+                         shapes=(*SHAPES, BoundaryFace))
 
 
 def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
@@ -247,6 +256,7 @@ class Scene(BaseModel):
         phi0 = initial_biofilm(self.biofilm, grid)
         held = np.zeros(grid.cells_shape, bool)
         value = np.ones(grid.cells_shape)
+        faces = tuple((region.face, region.value) for region in self.nutrient if isinstance(region, BoundaryFace))
         for region in self.nutrient:
             cells = region.cells(grid)
             held |= cells
@@ -255,7 +265,7 @@ class Scene(BaseModel):
         phi0[blocked] = 0.0  # biofilm does not live inside a solid
         mechanics = self.mechanics.solver_setup() if self.mechanics is not None else None
         return solver.Problem(
-            grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, obstacle=blocked,
+            grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
             params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
             numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)

@@ -126,6 +126,14 @@ class FiniteVolumeGrid:
         """Array of ``grid.cells_shape`` -> active-cell values."""
         return np.asarray(values, dtype=float).ravel()[self.cells]
 
+    def boundary_cells(self, face: str) -> np.ndarray:
+        """Active cells next to an outer face of the grid ("x-", ..., "z+"), in active indices."""
+        axis = "xyz".index(face[0])
+        array_axis = self.grid.ndim - 1 - axis
+        index = self.full_to_active.reshape(self.grid.cells_shape)
+        layer = np.take(index, 0 if face[1] == "-" else index.shape[array_axis] - 1, axis=array_axis).ravel()
+        return layer[layer >= 0]
+
     def neighbours(self, axis: int) -> tuple[np.ndarray, np.ndarray]:
         """(below, above) active neighbour of every active cell along `axis`; the cell itself at walls."""
         below = np.arange(self.n)

@@ -6,7 +6,9 @@ The nutrient diffuses orders of magnitude faster than the biofilm grows
     first-order:  d lap(c) = g phi c                     (default; docs/model.md)
     zero-order:   d lap(c) = g phi  where c > 0,  c >= 0  (paper Eq. 35)
 
-with zero flux on walls and obstacles and c held in the source cells.
+with zero flux on walls and obstacles and c held in the source cells and on
+held boundary faces (a Dirichlet value half a cell from the cells beside the
+face: a coefficient 2/h^2 on their diagonal).
 Divided by d, with K = -lap restricted to the free cells and gamma = g/d:
 
     first-order:  (K + gamma diag(phi)) c = b                 an SPD M-matrix:
@@ -41,20 +43,26 @@ class Nutrient:
     """Solves for c on the active cells given phi; keeps its AMG hierarchy between calls."""
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, consumption: Consumption,
-                 fixed: np.ndarray, value: np.ndarray, tolerance: float = 1e-10):
+                 fixed: np.ndarray, value: np.ndarray, tolerance: float = 1e-10,
+                 faces: tuple[tuple[str, float], ...] = ()):
         self.fv = fv
         self.consumption = consumption
         self.gamma = params.g / params.d
         laplacian = fv.laplacian
         fixed = fv.to_active(fixed).astype(bool)
         held_value = np.where(fixed, fv.to_active(value), 0.0)
-        held = fixed | self._unreachable(laplacian, fixed)
+        self.faces = [(face, fv.boundary_cells(face), float(v)) for face, v in faces]
+        face_coefficient, face_inflow = np.zeros(fv.n), np.zeros(fv.n)
+        for _, cells, v in self.faces:
+            face_coefficient[cells] += 2.0 / fv.grid.spacing**2
+            face_inflow[cells] += 2.0 * v / fv.grid.spacing**2
+        held = fixed | self._unreachable(laplacian, fixed | (face_coefficient > 0))
         self.free = np.flatnonzero(~held)
-        self.upper = float(held_value[fixed].max()) if fixed.any() else 0.0
+        self.upper = max([0.0, *held_value[fixed], *(v for _, _, v in self.faces)])
         self.c_held = held_value
         lap_free = laplacian[self.free]
-        self.stiffness = sp.csr_matrix(-lap_free[:, self.free])  # K, SPD on the free cells
-        self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held]  # b: inflow from held cells
+        self.stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
+        self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held] + face_inflow[self.free]  # b: inflow
         self.amg = ReusedAMG(tolerance)
         self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
         self.active_set_iterations = 0

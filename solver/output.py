@@ -64,6 +64,10 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         "kappa": p.kappa,
         "consumption": problem.consumption,
         "advection": n.advection,
+        "growth_velocity": n.growth_velocity,
+        **({"front_band": n.front_band} if n.growth_velocity == "front" else {}),
+        **({"nutrient_faces": ", ".join(f"{face} = {value:g}" for face, value in problem.nutrient_faces)}
+           if problem.nutrient_faces else {}),
         "gradient_floor": n.gradient_floor,
         "nutrient_tolerance": n.nutrient_tolerance,
         "biofilm_tolerance": n.biofilm_tolerance,

@@ -21,6 +21,7 @@ AXES = ("x", "y", "z")
 FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 Consumption = Literal["first-order", "zero-order"]
 Advection = Literal["upwind", "tvd"]
+GrowthVelocity = Literal["front", "pointwise"]
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,11 @@ class Numerics:
     time_tolerance: None = fixed nominal steps (bisected on failure); a number =
         error-controlled steps by step doubling, local error in phi (max norm)
         per step kept below it.
+    growth_velocity: "front" (the growth speed taken at the phi = 1/2 front and
+        extended along its normals over the dense side and `front_band` cells
+        into the void, see `front.py`: dense biofilm stays dense on coarse
+        cells) or "pointwise" (r c/(k+c) n_c in every cell, Eq. 34 as written).
+    front_band: reach of the extension into the void ahead of the front, in cells.
     """
 
     advection: Advection = "upwind"
@@ -158,6 +164,8 @@ class Numerics:
     biofilm_tolerance: float = 1e-12
     max_substeps: int = 1_000_000
     time_tolerance: float | None = None
+    growth_velocity: GrowthVelocity = "front"
+    front_band: float = 3.0
 
 
 @dataclass(frozen=True)
@@ -197,6 +205,10 @@ class Problem:
     phi0: initial biofilm density per cell (0 in obstacles).
     nutrient_fixed: cells where c is held at ``nutrient_value`` at all times.
     nutrient_value: held concentration per cell (read where nutrient_fixed).
+    nutrient_faces: boundary faces where c is held, as (face, value) pairs, e.g.
+        (("z-", 1.0),): a Dirichlet condition on the grid's outer face (the
+        paper's "nodes on the bottom plane"); the cells next to it stay free
+        and may hold biofilm.  phi keeps zero flux there.
     obstacle: rigid solid cells: no phi, no c, no flux across their faces.
     output_times: the output clock, increasing, within [0, t_end].
     steps: nominal number of steps over [0, t_end] (the model clock).
@@ -212,6 +224,7 @@ class Problem:
     params: Parameters = field(default_factory=Parameters)
     consumption: Consumption = "first-order"
     nutrient_value: np.ndarray | None = None
+    nutrient_faces: tuple[tuple[str, float], ...] = ()
     obstacle: np.ndarray | None = None
     numerics: Numerics = field(default_factory=Numerics)
     mechanics: MechanicsSetup | None = None
@@ -227,6 +240,7 @@ class Problem:
         obstacle = np.zeros(shape, bool) if self.obstacle is None else self.obstacle
         fix(self, "obstacle", np.asarray(obstacle, dtype=bool).reshape(shape))
         fix(self, "output_times", np.asarray(self.output_times, dtype=float).ravel())
+        fix(self, "nutrient_faces", tuple((str(face), float(value)) for face, value in self.nutrient_faces))
         self._check()
 
     def _check(self):
@@ -240,6 +254,11 @@ class Problem:
         values = self.nutrient_value[self.nutrient_fixed]
         if np.any((values < 0) | (values > 1)):
             raise ValueError("held nutrient values must lie in [0, 1]")
+        for face, value in self.nutrient_faces:
+            if face not in FACES or face[0] not in self.grid.axes:
+                raise ValueError(f"nutrient face {face!r} is not a face of this {self.grid.ndim}-D grid")
+            if not 0 <= value <= 1:
+                raise ValueError("held nutrient values must lie in [0, 1]")
         if np.any(self.nutrient_fixed & self.obstacle):
             raise ValueError("nutrient sources must not lie inside obstacles")
         if np.any((self.phi0 < 0) | (self.phi0 > 1)):

@@ -117,3 +117,32 @@ def test_bounds_hold_on_stiff_nutrient(consumption, d, g):
     assert c.min() >= 0.0 and c.max() <= 1.0
     if g == 0.0:
         assert np.allclose(c, 1.0, atol=1e-8)
+
+
+@pytest.mark.parametrize("face", ["x-", "x+"])
+def test_held_face_cosh_profile_converges_at_second_order(face):
+    """c = 1 held on the boundary face itself (no source cells): c = cosh(m (L - s)) / cosh(m L), s the distance
+    from the face; the cells beside the face stay free.  The velocity's cell gradient there uses the face value."""
+    from solver.biofilm import Velocity
+
+    gamma, m = 0.25, 0.5
+    errors, slopes, sizes = [], [], []
+    for n in (16, 32, 64, 128):
+        grid = Grid((n, 2), LENGTH / n)
+        fv = FiniteVolumeGrid(grid)
+        nutrient = Nutrient(fv, Parameters(d=1.0, g=gamma), "first-order", np.zeros(grid.cells_shape, bool),
+                            np.ones(grid.cells_shape), faces=((face, 1.0),))
+        c_active = nutrient.solve(np.ones(fv.n))
+        c = fv.to_full(c_active)[0]
+        x = grid.centres("x")
+        s = x if face == "x-" else LENGTH - x
+        exact = np.cosh(m * (LENGTH - s)) / np.cosh(m * LENGTH)
+        errors.append(np.abs(c - exact).max())
+        exact_slope = (-np.sinh(m * (LENGTH - x)) if face == "x-" else np.sinh(m * x)) * m / np.cosh(m * LENGTH)
+        beside = fv.boundary_cells(face)
+        slope = Velocity(fv, Parameters(), 1e-3, nutrient.faces).cell_gradient(c_active)[0][beside]
+        slopes.append(np.abs(slope - exact_slope[0 if face == "x-" else -1]).max())
+        sizes.append(LENGTH / n)
+        assert not np.isin(beside, nutrient.free, invert=True).any(), "cells beside a held face stay free"
+    assert 1.8 < observed_order(sizes, errors) < 2.3, errors
+    assert observed_order(sizes, slopes) > 0.9, slopes

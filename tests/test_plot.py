@@ -348,3 +348,44 @@ def test_isosurface_of_a_body_on_a_wall_is_closed_on_the_wall():
     assert verts[:, 0].min() == pytest.approx(0, **on) and verts[:, 0].max() == pytest.approx(2.7, **on)
     assert verts[:, 1].max() == pytest.approx(5, **on) and verts[:, 2].min() == pytest.approx(0, **on)
     assert isosurface(np.full((4, 5, 6), 0.5), 0.8, (x, y, z)) is None
+
+
+def test_warped_two_dimensional_mesh_is_the_grid_moved_by_factor_u(run2d, with_mechanics):
+    """Fig. 13: every cell corner drawn at node + factor * u (u known exactly here), phi as the cell colour."""
+    from matplotlib.collections import QuadMesh
+
+    from biostudy.plots import warped
+
+    ds = with_mechanics(run2d, unsolved=1)
+    assert warped.solved_indices(ds, [1]) in ([0], [2])  # not solved at 1: the nearest solved output
+    fig = warped.figure(ds, [2], 500.0)
+    mesh = next(c for c in fig.axes[0].collections if isinstance(c, QuadMesh))
+    corners = mesh.get_coordinates()  # (ny+1, nx+1, 2)
+    u = ds.u.isel(time=2).transpose("y_node", "x_node", "component").values
+    x, y = np.meshgrid(ds.x_node.values, ds.y_node.values)
+    assert np.allclose(corners[..., 0], x + 500.0 * u[..., 0]) and np.allclose(corners[..., 1], y + 500.0 * u[..., 1])
+    assert np.allclose(np.ma.filled(mesh.get_array(), np.nan).ravel(), ds.phi.isel(time=2).values.ravel(),
+                       equal_nan=True)
+
+
+def test_warped_refuses_runs_without_solved_mechanics(run2d, with_mechanics, tmp_path):
+    with pytest.raises(ValueError, match="with mechanics"):
+        plot(run2d, tmp_path / "w.png", warp=500)
+    every = with_mechanics(run2d)
+    every["u"][:] = np.nan
+    with pytest.raises(ValueError, match="not solved at any output"):
+        plot(every, tmp_path / "w.png", warp=500)
+    with pytest.raises(ValueError, match="positive"):
+        plot(with_mechanics(run2d), tmp_path / "w.png", warp=-1)
+
+
+def test_warped_three_dimensional_surface_moves_with_u(run3d, with_mechanics, tmp_path):
+    """u = 0.01 X (linear, so trilinear interpolation is exact) moves every surface vertex to X + factor u(X)."""
+    from biostudy.plots import warped
+
+    ds = with_mechanics(run3d)
+    nodes = np.stack(np.meshgrid(ds.z_node, ds.y_node, ds.x_node, indexing="ij")[::-1], axis=-1)  # (z, y, x, 3): x, y, z
+    ds["u"][:] = 0.01 * nodes
+    vertices = np.array([[0.3, 1.7, 2.2], [5.9, 4.1, 0.0], [8.0, 8.0, 8.0]])
+    assert np.allclose(warped.displaced_vertices(ds, 0, vertices, 500.0), vertices * (1 + 500 * 0.01))
+    assert [p.name for p in plot(ds, tmp_path / "w.png", warp=500)][-1] == "w_warped.png"

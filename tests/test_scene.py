@@ -170,5 +170,15 @@ def test_directional_scene_is_the_papers_4_1():
     assert problem.t_end == 1.0 and problem.steps == 1000 and len(problem.output_times) == 21
     x, y, z = problem.grid.cell_coordinates()
     assert np.array_equal(problem.phi0, ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float))
-    assert np.array_equal(problem.nutrient_fixed, (x > 17) & (y > 17) & (z > 17))  # 3 x 3 x 3 corner cells
+    assert np.array_equal(problem.nutrient_fixed, (x > 19) & (y > 19) & (z > 19))  # the corner cell, as the paper
     assert problem.params == solver.Parameters()
+
+
+def test_agar_scenes_hold_the_nutrient_on_the_bottom_face():
+    """Paper 4.2: c = 1 on the bottom plane itself; the colony (5 µm across) stands on it, its cells free."""
+    for name in ("agar-g1e8", "agar-g1e10"):
+        problem = load_scene(bundled.resolve(name)).problem()
+        assert problem.nutrient_faces == (("z-", 1.0),) and not problem.nutrient_fixed.any()
+        x, y, z = problem.grid.cell_coordinates()
+        colony = problem.phi0 == 1.0
+        assert colony[0].any() and np.ptp(x[colony]) + 1 <= 5 and np.ptp(y[colony]) + 1 <= 5

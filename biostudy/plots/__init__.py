@@ -11,6 +11,7 @@
 - a sweep (`study.nc`): final outputs against the swept
   parameters                                                    -> OUT_sweep.png
   and the time series of every case                             -> OUT_series.png
+- with `warp`: the deformed body, displacement magnified (Fig. 13) -> OUT_warped.png
 
 Options narrow it down: `variable` draws one field (or one sweep output),
 `time` the output nearest to it, `cut` the plane of a 3-D run.  Bad options
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from . import fields, isosurface, series, sweep
+from . import fields, isosurface, series, sweep, warped
 from .cuts import plane_for
 from .style import SERIES_NAMES, field_names, output_paths, save, snapshot_indices
 
@@ -30,7 +31,7 @@ __all__ = ["plot"]
 
 
 def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | None = None,
-         cut: str | None = None) -> list[Path]:
+         cut: str | None = None, warp: float | None = None) -> list[Path]:
     """Draw the default figures of `ds` (a run or a sweep) and return the files written.
 
     out: the picture's path; with several figures, `stem_<tag>.png` beside it
@@ -41,7 +42,11 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
         (a sweep: its outputs at that time instead of the last).
     cut: 3-D runs only: 'diagonal' (default, toward the nutrient source), 'xy-diagonal',
         or 'x=10', 'y=4.5', 'z=5.5' (µm).
+    warp: also draw the deformed body with the displacement magnified by this factor (runs with mechanics).
     """
+    if warp is not None and (sweep.is_sweep(ds) or not warp > 0):
+        raise ValueError("--warp needs a positive factor and one run's dataset" if sweep.is_sweep(ds)
+                         else f"--warp must be a positive factor (got {warp:g})")
     if sweep.is_sweep(ds):
         figures = _sweep_figures(ds, variable, time, cut)
     elif "z" in ds.dims:
@@ -57,6 +62,9 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
             raise ValueError(f"cut {cut!r} needs a 3-D run; this run is 2-D (its maps are the whole domain)")
         figures = [("series", lambda: series.figure(ds, _marks(ds, indices, time))),
                    ("maps", lambda: fields.map_figure(ds, names, indices))]
+    if warp is not None:
+        shown = warped.solved_indices(ds, indices)  # refuses before anything is drawn
+        figures.append(("warped", lambda: warped.figure(ds, shown, warp)))
     paths = output_paths(Path(out), [tag for tag, _ in figures])
     return [save(draw(), path) for (_, draw), path in zip(figures, paths)]
 
