@@ -1,28 +1,29 @@
 """Is a loss of dense biofilm the grid's or the model's?  The 2-D yardstick scenes under refinement.
 
 Runs each scene (studies/agar2d*.toml, directional2d.toml; mechanics off) with the pointwise growth
-velocity (Eq. 34 as written) at h = 1 ... 1/2^finest µm and with the front velocity at h = 1 ... 1/8 µm,
+velocity (Eq. 34 as written) at h = 1 ... 1/2^finest µm and with the front velocity at h = 1 ... 1/2^n µm,
 the time step proportional to h, and prints per output time: max phi / top of phi >= 0.5 (µm, along y) /
 area of phi >= 0.8 (µm² per µm of thickness) / y of the nutrient minimum and phi there, and wall times.
+Every finished run is kept as a JSON file in --results (default docs/measured/dense-reference/), so an
+interrupted call resumes and a later call only prints.
 
-    python benchmarks/dense_reference.py                    # every scene, finest h = 1/16 (~1 h on 2 cores)
-    python benchmarks/dense_reference.py --scenes agar2d --finest 3 --workers 2
-    python benchmarks/dense_reference.py --json tests/data/dense_reference.json   # also store the finest runs
+    python benchmarks/dense_reference.py                    # every scene, pointwise to h = 1/16 (hours on 2 cores)
+    python benchmarks/dense_reference.py --scenes agar2d --finest 3 --front-finest 2 --workers 2
 
-The finest pointwise run of each scene is the reference that tests/test_dense.py compares the front
-velocity with on 1 µm and 1/2 µm cells (the json file).
+The finest pointwise run of each scene is the reference that tests/test_dense.py compares the front velocity
+with on 1 µm and 1/2 µm cells (tests/data/dense_reference.json, written with --json).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-import numpy as np
-
+os.environ.setdefault("FIPY_SOLVERS", "scipy")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -33,35 +34,35 @@ from solver import simulate  # noqa: E402
 SCENES = ("agar2d", "agar2d-g1e10", "agar2d-thin", "directional2d")
 
 
-def scene_overrides(refine: int, velocity: str, base) -> list[str]:
+def refined(name: str, refine: int, velocity: str):
+    base = load_scene(ROOT / "studies" / f"{name}.toml")
     shape = [n * refine for n in base.grid.shape]
-    return [f"grid.shape={shape}", f"grid.spacing={base.grid.spacing / refine}", f"time.steps={base.time.steps * refine}",
-            f"numerics.growth_velocity=\"{velocity}\"", "mechanics.enabled=false"]
+    return load_scene(ROOT / "studies" / f"{name}.toml", [
+        f"grid.shape={shape}", f"grid.spacing={base.grid.spacing / refine}", f"time.steps={base.time.steps * refine}",
+        f"numerics.growth_velocity=\"{velocity}\"", "mechanics.enabled=false"])
 
 
-def scene_file(name: str) -> Path:
-    return ROOT / "studies" / f"{name}.toml"
-
-
-def run(name: str, refine: int, velocity: str) -> dict:
-    """One level: the dense measures per output time and the wall time."""
-    base = load_scene(scene_file(name))
-    scene = load_scene(scene_file(name), scene_overrides(refine, velocity, base))
+def run(name: str, refine: int, velocity: str, results: Path) -> dict:
+    """One level: the dense measures per output time and the wall time, stored in `results`."""
+    scene = refined(name, refine, velocity)
     began = time.perf_counter()
     ds = simulate(scene.problem())
     minimum = measures.nutrient_minimum(ds)
-    return {
+    result = {
         "scene": name, "velocity": velocity, "h": scene.grid.spacing, "wall_time": time.perf_counter() - began,
         "time": ds["time"].values.tolist(), "max_phi": measures.max_phi(ds).tolist(),
         "top": measures.top(ds, "y").tolist(), "dense_area": measures.dense_volume(ds).tolist(),
-        "reach": measures.reach(ds, "y").tolist(), "c_min_y": minimum["y"].tolist(), "phi_at_c_min": minimum["phi"].tolist(),
+        "reach": measures.reach(ds, "y").tolist(), "c_min_y": minimum["y"].tolist(),
+        "phi_at_c_min": minimum["phi"].tolist(), "c_mean": ds["c_mean"].values.tolist(),
     }
+    (results / f"{name}_{velocity}_{refine}.json").write_text(json.dumps(result) + "\n")
+    return result
 
 
 def row(result: dict) -> str:
     cells = [f"{m:.2f}/{t:.1f}/{a:.0f}/{y:.1f}:{p:.2f}" for m, t, a, y, p in
              zip(result["max_phi"], result["top"], result["dense_area"], result["c_min_y"], result["phi_at_c_min"])]
-    return f"| {result['velocity']} | {result['h']:g} | " + " | ".join(cells) + f" | {result['wall_time']:.1f} |"
+    return f"| {result['velocity']} | {result['h']:g} | " + " | ".join(cells) + f" | {result['wall_time']:.0f} |"
 
 
 def main():
@@ -70,26 +71,30 @@ def main():
     parser.add_argument("--finest", type=int, default=4, help="finest pointwise level: h = 1/2^finest µm")
     parser.add_argument("--front-finest", type=int, default=3, help="finest front level: h = 1/2^n µm")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--results", type=Path, default=ROOT / "docs" / "measured" / "dense-reference")
     parser.add_argument("--json", type=Path, help="store the finest pointwise run of each scene here")
     args = parser.parse_args()
+    args.results.mkdir(parents=True, exist_ok=True)
     jobs = [(s, 2**n, "pointwise") for s in args.scenes for n in range(args.finest + 1)]
     jobs += [(s, 2**n, "front") for s in args.scenes for n in range(args.front_finest + 1)]
-    jobs.sort(key=lambda j: -j[1])  # longest first
+    todo = sorted((j for j in jobs if not (args.results / f"{j[0]}_{j[2]}_{j[1]}.json").exists()), key=lambda j: -j[1])
     with ProcessPoolExecutor(args.workers) as pool:
-        results = list(pool.map(run, *zip(*jobs)))
+        for done in as_completed([pool.submit(run, *job, args.results) for job in todo]):
+            result = done.result()
+            print(f"done: {result['scene']} {result['velocity']} h = {result['h']:g} ({result['wall_time']:.0f} s)",
+                  flush=True)
+    results = [json.loads((args.results / f"{s}_{v}_{r}.json").read_text()) for s, r, v in jobs]
     reference = {}
     for name in args.scenes:
         mine = sorted((r for r in results if r["scene"] == name), key=lambda r: (r["velocity"] != "pointwise", -r["h"]))
-        times = mine[0]["time"]
         print(f"\n### {name}\n")
         print("max phi / top of phi >= 0.5 (µm) / area of phi >= 0.8 (µm²) / y of the nutrient minimum : phi there")
         print()
-        print("| growth velocity | h µm | " + " | ".join(f"T* = {t:g}" for t in times) + " | wall s |")
-        print("|---|---|" + "---|" * len(times) + "---|")
+        print("| growth velocity | h µm | " + " | ".join(f"T* = {t:g}" for t in mine[0]["time"]) + " | wall s |")
+        print("|---|---|" + "---|" * len(mine[0]["time"]) + "---|")
         for result in mine:
             print(row(result))
-        finest = min((r for r in mine if r["velocity"] == "pointwise"), key=lambda r: r["h"])
-        reference[name] = finest
+        reference[name] = min((r for r in mine if r["velocity"] == "pointwise"), key=lambda r: r["h"])
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(reference, indent=1) + "\n")

@@ -47,7 +47,8 @@ def _from_scene(attrs: dict) -> dict:
     grid = scene.get("grid", {})
     found = {"grid_shape": grid.get("shape"), "grid_spacing": grid.get("spacing"),
              "consumption": scene.get("model", {}).get("consumption"),
-             "advection": scene.get("numerics", {}).get("advection"), **scene.get("params", {})}
+             "advection": scene.get("numerics", {}).get("advection"),
+             "growth_velocity": scene.get("numerics", {}).get("growth_velocity"), **scene.get("params", {})}
     return {k: v for k, v in found.items() if v is not None}
 
 
@@ -61,7 +62,10 @@ def _header(attrs: dict) -> list[tuple[str, str]]:
     ]
     if grid:
         rows.append(("grid", f"{grid} cells of {number(attrs.get('grid_spacing'))} µm"))
-    model = [f"{k} {attrs[k]}" for k in ("consumption", "advection", "mechanics") if k in attrs]
+    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "advection", "growth_velocity", "mechanics")
+             if k in attrs]
+    if "nutrient_faces" in attrs:
+        model.append(f"nutrient held on {attrs['nutrient_faces']}")
     rows.append(("model", ", ".join(model)))
     params = [f"{p.name} = {number(attrs[p.name])}{' ' + units_text(p.units) if units_text(p.units) else ''}"
               for p in parameter_infos() if p.name in attrs]

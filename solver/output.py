@@ -90,7 +90,8 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         **{key: report[key] for key in ("projected_c_count", "projected_c_largest", "projected_phi_count",
                                         "projected_phi_largest")},
         "bounds_roundoff": ROUNDOFF,
-        "numerical_diffusion_max": report["numerical_diffusion_max"],
+        **({} if report["numerical_diffusion_max"] is None else
+           {"numerical_diffusion_max": report["numerical_diffusion_max"]}),  # upwind only: |v| h / 2
         "largest_step_error": report["largest_step_error"],
         **{f"wall_time_{stage}": seconds for stage, seconds in report["timings"].items()},
         **_versions(),

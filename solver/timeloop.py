@@ -189,7 +189,7 @@ class Run:
             "nutrient_active_set_iterations": t.nutrient.active_set_iterations,
             "projected_c_count": t.nutrient.projection.count, "projected_c_largest": t.nutrient.projection.largest,
             "projected_phi_count": t.biofilm.projection.count, "projected_phi_largest": t.biofilm.projection.largest,
-            "numerical_diffusion_max": t.largest_numerical_diffusion,
+            "numerical_diffusion_max": None if t.biofilm.tvd else t.largest_numerical_diffusion,
             "largest_step_error": c.largest_error,
         }
 

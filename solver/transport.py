@@ -61,8 +61,9 @@ class Transport:
         clock = time.perf_counter
         start = clock()
         w = self.biofilm.velocity(state.c, state.phi)
-        self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
-                                               self.biofilm.numerical_diffusion(w))
+        if not self.biofilm.tvd:  # upwind's own estimate; TVD's is smaller and has no such formula
+            self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
+                                                   self.biofilm.numerical_diffusion(w))
         after_velocity = clock()
         phi = self.biofilm.step(state.phi, state.alpha, w, dt)
         after_biofilm = clock()
