@@ -421,3 +421,42 @@ def _with_interval(part: xr.Dataset, key: str, o: int, j: int) -> str:
         return f"{number(value, 2)} [{number(part[f'{key}_low'].values[o, j], 2)}, " \
                f"{number(part[f'{key}_high'].values[o, j], 2)}]"
     return number(value, 3)
+
+
+def write(source, outputs: list[str] | None = None, times: list[float] | None = None) -> tuple[list, str]:
+    """`biostudy analyze`: analyse a study.nc and write analysis.nc, analysis.md and the pictures beside it;
+    returns the files and the table.  Anything wrong with the request is `BadInput`."""
+    from pathlib import Path
+
+    from . import store
+    from .errors import BadInput
+    from .plots.analysis import indices_figure, sample_figure, scatter_figure
+    from .plots.style import save
+
+    source = Path(source)
+    ds = store.open_dataset(source)
+    directory = source.parent
+    try:
+        result = analyze(ds, outputs or None, times or None)
+    except ValueError as error:
+        raise BadInput(str(error), source, "--output" if "output" in str(error) else None) from None
+    text = table_text(result)
+    written = [store.write_atomic(result, directory / "analysis.nc")]
+    (directory / "analysis.md").write_text(text, encoding="utf-8")
+    written.append(directory / "analysis.md")
+    written.append(save(indices_figure(result), directory / "analysis_indices.png"))
+    names = list(result.output.values)
+    index = time_indices(ds, times or None)[-1]
+    if "sample_method" in ds.attrs and all(n in ds for n in names):
+        figure = sample_figure(ds, names, index)
+    else:
+        flat = cases_of(ds)
+        values = {}
+        for name in names:
+            rows = flat.values(_variable(ds, name))
+            values[name] = np.asarray(rows[:, index] if rows.ndim == 2 else rows, dtype=float)
+        units = {n: str(u) for n, u in zip(names, result["output_units"].values)}
+        figure = scatter_figure(values, units, flat.parameters, flat.log, flat.status == "done",
+                                "outputs against each parameter")
+    written.append(save(figure, directory / "analysis_scatter.png"))
+    return written, text
