@@ -126,7 +126,8 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
 
 def variables(ds: xr.Dataset) -> dict[str, xr.DataArray]:
     """Every observable this run's fields give, as time series with units and long_name (for study.nc)."""
-    return {n: evaluate(ds, n) for n, o in REGISTRY.items() if all(v in ds for v in o.needs)}
+    fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})].load()  # each read once
+    return {n: evaluate(fields, n) for n, o in REGISTRY.items() if all(v in ds for v in o.needs)}
 
 
 def value(ds: xr.Dataset, name: str, index: int = -1) -> float:
