@@ -19,6 +19,7 @@ and what that does to the indices, is written into the result's `notes`.
 """
 from __future__ import annotations
 
+import contextlib
 import warnings
 from dataclasses import dataclass, field
 
@@ -171,24 +172,38 @@ def _problem(design: Sample) -> dict:
     return {"num_vars": k, "names": [f"x{i}" for i in range(k)], "bounds": [[0.0, 1.0]] * k}
 
 
+def complete_blocks(design: Sample, ok: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """Which cases belong to a base sample (sobol) or trajectory (morris) whose cases are all `ok`: the mask
+    over the cases, how many blocks are complete and how many there are."""
+    block = design.block()
+    count = ok.size // block
+    complete = np.zeros(ok.size, dtype=bool)
+    whole = ok[: count * block].reshape(count, block).all(axis=1)
+    complete[: count * block] = np.repeat(whole, block)
+    return complete, int(whole.sum()), count
+
+
+@contextlib.contextmanager
+def _quiet():
+    """SALib's estimators on a constant or degenerate output divide by zero: NaN, not a screen of warnings."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        yield
+
+
 def sobol_indices(design: Sample, y: np.ndarray, ok: np.ndarray, seed: int = 0,
                   confidence: float = CONFIDENCE, resamples: int = RESAMPLES) -> tuple[dict, int]:
     """S1, ST (S2) with intervals from the complete base samples; returns them and how many blocks were used."""
     from SALib.analyze import sobol
 
-    block = design.block()
-    count = y.size // block
-    complete = ok[: count * block].reshape(count, block).all(axis=1)
-    kept = int(complete.sum())
+    rows, kept, _ = complete_blocks(design, ok)
     k = len(design.ranges)
     empty = {name: np.full(k, np.nan) for name in ("S1", "S1_conf", "ST", "ST_conf")}
     empty |= {name: np.full((k, k), np.nan) for name in ("S2", "S2_conf")}
-    if kept < 2 or np.ptp(y[: count * block].reshape(count, block)[complete]) == 0:
+    if kept < 2 or np.ptp(y[rows]) == 0:
         return empty, kept
-    values = y[: count * block].reshape(count, block)[complete].ravel()
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore")
-        found = sobol.analyze(_problem(design), values, calc_second_order=design.with_second_order,
+    with _quiet():
+        found = sobol.analyze(_problem(design), y[rows], calc_second_order=design.with_second_order,
                               num_resamples=resamples, conf_level=confidence, seed=seed)
     result = {name: np.asarray(found[name], dtype=float) for name in ("S1", "S1_conf", "ST", "ST_conf")}
     for name in ("S2", "S2_conf"):
@@ -201,19 +216,11 @@ def morris_indices(design: Sample, unit: np.ndarray, y: np.ndarray, ok: np.ndarr
     """mu*, its interval, mu and sigma from the complete trajectories; returns them and how many were used."""
     from SALib.analyze import morris
 
-    block = design.block()
-    count = y.size // block
-    complete = ok[: count * block].reshape(count, block).all(axis=1)
-    kept = int(complete.sum())
-    k = len(design.ranges)
+    rows, kept, _ = complete_blocks(design, ok)
     if kept < 2:
-        return {name: np.full(k, np.nan) for name in ("mu_star", "mu_star_conf", "mu", "sigma")}, kept
-    rows = np.repeat(complete, block)
-    x = unit[: count * block][rows]
-    values = y[: count * block][rows]
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore")
-        found = morris.analyze(_problem(design), x, values, num_resamples=resamples, conf_level=confidence,
+        return {name: np.full(len(design.ranges), np.nan) for name in ("mu_star", "mu_star_conf", "mu", "sigma")}, kept
+    with _quiet():
+        found = morris.analyze(_problem(design), unit[rows], y[rows], num_resamples=resamples, conf_level=confidence,
                                num_levels=design.morris_levels, seed=seed)
     return {name: np.asarray(found[name], dtype=float) for name in ("mu_star", "mu_star_conf", "mu", "sigma")}, kept
 
@@ -354,12 +361,11 @@ def _notes(flat: Cases, design: Sample | None) -> list[str]:
                      f"of the ranges, the indices describe the model where it ran, not over the whole ranges.")
     if design is not None and design.method in ("sobol", "morris") and (missing or failed.size):
         block = design.block()
-        count = total // block
-        complete = (status[: count * block].reshape(count, block) == "done").all(axis=1)
+        _, kept, count = complete_blocks(design, status == "done")
         unit = "base samples" if design.method == "sobol" else "trajectories"
-        notes.append(f"{design.method}: {count - int(complete.sum())} of {count} {unit} are incomplete and left out "
-                     f"whole (each needs all its {block} cases); the indices come from {int(complete.sum())}, so "
-                     f"their intervals are about {number(np.sqrt(count / max(int(complete.sum()), 1)), 3)} times "
+        notes.append(f"{design.method}: {count - kept} of {count} {unit} are incomplete and left out "
+                     f"whole (each needs all its {block} cases); the indices come from {kept}, so "
+                     f"their intervals are about {number(np.sqrt(count / max(kept, 1)), 3)} times "
                      f"as wide as the full design's would be.")
     if not notes:
         notes.append(f"All {total} cases finished.")

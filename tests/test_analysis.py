@@ -82,11 +82,14 @@ def test_morris_mu_star_of_linear_and_logarithmic_effects():
     3 * 4 (x1 on [0, 4]), -2 * 1, 0, and 3 decades of x4 on a log range [1, 1000]: mu* = 12, 2, 0, 3, sigma 0."""
     design = sample("morris", 20, {"x1": [0.0, 4.0], "x2": [1.0, 2.0], "x3": [0.0, 1.0], "x4": [1.0, 1e3, "log"]})
     result = analysis.analyze(study_dataset(
-        design, lambda x: 3 * x[:, 0] - 2 * x[:, 1] + np.log10(x[:, 3])), ["y"], [0.5])
-    np.testing.assert_allclose(result.mu_star.values[0], [12.0, 2.0, 0.0, 3.0], atol=1e-9)
-    np.testing.assert_allclose(result.mu.values[0], [12.0, -2.0, 0.0, 3.0], atol=1e-9)
-    np.testing.assert_allclose(result.sigma.values[0], 0.0, atol=1e-9)
-    assert int(result.blocks_used.item()) == 20 and result.attrs["method"] == "morris"
+        design, lambda x: 3 * x[:, 0] - 2 * x[:, 1] + np.log10(x[:, 3])), ["y"], [0.5, 1.0])
+    assert result.mu_star.dims == ("time", "output", "parameter") and list(result.time.values) == [0.5, 1.0]
+    np.testing.assert_allclose(result.mu_star.values[:, 0], [[12.0, 2.0, 0.0, 3.0], [24.0, 4.0, 0.0, 6.0]],
+                               atol=1e-9)  # the output doubles at T* = 1
+    np.testing.assert_allclose(result.mu.values[0, 0], [12.0, -2.0, 0.0, 3.0], atol=1e-9)
+    np.testing.assert_allclose(result.sigma.values, 0.0, atol=1e-9)
+    assert (result.blocks_used.values == 20).all() and result.attrs["method"] == "morris"
+    assert "## T* = 0.5" in analysis.table_text(result) and "## T* = 1" in analysis.table_text(result)
 
 
 def test_rank_correlations_against_the_inverse_correlation_matrix_and_an_orthogonal_grid():

@@ -72,6 +72,8 @@ def test_a_sampled_study_runs_resumes_grows_and_is_analysed(write_toml, tiny_sce
         assert ds[name].dims == ("case", "time") and ds[name].attrs["units"], name
     assert ds.attrs["sample_method"] == "sobol" and ds.attrs["sweep_mode"] == "sample"
     assert "sample over g, r" in invoke("show", out).stdout
+    drawn = invoke("plot", out, "--variable", "height")  # height against g and r, and every case's series
+    assert drawn.exit_code == 0 and (out / "study_sweep.png").is_file() and (out / "study_series.png").is_file()
 
     write_toml("sample.toml", SAMPLE.format(n=8))  # raise n: the first 16 cases stay, 16 new ones run
     result = invoke("sweep", study, "-o", out, "-q")
