@@ -20,6 +20,7 @@ and what that does to the indices, is written into the result's `notes`.
 from __future__ import annotations
 
 import contextlib
+import os
 import warnings
 from dataclasses import dataclass, field
 
@@ -284,7 +285,8 @@ LONG_NAMES = {
                 "see output_units"),
     "mu_star_conf": ("half-width of the mu* bootstrap confidence interval", "see output_units"),
     "mu": ("Morris mu: mean elementary effect per whole range", "see output_units"),
-    "sigma": ("Morris sigma: standard deviation of the elementary effects (nonlinearity, interactions)", "see output_units"),
+    "sigma": ("Morris sigma: standard deviation of the elementary effects (nonlinearity, interactions)",
+              "see output_units"),
     "spearman": ("Spearman rank correlation of parameter and output", "1"),
     "spearman_low": ("lower end of the Spearman confidence interval (Fisher z)", "1"),
     "spearman_high": ("upper end of the Spearman confidence interval (Fisher z)", "1"),
@@ -356,8 +358,9 @@ def _notes(flat: Cases, design: Sample | None) -> list[str]:
     if failed.size:
         spread = "; ".join(f"{p} {number(v[failed].min())}..{number(v[failed].max())}"
                            for p, v in flat.parameters.items())
-        notes.append(f"{failed.size} of {total} cases failed and are left out ({', '.join(flat.ids[i] for i in failed[:5])}"
-                     f"{', ...' if failed.size > 5 else ''}; their values: {spread}). If failures gather in one part "
+        listed = ", ".join(flat.ids[i] for i in failed[:5]) + (", ..." if failed.size > 5 else "")
+        notes.append(f"{failed.size} of {total} cases failed and are left out ({listed}; their values: {spread}). "
+                     f"If failures gather in one part "
                      f"of the ranges, the indices describe the model where it ran, not over the whole ranges.")
     if design is not None and design.method in ("sobol", "morris") and (missing or failed.size):
         block = design.block()
@@ -429,6 +432,35 @@ def _with_interval(part: xr.Dataset, key: str, o: int, j: int) -> str:
     return number(value, 3)
 
 
+def refreshed(source):
+    """study.nc brought up to date with DIR/cases/: a sweep that is still running, or was interrupted, has not
+    written it yet.  Re-combined from the study file it records (with the overrides study.nc records), when
+    that file is still there and a case file is newer than study.nc; else study.nc as it is."""
+    import tomllib
+
+    import netCDF4
+
+    from . import combine
+    from .study import load_study
+    from .tomltext import literal
+
+    cases = sorted(source.parent.joinpath("cases").glob("*.nc"), key=lambda p: p.stat().st_mtime)
+    if not cases or (source.is_file() and source.stat().st_mtime >= cases[-1].stat().st_mtime):
+        return source
+    record = source if source.is_file() else cases[-1]
+    try:
+        with netCDF4.Dataset(record) as nc:
+            attrs = {name: nc.getncattr(name) for name in ("study_file", "overrides") if name in nc.ncattrs()}
+    except OSError:
+        return source
+    study_file = attrs.get("study_file")
+    if not study_file or not os.path.isfile(study_file):
+        return source
+    fixed = tomllib.loads(str(attrs.get("overrides", ""))) if record == source else {}
+    plan = load_study(study_file, [f"{key}={literal(value)}" for key, value in fixed.items()])
+    return combine.write_study(plan, source.parent)
+
+
 def write(source, outputs: list[str] | None = None, times: list[float] | None = None) -> tuple[list, str]:
     """`biostudy analyze`: analyse a study.nc and write analysis.nc, analysis.md and the pictures beside it;
     returns the files and the table.  Anything wrong with the request is `BadInput`."""
@@ -439,7 +471,7 @@ def write(source, outputs: list[str] | None = None, times: list[float] | None = 
     from .plots.analysis import indices_figure, sample_figure, scatter_figure
     from .plots.style import save
 
-    source = Path(source)
+    source = refreshed(Path(source))
     ds = store.open_dataset(source)
     directory = source.parent
     try:

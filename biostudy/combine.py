@@ -3,7 +3,8 @@
 One dimension per swept key (grid mode) or a `case` dimension with the swept
 or sampled values as coordinates on it (zip mode, a `[sample]` design), so
 ``study.phi_mean.sel(g=1e10)`` works.  Every observable (`biostudy.observables`)
-of every case is there per time.  Every case has its `status` (done, failed, missing) and `message`;
+of every case is there per time (the series a run has itself, phi_mean, c_mean and biofilm_volume, as the
+run wrote them).  Every case has its `status` (done, failed, missing) and `message`;
 a case that did not finish is NaN.  Variables whose coordinates differ
 between cases (fields on different grids) stay in the case files.  The
 attributes are the study file, its base scene and the attributes every
@@ -99,7 +100,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         status = str(record.get("status", "missing"))
         if status == "done":
             ds = opened.enter_context(xr.open_dataset(path, engine="netcdf4", chunks={}))
-            datasets[case.id] = ds.assign(observables.variables(ds))
+            datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
         records[case.id] = (status, str(record.get("message", "")), record)
     done = list(datasets.values())
     shared = _shared_variables(done) if done else []
