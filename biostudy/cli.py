@@ -190,6 +190,23 @@ def plot(
 
 
 @app.command()
+def analyze(
+    path: Path = typer.Argument(..., help="a study's directory (or its study.nc), written by sweep"),
+    outputs: List[str] = typer.Option([], "--output", help="observable or study.nc variable to analyse; repeatable "
+                                                           "(default: every observable the study has)"),
+    times: List[float] = typer.Option([], "--time", help="analyse at the output nearest this T*; repeatable "
+                                                         "(default: the last output)"),
+):
+    """Which parameter matters: Sobol' or Morris indices of a sampled study, rank correlations of any study."""
+    with _guarded():
+        from .analysis import write
+
+        written, table = write(path / "study.nc" if path.is_dir() else path, outputs, times)
+        typer.echo(table)
+        err.print("wrote " + ", ".join(str(p) for p in written))
+
+
+@app.command()
 def export(
     path: Path = typer.Argument(..., help="dataset written by run (or one case of a sweep)"),
     directory: Path = typer.Argument(..., help="directory for snapshot_NNNN.vtu files and series.pvd"),

@@ -1,8 +1,10 @@
 """A study's combined dataset, DIR/study.nc: its finished case files stacked along the sweep.
 
 One dimension per swept key (grid mode) or a `case` dimension with the swept
-values as coordinates on it (zip mode), so ``study.phi_mean.sel(g=1e10)``
-works.  Every case has its `status` (done, failed, missing) and `message`;
+or sampled values as coordinates on it (zip mode, a `[sample]` design), so
+``study.phi_mean.sel(g=1e10)`` works.  Every observable (`biostudy.observables`)
+of every case is there per time (the series a run has itself, phi_mean, c_mean and biofilm_volume, as the
+run wrote them).  Every case has its `status` (done, failed, missing) and `message`;
 a case that did not finish is NaN.  Variables whose coordinates differ
 between cases (fields on different grids) stay in the case files.  The
 attributes are the study file, its base scene and the attributes every
@@ -16,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import store
+from . import observables, store
 from .scene import key_info, overrides_text
 from .study import Plan, dimension, id_text
 
@@ -97,7 +99,8 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         record = store.recorded(path) or {}
         status = str(record.get("status", "missing"))
         if status == "done":
-            datasets[case.id] = opened.enter_context(xr.open_dataset(path, engine="netcdf4", chunks={}))
+            ds = opened.enter_context(xr.open_dataset(path, engine="netcdf4", chunks={}))
+            datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
         records[case.id] = (status, str(record.get("message", "")), record)
     done = list(datasets.values())
     shared = _shared_variables(done) if done else []
@@ -131,7 +134,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         combined = xr.concat(parts, dim="case", combine_attrs="override")
         combined = combined.assign_coords(case=("case", np.array([c.id for c in plan.cases], dtype=object),
                                                 {"long_name": "case id (file under cases/)", "units": "1"}))
-        combined = combined.assign_coords({dimension(k): ("case", *_coordinate(k, plan.spec.sweep.values[k]))
+        combined = combined.assign_coords({dimension(k): ("case", *_coordinate(k, [c.values[k] for c in plan.cases]))
                                            for k in keys})
     swept = {dimension(k) for k in keys} | {k.split(".")[-1] for k in keys}  # e.g. g, advection, grid_shape
     common = {k: v for k, v in _common_attrs([ds.attrs for ds in done]).items() if k not in swept}
@@ -152,6 +155,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         "cases_done": statuses.count("done"),
         "cases_failed": statuses.count("failed"),
         "cases_missing": statuses.count("missing"),
+        **(plan.spec.sample.attrs() if plan.mode == "sample" else {}),
         "omitted_variables": ", ".join(omitted) + " (coordinates differ between cases: see cases/)"
         if omitted else "",
     })

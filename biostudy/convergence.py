@@ -15,7 +15,10 @@ time (or the output nearest `time`): phi in L1 and L2 on the series' coarsest
 grid (finer fields restricted by cell averaging), biofilm_volume and the
 dense volume phi >= 0.8 (relative), max phi, the top of phi >= 0.5 along the
 vertical axis (y in 2-D, z in 3-D; µm), c_mean, front position (µm), and p in
-L2 when the mechanics is on.  The
+L2 when the mechanics is on.  The scalar ones are errors of the observables
+(`biostudy.observables`; top is `height`, max_phi is `phi_max`), the front position
+of `measures.front_position` (the observable front_advance is its gain since
+T* = 0, which starts elsewhere on every grid).  The
 observed order p is fitted to the differences between successive levels,
 |q_l - q_(l+1)| ~ size^p (unbiased, unlike errors against a finite
 reference); the error of the reference itself is then estimated by
@@ -34,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import measures, store
+from . import measures, observables, store
 from .errors import BadInput
 from .formatting import number
 from .runner import Job, SweepReport, run_jobs
@@ -48,6 +51,7 @@ QUANTITIES = ("phi_L1", "phi_L2", "biofilm_volume", "dense_volume", "max_phi", "
 UNITS = {"phi_L1": "1", "phi_L2": "1", "biofilm_volume": "1", "dense_volume": "1", "max_phi": "1", "top": "um",
          "c_mean": "1", "front_position": "um", "p_L2": "Pa"}
 RELATIVE = ("biofilm_volume", "dense_volume")
+OBSERVED = {"max_phi": "phi_max", "top": "height"}  # quantities named apart from their observables
 LONG_NAMES = {
     "dense_volume": "relative error of the dense volume (phi >= 0.8)",
     "max_phi": "error of the largest phi",
@@ -163,12 +167,10 @@ def summary(ds: xr.Dataset, time: float | None = None) -> dict:
     """A run's fields and measured quantities at its last output, or the output nearest `time`."""
     index = -1 if time is None else int(np.argmin(np.abs(ds["time"].values - time)))
     last = ds.isel(time=index)
-    vertical = "z" if "z" in ds.dims else "y"
     return {
         "phi": last["phi"].values, "p": last["p"].values if "p" in ds else None,
-        "biofilm_volume": float(last["biofilm_volume"]), "c_mean": float(last["c_mean"]),
-        "dense_volume": float(measures.dense_volume(ds)[index]), "max_phi": float(measures.max_phi(ds)[index]),
-        "top": float(measures.top(ds, vertical)[index]),
+        **{q: observables.value(ds, OBSERVED.get(q, q), index) for q in ("biofilm_volume", "c_mean", "dense_volume",
+                                                                        "max_phi", "top")},
         "front_position": measures.front_position(ds, index), "wall_time": float(ds.attrs["wall_time"]),
         "steps": int(ds.attrs["steps_taken"]), "t_end": float(ds["time"].values[-1]),
         "time": float(ds["time"].values[index]),

@@ -15,6 +15,9 @@
   `top` (the highest point of phi >= 0.5 along an axis, sub-cell), `reach`
   (the largest distance of a phi >= 0.5 cell centre from an axis through the
   initial colony) and `nutrient_minimum` (where c is lowest, and phi there).
+* Run summaries, per output time: `field_mean` (over open cells), `front_advance`
+  (the front position's gain since the start) and `stress_extremes` (the
+  largest compression and tension of p).  `biostudy.observables` names them.
 * `observed_order`: the slope of log(error) against log(h or dt).
 """
 from __future__ import annotations
@@ -160,6 +163,26 @@ def nutrient_minimum(ds: xr.Dataset) -> dict[str, np.ndarray]:
         out["c"].append(float(c[index]))
         out["phi"].append(float(phi[index]))
     return {k: np.array(v) for k, v in out.items()}
+
+
+def field_mean(ds: xr.Dataset, name: str) -> np.ndarray:
+    """Mean of a cell field over open cells (obstacle cells are NaN), per output time."""
+    return ds[name].mean(_cell_dims(ds), skipna=True).values
+
+
+def front_advance(ds: xr.Dataset) -> np.ndarray:
+    """How far (µm) the front has moved toward the nutrient source since the first output, per output time."""
+    positions = np.array([front_position(ds, i) for i in range(ds.sizes["time"])])
+    return positions - positions[0]
+
+
+def stress_extremes(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """(largest compression -min p, largest tension max p) in Pa per output time; NaN where p was not solved."""
+    dims = _cell_dims(ds)
+    solved = ds["p"].notnull().any(dims).values
+    low = ds["p"].min(dims, skipna=True).values
+    high = ds["p"].max(dims, skipna=True).values
+    return np.where(solved, -low, np.nan), np.where(solved, high, np.nan)
 
 
 def observed_order(sizes, errors) -> float:

@@ -10,6 +10,10 @@
     g = [1e8, 1e10]                 # a bare parameter name means params.<name>
     r = [50, 100]
 
+Instead of ``[sweep]``, a ``[sample]`` table draws the cases from a design
+(Sobol', Morris, Latin hypercube, Halton; `biostudy.designs`); their ids are
+``s0001``, ``s0002``, ...
+
 Every case is validated as a scene before anything runs, so a bad value in
 the fourth case stops the study at once (exit 2) instead of after hours.
 Case ids are built from the swept values (``g=1e+08_r=50``): stable across
@@ -26,8 +30,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 
+from . import designs
 from .errors import BadInput, InvalidAt, from_validation_error, read_toml
 from .formatting import value_text
 from .scene import Scene, apply_overrides, key_parts, read_scene_data, scene_from_data, set_key
@@ -158,15 +163,34 @@ class ManyCases(FlatSet):
         """Every case, in the order they run and are recorded."""
         raise NotImplementedError
 
+    def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
+        """Checks against the base scene before the cases are made (bad input: `BadInput`)."""
+
 
 class Study(ManyCases):
-    """Many cases of one base scene: a sweep over scene keys."""
+    """Many cases of one base scene: a sweep over scene keys, or a sampling design."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
-    sweep: Sweep
+    sweep: Sweep | None = None
+    sample: designs.Sample | None = None
+    _integral: dict[str, bool] = PrivateAttr(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _one_design(self):
+        if (self.sweep is None) == (self.sample is None):
+            raise InvalidAt("sample" if self.sample else "sweep",
+                            "give either [sweep] or [sample], not both" if self.sample
+                            else "a study needs a [sweep] or a [sample] table")
+        return self
+
+    def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
+        if self.sample is not None:
+            self._integral = designs.check_ranges(self.sample, base_data, scene_file, path)
 
     def cases(self) -> list[Case]:
-        return expand(self.sweep)
+        if self.sample is None:
+            return expand(self.sweep)
+        return [Case(designs.case_id(i), values, (i,)) for i, values in enumerate(self.sample.points(self._integral))]
 
 
 def expand(sweep: Sweep) -> list[Case]:
@@ -200,13 +224,13 @@ class Plan:
 
     @property
     def keys(self) -> list[str]:
-        """The swept keys (a study)."""
-        return list(self.spec.sweep.values)
+        """The swept or sampled keys (a study)."""
+        return list(self.spec.sweep.values) if self.spec.sweep else self.spec.sample.keys
 
     @property
     def mode(self) -> str:
-        """grid or zip (a study)."""
-        return self.spec.sweep.mode
+        """grid, zip or sample (a study)."""
+        return self.spec.sweep.mode if self.spec.sweep else "sample"
 
 
 def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
@@ -253,6 +277,7 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
         raise from_validation_error(error, path, known_keys=model.model_fields) from None
     scene_file, base_data, fixed = base_scene(path, spec.scene, spec.set, overrides)
     base = scene_from_data(base_data, scene_file)
+    spec.check(base_data, scene_file, path)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)

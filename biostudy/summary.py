@@ -15,9 +15,10 @@ from rich.text import Text
 
 from solver.problem import parameter_infos
 
+from . import observables
 from .formatting import number, units_text
 
-AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")
+AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")  # what a study.nc written before observables has
 
 
 def _rows(rows: list[tuple[str, str]]) -> Table:
@@ -95,15 +96,16 @@ def run_summary(ds: xr.Dataset) -> Group:
         ("software", _software(attrs)),
     ]
     parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
-    if "time" in ds.dims and all(v in ds for v in AVERAGES):
+    if "time" in ds.dims and "phi" in ds:
         table = Table(title=None, show_edge=False)
-        table.add_column("")
+        table.add_column("observable")
         table.add_column(f"T* = {number(ds.time.values[0])}", justify="right")
         table.add_column(f"T* = {number(ds.time.values[-1])}", justify="right")
         table.add_column("units")
-        for var in AVERAGES:
-            values = ds[var].values
-            table.add_row(var, number(values[0]), number(values[-1]), units_text(ds[var].attrs.get("units", "1")))
+        table.add_column("meaning")
+        for name, values in observables.variables(ds).items():
+            table.add_row(name, number(values.values[0]), number(values.values[-1]),
+                          units_text(values.attrs["units"]), values.attrs["long_name"])
         parts.append(table)
     return Group(*parts)
 
@@ -126,10 +128,12 @@ def study_summary(ds: xr.Dataset) -> Group:
         ("software", _software(attrs)),
     ]
     name = str(attrs.get("title", "study")).removeprefix("biofilm growth study: ")
-    table = Table(show_edge=False, caption="averages at the last output time")
+    shown = [n for n in observables.SUMMARY if n in ds] or [n for n in AVERAGES if n in ds]
+    table = Table(show_edge=False, caption="observables at the last output time (" + ", ".join(
+        f"{n} {units_text(ds[n].attrs.get('units', '1')) or '1'}" for n in shown) + "; `biostudy analyze` for all)")
     table.add_column("case", no_wrap=True)
     table.add_column("status", no_wrap=True)
-    for column in ("wall s", "steps", *AVERAGES):
+    for column in ("wall s", "steps", *shown):
         table.add_column(column, justify="right")
     table.add_column("message")
 
@@ -139,13 +143,13 @@ def study_summary(ds: xr.Dataset) -> Group:
             values = values.isel(time=-1)
         return values.transpose(*dims, ...).values.ravel()
 
-    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps", "message", *AVERAGES) if v in ds}
+    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps", "message", *shown) if v in ds}
     for i, case in enumerate(columns["case_id"]):
         status = str(columns["status"][i])
         colour = {"done": "green", "failed": "red"}.get(status, "yellow")
         table.add_row(str(case), f"[{colour}]{status}[/{colour}]", number(columns["wall_time"][i]),
                       number(columns["steps"][i]),
-                      *(number(columns[v][i]) if v in columns else "-" for v in AVERAGES),
+                      *(number(columns[v][i]) if v in columns else "-" for v in shown),
                       str(columns["message"][i]))
     return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
 

@@ -8,9 +8,10 @@
   (Tables 3 and 5; `cut` picks another plane)                   -> OUT_cut.png
   and the phi >= 0.8 region in 3-D at four times (Figs. 3, 10)  -> OUT_isosurface.png
 - a 2-D run: maps of phi, c (and p) at four times               -> OUT_maps.png
-- a sweep (`study.nc`): final outputs against the swept
+- a sweep (`study.nc`): final outputs (observables) against the swept
   parameters                                                    -> OUT_sweep.png
   and the time series of every case                             -> OUT_series.png
+  (a sampled study: every output against every parameter, scattered)
 - with `warp`: the deformed body, displacement magnified (Fig. 13) -> OUT_warped.png
 
 Options narrow it down: `variable` draws one field (or one sweep output),
@@ -23,7 +24,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from . import fields, isosurface, series, sweep, warped
+from . import analysis, fields, isosurface, series, sweep, warped
 from .cuts import plane_for
 from .style import SERIES_NAMES, field_names, output_paths, save, snapshot_indices
 
@@ -74,12 +75,18 @@ def _marks(ds: xr.Dataset, indices: list[int], time: float | None) -> list[float
 
 
 def _sweep_figures(ds: xr.Dataset, variable: str | None, time: float | None, cut: str | None):
-    present = [n for n in SERIES_NAMES if n in ds]
-    if variable is not None and variable not in present:
-        raise ValueError(f"unknown variable {variable!r} for a sweep; it has {', '.join(present)}")
+    from .. import observables
+
+    known = [n for n in dict.fromkeys((*SERIES_NAMES, *observables.REGISTRY)) if n in ds]
+    if variable is not None and variable not in known:
+        raise ValueError(f"unknown variable {variable!r} for a sweep; it has {', '.join(known)}")
     if cut is not None:
         raise ValueError("a sweep has no fields to cut; plot one case's file for cuts")
-    names = [variable] if variable else present
+    shown = [n for n in dict.fromkeys((*SERIES_NAMES, *observables.SUMMARY)) if n in ds and ds[n].notnull().any()]
+    names = [variable] if variable else shown
     index = -1 if time is None else snapshot_indices(ds, time)[0]
+    if "sample_method" in ds.attrs:
+        return [("sweep", lambda: analysis.sample_figure(ds, names, index)),
+                ("series", lambda: analysis.sample_series_figure(ds, names))]
     return [("sweep", lambda: sweep.final_figure(ds, names, index)),
             ("series", lambda: sweep.series_figure(ds, names))]

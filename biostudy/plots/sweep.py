@@ -24,6 +24,16 @@ from .style import SERIES_NAMES, axis_label, suptitle
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
 NOT_PARAMETERS = {"status", "message", "error", "time"}
 LINESTYLES = ("-", "--", ":", "-.")
+COLUMNS = 3  # panels per row
+
+
+def panels(count: int):
+    """A figure with `count` panels, at most COLUMNS per row; returns it and the panels in order."""
+    rows, cols = -(-count // COLUMNS), min(count, COLUMNS)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.8 * rows), layout="constrained", squeeze=False)
+    for ax in axes.flat[count:]:
+        ax.remove()
+    return fig, list(axes.flat[:count])
 
 
 @dataclass
@@ -134,8 +144,8 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     """Outputs at one time (default the last) against the first varying parameter, a line per other combination."""
     found, x_key, others, follow, groups = _layout(ds, names)
     when = float(ds["time"].values[index])
-    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.8), layout="constrained", squeeze=False)
-    for ax, name in zip(axes[0], names):
+    fig, axes = panels(len(names))
+    for ax, name in zip(axes, names):
         where = _axis(ax, x_key, [c.params[x_key] for c in found])
         for g, group in enumerate(groups):
             members = sorted((c for c in found if tuple(c.params[k] for k in others) == group),
@@ -165,8 +175,8 @@ def series_figure(ds: xr.Dataset, names: list[str]):
     x_values = sorted({c.params[x_key] for c in found}, key=_order)
     colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(x_values)))
     time = ds["time"].values
-    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.8), layout="constrained", squeeze=False)
-    for ax, name in zip(axes[0], names):
+    fig, axes = panels(len(names))
+    for ax, name in zip(axes, names):
         for c in found:
             colour = colours[x_values.index(c.params[x_key])]
             style = LINESTYLES[groups.index(tuple(c.params[k] for k in others)) % len(LINESTYLES)]
@@ -183,7 +193,7 @@ def series_figure(ds: xr.Dataset, names: list[str]):
     legend += [plt.Line2D([], [], color="0.3", ls=LINESTYLES[g % len(LINESTYLES)],
                           label=", ".join(f"{k} = {_fmt(v)}" for k, v in zip(others, group)))
                for g, group in enumerate(groups) if others]
-    axes[0, -1].legend(handles=legend, fontsize=7, loc="best")
+    axes[min(len(names), COLUMNS) - 1].legend(handles=legend, fontsize=7, loc="best")
     suptitle(fig, "sweep: time series of every case" + ("" if all(c.ok for c in found) else
                                                         " (thin lines: failed cases)"))
     return fig
