@@ -44,7 +44,7 @@ def um(description: str, **kw):
 class Shape(BaseModel):
     """A region of space; subclasses say which cells it covers."""
 
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
     def cells(self, grid: Grid) -> np.ndarray:
         """Boolean array of ``grid.cells_shape``: cells whose centre is inside."""

@@ -31,7 +31,7 @@ from .formatting import units_text, value_text
 from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
 from .tomltext import dumps as toml_dumps
 
-CONFIG = ConfigDict(extra="forbid", strict=True)
+CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
 DEFAULT_OUTPUTS = 11
 _NUMERICS = solver.Numerics()
 _MECHANICS = solver.MechanicsSetup()

@@ -33,6 +33,24 @@ def one_line_error(result) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
+# 5. inf is bad input wherever NaN is
+
+
+@pytest.mark.parametrize("override", ["time.t_end=inf", "params.g=inf", "params.mu=inf", "params.d=-inf",
+                                      "params.beta=nan", "biofilm.0.radius=inf", "time.output_times=[0.1, inf]"])
+def test_inf_and_nan_values_are_bad_input(tiny_scene, tmp_path, override):
+    line = one_line_error(invoke("run", tiny_scene, "-o", tmp_path / "out.nc", "--set", override))
+    assert line.startswith("error: --set: ") and "must be a finite number" in line
+    assert not (tmp_path / "out.nc").exists()
+
+
+def test_inf_in_a_study_names_the_case(write_toml, tiny_scene, tmp_path):
+    study = write_toml("infinite.toml", 'scene = "tiny.toml"\n[sweep]\ng = [1e8, inf]\n')
+    line = one_line_error(invoke("sweep", study, "-o", tmp_path / "out"))
+    assert line == f"error: {study}: case g=inf: params.g: must be a finite number (got inf)"
+
+
+# ---------------------------------------------------------------------------------------------
 # 13. A linear solver's failure says what failed (the true-residual check), not "info 0"
 
 
