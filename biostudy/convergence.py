@@ -38,7 +38,7 @@ from . import measures, store
 from .errors import BadInput
 from .formatting import number
 from .runner import Job, SweepReport, run_jobs
-from .scene import Scene, overrides_text, scene_from_data, set_key
+from .scene import Scene, given_by, overrides_text, scene_from_data, set_key
 
 SERIES = ("space", "time", "both", "adaptive")
 FIRST_TOLERANCE = 1e-2  # adaptive level 0: local error in phi per step
@@ -133,7 +133,7 @@ def run(data: dict, scene_file: Path, out_dir: Path, levels: int, series: tuple[
     """Run every level (skipping finished ones), measure, write DIR/convergence.nc; returns it and the report."""
     if levels < 2:
         raise BadInput("needs at least 2 levels (the finest is the reference)", None, "--levels")
-    base = scene_from_data(copy.deepcopy(data), scene_file)
+    base = scene_from_data(copy.deepcopy(data), scene_file, given_by(fixed or {}, "--set"))
     check_refinable(base, scene_file)
     given = None if reference is None else load_reference(reference, base, time)
     wanted = plan(base, levels, series, tolerance)

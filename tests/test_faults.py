@@ -51,6 +51,25 @@ def test_inf_in_a_study_names_the_case(write_toml, tiny_scene, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
+# 12. Errors name where the value came from: --set, the study's [set], the scene
+
+
+def test_errors_name_the_override_that_gave_the_value(write_toml, tiny_scene, tmp_path):
+    line = one_line_error(invoke("run", tiny_scene, "-o", tmp_path / "o.nc", "--set", "params.d=-1"))
+    assert line == "error: --set: params.d: must be > 0 (got -1)"
+    study = write_toml("study.toml", 'scene = "tiny.toml"\n[set]\n"params.gg" = 1.0\n[sweep]\nr = [1.0, 2.0]\n')
+    line = one_line_error(invoke("sweep", study, "-o", tmp_path / "out"))
+    assert line.startswith(f"error: {study}: set.params.gg: unknown key")
+    study = write_toml("study.toml", 'scene = "tiny.toml"\n[sweep]\nr = [1.0, 2.0]\n')
+    line = one_line_error(invoke("sweep", study, "-o", tmp_path / "out", "--set", "time.steps=0"))
+    assert line == "error: --set: time.steps: must be >= 1 (got 0)"
+    write_toml("tiny.toml", open(tiny_scene).read().replace("steps = 20", "steps = -3"))
+    line = one_line_error(invoke("sweep", study, "-o", tmp_path / "out"))
+    assert line == f"error: {tiny_scene}: time.steps: must be >= 1 (got -3)"  # the scene's own value
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------------------------------
 # 13. A linear solver's failure says what failed (the true-residual check), not "info 0"
 
 
