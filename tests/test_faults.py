@@ -51,6 +51,49 @@ def test_inf_in_a_study_names_the_case(write_toml, tiny_scene, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
+# 11. Mask files: confined to the scene's folder unless absolute; never unpickled; headers checked
+
+
+def _mask_scene(write_toml, path: str):
+    return write_toml("masked.toml", f'[grid]\nshape = [4, 4]\n[time]\nsteps = 2\n[[obstacle]]\nshape = "mask"\n'
+                                     f'path = "{path}"\n')
+
+
+def test_a_relative_mask_path_stays_in_the_scene_folder_an_absolute_one_is_taken_as_given(write_toml, tmp_path):
+    from biostudy.scene import load_scene
+
+    outside = tmp_path.parent / f"{tmp_path.name}-outside.npy"  # beside the test's folder: must not be read
+    inside = tmp_path / "sub" / "mask.npy"
+    inside.parent.mkdir()
+    np.save(inside, np.eye(4, dtype=bool))
+    line = one_line_error(invoke("run", _mask_scene(write_toml, f"../{outside.name}"), "-o", tmp_path / "o.nc"))
+    assert "obstacle[0].path" in line and "outside the scene's folder" in line
+    assert load_scene(_mask_scene(write_toml, "sub/mask.npy")).obstacle[0].path == str(inside)
+    assert load_scene(_mask_scene(write_toml, "./sub/../sub/mask.npy")).obstacle[0].path == str(inside)
+    assert load_scene(_mask_scene(write_toml, str(inside))).obstacle[0].path == str(inside)
+
+
+def _npy_header(header: bytes) -> bytes:
+    header = header + b" " * (118 - len(header)) + b"\n"
+    return b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header
+
+
+@pytest.mark.parametrize("content, expected", [
+    (b"\x80\x04\x95\x09\x00\x00\x00\x00\x00\x00\x00]\x94(K\x01K\x02e.", "not a .npy file"),  # a pickle
+    (b"hello", "not a .npy file"),
+    (_npy_header(b"{'descr': '|O', 'fortran_order': False, 'shape': (4, 4), }") + b"\0" * 128,
+     "holds Python objects"),
+    (_npy_header(b"{'descr': '|b1', 'fortran_order': False, 'shape': (4, 4 }") + b"\0" * 16, "not a .npy file"),
+    (_npy_header(b"{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000, 100000), }") + b"\0" * 16,
+     "header announces [100000, 100000, 100000] float64 values, but the file holds 16 bytes"),
+])
+def test_a_mask_that_is_not_a_npy_array_is_one_line(write_toml, tmp_path, content, expected):
+    (tmp_path / "bad.npy").write_bytes(content)
+    line = one_line_error(invoke("run", _mask_scene(write_toml, "bad.npy"), "-o", tmp_path / "o.nc"))
+    assert "obstacle[0].path" in line and expected in line and "allow_pickle" not in line
+
+
+# ---------------------------------------------------------------------------------------------
 # 12. Errors name where the value came from: --set, the study's [set], the scene
 
 
