@@ -68,6 +68,9 @@ def run(
     output: Optional[Path] = typer.Option(None, "-o", "--output",
                                           help="dataset to write (default: NAME.nc, the scene's name)"),
     overrides: List[str] = typer.Option([], "--set", help=SET_HELP),
+    force: bool = typer.Option(False, "--force", help="replace OUT.nc even if it holds the result of another "
+                                                      "scene or a sweep's file (never an input or a file "
+                                                      "biostudy did not write)"),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Run one simulation and write its dataset (netCDF)."""
@@ -79,8 +82,9 @@ def run(
 
         path = bundled.resolve(scene)
         loaded = load_scene(path, overrides)
-        problem = loaded.problem()
         target = output or Path(re.sub(r"[^\w.+-]", "-", loaded.name) + ".nc")
+        replacing = _replacing(target, path, loaded, force)  # before anything is computed
+        problem = loaded.problem()
         try:
             with _simulation_progress(loaded.name, problem.t_end, quiet) as report:
                 ds = simulate(problem, progress=report)
@@ -89,7 +93,32 @@ def run(
         text = overrides_text([parse_override(o) for o in overrides])
         store.write_atomic(store.stamp(ds, loaded.to_toml(), path, text, **worker.provenance()), target)
         err.print(f"wrote {target} (wall time {ds.attrs['wall_time']:.3g} s, {ds.attrs['steps_taken']} steps, "
-                  f"{ds.attrs['steps_bisected']} bisected)")
+                  f"{ds.attrs['steps_bisected']} bisected){replacing}", markup=False, highlight=False, soft_wrap=True)
+
+
+def _replacing(target: Path, scene_file: Path, scene, force: bool) -> str:
+    """Check that `run` may write `target` (bad input if not); what the message adds when it replaces a file.
+
+    Never an input (the scene file, a mask) nor a file biostudy did not write; an earlier result of the same
+    scene is replaced, anything else biostudy wrote (another scene's result, a sweep's file) only with --force.
+    """
+    from . import store
+
+    store.writable(target)
+    masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
+             if getattr(r, "shape", None) == "mask"]
+    previous = store.replaceable(target, [scene_file, *masks])
+    if previous is None:
+        return ""
+    if "case_id" in previous or "sweep_mode" in previous:
+        what = "a file of a sweep"
+    elif previous.get("scene_file") != str(Path(scene_file).resolve()):
+        what = f"the result of another scene ({previous.get('scene_file', 'unknown')})"
+    else:
+        return "; it replaces the earlier result of the same scene"
+    if not force:
+        raise BadInput(f"holds {what}; give --force to replace it, or choose another output", target)
+    return f"; it replaces {what} (--force)"
 
 
 @contextlib.contextmanager

@@ -10,17 +10,84 @@ ended by the test, and every file stays in its temporary directory.
 """
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
 import numpy as np
+import psutil
 import pytest
+import xarray as xr
 from typer.testing import CliRunner
 
+import solver
+from biostudy import runner, store
 from biostudy.cli import app
+from biostudy.study import load_study
 
 cli = CliRunner()
 
 
 def invoke(*args):
     return cli.invoke(app, [str(a) for a in args])
+
+
+def command(*args, **kw) -> subprocess.Popen:
+    """`biostudy ARGS` in a process of its own (stderr as text); the test ends it."""
+    return subprocess.Popen([sys.executable, "-m", "biostudy", *map(str, args)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def wait_for(condition, timeout: float, what: str):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def computing_workers(process: psutil.Process) -> list[psutil.Process]:
+    """The sweep's worker processes that have started simulating (forked by its fork server)."""
+    try:
+        server = [p for p in process.children() if "forkserver" in " ".join(p.cmdline())]
+        return [w for s in server for w in s.children() if w.cpu_times().user > 0.3]
+    except psutil.Error:  # a process came or went while we looked
+        return []
+
+
+def ended(processes: list[psutil.Process], timeout: float) -> list[psutil.Process]:
+    """Those of `processes` still alive after `timeout` s (zombies count as ended); the rest are killed."""
+    _, alive = psutil.wait_procs(processes, timeout=timeout)
+    alive = [p for p in alive if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+    for p in alive:
+        p.kill()
+    return alive
+
+
+@pytest.fixture
+def no_simulation(monkeypatch):
+    """Fails the test if anything is simulated in this process: a refusal must come before computing."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("simulated although the output was refused")
+
+    monkeypatch.setattr(solver, "simulate", refuse)
+    monkeypatch.setattr(runner, "solve", refuse)
+
+
+def slow_study(write_toml, steps: int, values=(50.0, 60.0, 70.0)):
+    """A study of the tiny scene whose cases take a few seconds each (to be killed while they run)."""
+    return write_toml("slow.toml", f"""\
+        scene = "tiny.toml"
+        [set]
+        "time.t_end" = 1.0
+        "time.steps" = {steps}
+        [sweep]
+        r = {list(values)}
+        """)
 
 
 def one_line_error(result) -> str:
@@ -30,6 +97,61 @@ def one_line_error(result) -> str:
     assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
     assert "Traceback" not in result.output and result.stdout == ""
     return lines[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. An output never overwrites an input or a file biostudy did not write
+
+
+def test_run_refuses_to_overwrite_its_scene_a_mask_or_a_foreign_file(write_toml, tiny_scene, tmp_path, no_simulation):
+    scene_text = tiny_scene.read_bytes()
+    line = one_line_error(invoke("run", tiny_scene, "-o", tiny_scene))
+    assert "is an input of this run" in line and tiny_scene.read_bytes() == scene_text
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes")
+    line = one_line_error(invoke("run", tiny_scene, "-o", notes))
+    assert "is not a dataset biostudy wrote" in line and notes.read_text() == "my notes"
+    np.save(tmp_path / "m.npy", np.arange(256).reshape(16, 16) == 85)  # one cell, (5, 5)
+    masked = write_toml("masked.toml", tiny_scene.read_text() + '[[obstacle]]\nshape = "mask"\npath = "m.npy"\n')
+    line = one_line_error(invoke("run", masked, "-o", tmp_path / "m.npy"))
+    assert "is an input of this run" in line and np.load(tmp_path / "m.npy").shape == (16, 16)
+
+
+def test_run_replaces_an_earlier_result_of_the_same_scene_and_says_so(write_toml, tiny_scene, tmp_path):
+    out = tmp_path / "out.nc"
+    assert invoke("run", tiny_scene, "-o", out, "-q").exit_code == 0
+    again = invoke("run", tiny_scene, "-o", out, "-q", "--set", "g=2e8")
+    assert again.exit_code == 0 and "replaces the earlier result of the same scene" in again.stderr
+    other = write_toml("other.toml", tiny_scene.read_text())
+    line = one_line_error(invoke("run", other, "-o", out, "-q"))
+    assert f"holds the result of another scene ({tiny_scene})" in line and "--force" in line
+    assert xr.open_dataset(out).attrs["g"] == 2e8  # untouched
+    forced = invoke("run", other, "-o", out, "-q", "--force")
+    assert forced.exit_code == 0 and "(--force)" in forced.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. A sweep removes only the temporaries of writers that are gone
+
+
+def test_a_sweep_leaves_other_writers_temporaries_alone(tiny_study, tmp_path):
+    out = tmp_path / "out"
+    assert runner.sweep(load_study(tiny_study), out).ok
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])  # a writer still running
+    dead = subprocess.Popen(["true"])  # one that is gone
+    dead.wait()
+    try:
+        kept = [out / ".draft.tmp", out / "cases" / ".notes.tmp",
+                out / "cases" / f".g=1e+08_r=50.nc.{other.pid}.0123abcd.tmp"]
+        for path in kept:
+            path.write_text("someone's")
+        gone = out / "cases" / f".g=1e+08_r=50.nc.{dead.pid}.0123abcd.tmp"
+        gone.write_bytes(b"\x89HDF half")
+        report = runner.sweep(load_study(tiny_study), out)
+        assert report.removed == [gone] and all(p.read_text() == "someone's" for p in kept)
+    finally:
+        other.kill()
+        other.wait()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -57,7 +57,10 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     assert len(first.ran) == 4 and not first.skipped
     # as if a run had been killed: one case missing, a half-written temporary beside the others
     (out / "cases" / "g=1e+09_r=100.nc").unlink()
-    (out / "cases" / ".g=1e+09_r=100.nc.4242.dead.tmp").write_bytes(b"\x89HDF half")
+    dead = subprocess.Popen(["true"])  # the pid of a writer that is gone
+    dead.wait()
+    leftover = f".g=1e+09_r=100.nc.{dead.pid}.0123abcd.tmp"
+    (out / "cases" / leftover).write_bytes(b"\x89HDF half")
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.nc")}
     combine.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
     partial = xr.open_dataset(out / "study.nc")
@@ -65,7 +68,7 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
     again = runner.sweep(load_study(tiny_study), out)
     assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
-    assert [p.name for p in again.removed] == [".g=1e+09_r=100.nc.4242.dead.tmp"]
+    assert [p.name for p in again.removed] == [leftover]
     assert case_files(out) == sorted([*stamps, "g=1e+09_r=100.nc"])
     assert all((out / "cases" / n).stat().st_mtime_ns == t for n, t in stamps.items())  # untouched
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
