@@ -29,6 +29,9 @@ err = Console(stderr=True)
 out = Console()
 
 SET_HELP = "override a scene key, KEY=VALUE with the value as TOML (params.g=1e10, grid.shape=[40,40,40]); repeatable"
+FORCE_HELP = ("use the output directory even if it belongs to another study or holds files no biostudy run "
+              "recorded (cases of the same ids are replaced)")
+RERUN_HELP = "run every case again, also those finished before (e.g. after a software upgrade)"
 
 
 @app.callback()
@@ -142,7 +145,9 @@ def sweep(
                                                                      "e.g. tcp://10.0.0.5:8786"),
     overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to every case"),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="run failed cases again (finished ones "
-                                                                    "are always skipped)"),
+                                                                    "are skipped unless --rerun-all)"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    rerun_all: bool = typer.Option(False, "--rerun-all", help=RERUN_HELP),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Run every case of a study; re-running skips finished cases."""
@@ -156,9 +161,10 @@ def sweep(
 
         def run(notify) -> _Finished:
             report = runner.sweep(plan, directory, workers=workers, scheduler=scheduler,
-                                  retry_failed=retry_failed, notify=notify)
+                                  retry_failed=retry_failed, notify=notify, force=force, rerun_all=rerun_all)
             return _Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
-                             f"{len(report.failed)} failed; wrote {report.study}", report.failed, len(plan.cases))
+                             f"{len(report.failed)} failed; wrote {report.study}", report.failed, len(plan.cases),
+                             warnings=report.warnings())
 
         return plan.spec.name, run
 
@@ -249,6 +255,8 @@ def convergence(
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="run levels on N local processes"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running Dask scheduler"),
     overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to level 0"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    rerun_all: bool = typer.Option(False, "--rerun-all", help=RERUN_HELP),
     reference: Optional[Path] = typer.Option(None, "--reference", help="measure every level against this run of "
                                                                        "the same scene (e.g. refined, another "
                                                                        "scheme) instead of the finest level"),
@@ -271,13 +279,13 @@ def convergence(
 
         def run(notify) -> _Finished:
             ds, report = refinement.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
-                                        notify, fixed, reference, time)
+                                        notify, fixed, reference, time, force, rerun_all)
             table = refinement.table_text(ds)
             (directory / "convergence.md").write_text(table)
             work_precision(ds, directory / "work_precision.png")
             return _Finished(f"wrote {directory / 'convergence.nc'}, convergence.md, work_precision.png "
                              f"({len(report.ran)} runs, {len(report.skipped)} finished before)", report.failed,
-                             len(report.ran) + len(report.skipped), table, "runs")
+                             len(report.ran) + len(report.skipped), table, "runs", report.warnings())
 
         return f"convergence {path.stem}", run
 
@@ -293,12 +301,15 @@ def _one_pool(workers: int | None, scheduler: str | None) -> None:
 @contextlib.contextmanager
 def _job_progress(title: str, quiet: bool):
     """A progress bar over the jobs of a sweep, convergence or stability run; yields run_jobs' notify.
-    A job that fails is told at once (also with --quiet): the others go on."""
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err, disable=quiet) as progress:
-        task = progress.add_task(title, total=0, last="")
-
+    A job that fails is told at once (also with --quiet): the others go on.  The bar shows from the first
+    job on: input found bad before (an output directory in use, say) is told on its own line."""
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                        TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err, disable=quiet)
+    task = progress.add_task(title, total=0, last="")
+    try:
         def notify(event: str, job_id: str, message: str):
+            if not progress.live.is_started:
+                progress.start()
             if event == "start":
                 progress.update(task, total=progress.tasks[0].total + 1)
             elif event in ("done", "failed"):
@@ -307,6 +318,9 @@ def _job_progress(title: str, quiet: bool):
                     progress.console.print(f"{job_id} failed: {message}", markup=False, highlight=False)
 
         yield notify
+    finally:
+        if progress.live.is_started:
+            progress.stop()
 
 
 @dataclass
@@ -318,6 +332,10 @@ class _Finished:
     total: int  # jobs in all
     table: str = ""  # printed on stdout
     noun: str = "cases"
+    warnings: list[str] = None  # printed on stderr, before the summary
+
+    def __post_init__(self):
+        self.warnings = self.warnings or []
 
 
 def _job_command(command: str, workers: int | None, scheduler: str | None, quiet: bool,
@@ -329,9 +347,12 @@ def _job_command(command: str, workers: int | None, scheduler: str | None, quiet
     failed, or a pool that broke down, is exit status 1.
     """
     with _guarded():
+        from . import runner
         from .runner import SweepError
 
         _one_pool(workers, scheduler)
+        if workers:
+            runner.warm_up()  # the workers' imports overlap validating the input
         title, run = start()
         with _job_progress(title, quiet) as notify:
             try:
@@ -340,6 +361,8 @@ def _job_command(command: str, workers: int | None, scheduler: str | None, quiet
                 raise _fail(f"{command} stopped: {error}", 1) from None
         if finished.table:
             typer.echo(finished.table)
+        for warning in finished.warnings:
+            typer.echo(f"warning: {warning}", err=True)
         err.print(finished.summary)
         if finished.failures:
             raise _fail(f"{len(finished.failures)} of {finished.total} {finished.noun} failed: "
@@ -354,6 +377,8 @@ def stability(
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="run cases on N local processes"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="address of a running Dask scheduler"),
     overrides: List[str] = typer.Option([], "--set", help=SET_HELP + "; applied to every case"),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    rerun_all: bool = typer.Option(False, "--rerun-all", help=RERUN_HELP),
     quiet: bool = typer.Option(False, "-q", "--quiet", help="no progress bar"),
 ):
     """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
@@ -366,7 +391,7 @@ def stability(
         directory = output or Path(f"{path.stem}-results")
 
         def run(notify) -> _Finished:
-            ds, _ = catalogue_run.run(plan, directory, workers, scheduler, notify)
+            ds, report = catalogue_run.run(plan, directory, workers, scheduler, notify, force, rerun_all)
             table = catalogue_run.table_text(ds)
             (directory / "stability.md").write_text(table)
             failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}

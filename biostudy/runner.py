@@ -12,25 +12,35 @@ worker processes start with ``OMP_NUM_THREADS=1`` (one simulation per core;
 FiPy's suite ran 40x slower with unrestricted threads) and
 ``FIPY_SOLVERS=scipy``; Dask's nanny sets the thread variables for its
 workers itself.  What runs in a worker is in `biostudy.worker`.
+
+Local workers are this module's own small pool (`_Pool`): each worker
+solves one case at a time, so a worker that dies (SIGKILL, the kernel's
+out-of-memory killer, a crash in a library) takes only its own case with it:
+that case is recorded as failed ("worker died: signal 9 ..."), a new worker
+takes its place and the others compute on.  Workers end with the sweep's
+process however it ends (`worker.serve`).  A sweep's directory is claimed
+first (`ownership`): locked for this process, owned by one study.
 """
 from __future__ import annotations
 
 import contextlib
 import hashlib
+import importlib.metadata
 import multiprocessing
+import multiprocessing.connection
 import os
 import signal
 import threading
+import time
 import uuid
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
-from . import combine, store, worker
+from . import combine, ownership, store, worker
 from .errors import BadInput
 from .scene import Scene, overrides_text
 from .study import Plan
@@ -110,6 +120,17 @@ def _context():
     return multiprocessing.get_context("spawn")
 
 
+def warm_up() -> None:
+    """Start the fork server now, so that its imports (~1 s) overlap this process's own work (validating,
+    fingerprinting, checking finished cases) instead of delaying the first case.  Idempotent."""
+    context = _context()
+    if context.get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        with _environment(WORKER_ENV):
+            forkserver.ensure_running()
+
+
 def _windowed(ids: list[str], compile_: Compile, window: int, submit: Callable, first_done: Callable,
               result: Callable, running: dict) -> Iterator[tuple[str, Outcome]]:
     """The submit loop every pool shares: at most `window` cases in flight, each compiled just before it
@@ -134,34 +155,126 @@ def _windowed(ids: list[str], compile_: Compile, window: int, submit: Callable, 
         fill()
 
 
+@dataclass
+class _Worker:
+    process: multiprocessing.Process
+    tasks: multiprocessing.connection.Connection  # problems out, outcomes back
+    case_id: str | None = None  # the case it is solving
+    began: float = 0.0
+
+
+def _death(exitcode: int | None) -> str:
+    """Why a worker process ended without an answer, for the case's record."""
+    if exitcode is None:
+        return "worker died: it stopped answering and did not end"
+    if exitcode < 0:
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = "unknown signal"
+        text = f"worker died: signal {-exitcode} ({name})"
+        if -exitcode == signal.SIGKILL:
+            text = "worker died: signal 9 (SIGKILL: killed from outside, or out of memory)"
+        return text
+    return f"worker died: exit status {exitcode}"
+
+
+class _Pool:
+    """Local worker processes, one case each at a time; started as cases need them, replaced when one dies."""
+
+    def __init__(self, size: int):
+        self.context = _context()
+        self.size = size
+        self.workers: list[_Worker] = []
+        # every worker holds the reading end; the writing end exists only in this process (see worker.serve)
+        self.lifeline, self._lifeline_writer = self.context.Pipe(duplex=False)
+
+    @property
+    def busy(self) -> int:
+        return sum(w.case_id is not None for w in self.workers)
+
+    def _start(self) -> _Worker:
+        ours, theirs = self.context.Pipe()
+        process = self.context.Process(target=worker.serve, args=(theirs, self.lifeline), daemon=True,
+                                       name=f"biostudy-worker-{len(self.workers)}")
+        with _environment(WORKER_ENV), _interruptions_deferred():
+            process.start()
+        theirs.close()  # only the worker holds its end: a worker that dies closes the pipe
+        self.workers.append(_Worker(process, ours))
+        return self.workers[-1]
+
+    def give(self, case_id: str, problem: "solver.Problem") -> None:
+        idle = next((w for w in self.workers if w.case_id is None), None) or self._start()
+        try:
+            idle.tasks.send(problem)
+        except (BrokenPipeError, OSError):  # it died while idle: a fresh one takes the case
+            self._drop(idle)
+            idle = self._start()
+            idle.tasks.send(problem)
+        idle.case_id, idle.began = case_id, time.perf_counter()
+
+    def _drop(self, gone: _Worker) -> None:
+        self.workers.remove(gone)
+        gone.tasks.close()
+        gone.process.join(5)
+
+    def finished(self) -> list[tuple[str, Outcome]]:
+        """Wait until at least one busy worker has answered or died; (case id, Outcome) of each."""
+        busy = [w for w in self.workers if w.case_id is not None]
+        ready = set(multiprocessing.connection.wait([w.tasks for w in busy] + [w.process.sentinel for w in busy]))
+        done = []
+        for w in busy:
+            if w.tasks not in ready and w.process.sentinel not in ready:
+                continue
+            case_id, w.case_id = w.case_id, None
+            try:
+                if w.tasks.poll():
+                    done.append((case_id, w.tasks.recv()))
+                    continue
+            except (EOFError, OSError):
+                pass
+            self._drop(w)
+            done.append((case_id, Outcome("failed", None, _death(w.process.exitcode),
+                                          time.perf_counter() - w.began, "WorkerDied")))
+        return done
+
+    def close(self, finished: bool) -> None:
+        """Done: workers end when their task pipe closes.  Interrupted: running simulations cannot be
+        cancelled, only ended."""
+        for w in self.workers:
+            if not finished:
+                w.process.terminate()
+            w.tasks.close()
+        for w in self.workers:
+            w.process.join(10)
+            if w.process.exitcode is None:
+                w.process.kill()
+                w.process.join(5)
+        self._lifeline_writer.close()
+        self.lifeline.close()
+
+
 def _local(ids: list[str], compile_: Compile, workers: int) -> Iterator[tuple[str, Outcome]]:
-    executor = ProcessPoolExecutor(max_workers=workers, mp_context=_context(), initializer=worker.start)
-    running: dict = {}
+    """Cases on `workers` local processes: a worker that finishes gets its next case before this process
+    records the one it finished (writing a file takes no worker's time)."""
+    pool = _Pool(workers)
+    waiting = deque(ids)
     finished = False
 
-    def submit(problem, case_id):
-        with _environment(WORKER_ENV), _interruptions_deferred():  # worker processes start on submit
-            return executor.submit(solve, problem)
-
-    def result(future) -> Outcome:
-        try:
-            return future.result()
-        except BrokenProcessPool:
-            raise SweepError("a worker process died (out of memory?); finished cases are kept, run "
-                             "the sweep again to resume") from None
+    def fill():
+        while waiting and pool.busy < pool.size:
+            case_id = waiting.popleft()
+            pool.give(case_id, compile_(case_id))
 
     try:
-        yield from _windowed(ids, compile_, 2 * workers, submit,
-                             lambda futures: wait(futures, return_when=FIRST_COMPLETED).done, result, running)
+        fill()
+        while pool.busy:
+            done = pool.finished()
+            fill()
+            yield from done
         finished = True
     finally:
-        if finished:
-            executor.shutdown(wait=True)
-        else:  # interrupted or failed: running simulations cannot be cancelled, only ended
-            processes = list((getattr(executor, "_processes", None) or {}).values())
-            executor.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                process.terminate()
+        pool.close(finished)
 
 
 def _dask(ids: list[str], compile_: Compile, address: str) -> Iterator[tuple[str, Outcome]]:
@@ -206,10 +319,26 @@ class SweepReport:
     skipped: list[str] = field(default_factory=list)
     failed: dict[str, str] = field(default_factory=dict)
     removed: list[Path] = field(default_factory=list)
+    damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
+    outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
 
     @property
     def ok(self) -> bool:
         return not self.failed
+
+    def warnings(self) -> list[str]:
+        """What a user should know besides the counts: damaged files computed again, outdated cases kept."""
+        said = []
+        if self.damaged:
+            said.append(f"{len(self.damaged)} finished case files were damaged (their checksums or data did not "
+                        f"read back) and were computed again: {', '.join(self.damaged[:3])}"
+                        f"{', ...' if len(self.damaged) > 3 else ''}")
+        if self.outdated:
+            versions = sorted(set(self.outdated.values()))
+            said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
+                        f"({'; '.join(versions[:2])}{'; ...' if len(versions) > 2 else ''}) and were reused; "
+                        "--rerun-all computes every case again")
+        return said
 
 
 @dataclass(frozen=True)
@@ -224,7 +353,8 @@ class Job:
 
 
 def fingerprint(problem: "solver.Problem") -> str:
-    """sha256 of everything that determines a run's result (not its name)."""
+    """sha256 of everything that determines a run's result (not its name).  The software's versions are not
+    in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
     digest = hashlib.sha256()
     for part in (problem.grid, problem.params, problem.numerics, problem.mechanics, problem.consumption,
                  problem.t_end, problem.steps):
@@ -235,15 +365,41 @@ def fingerprint(problem: "solver.Problem") -> str:
     return digest.hexdigest()
 
 
+NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a result's numbers depend on
+
+
+def software_versions() -> dict[str, str]:
+    """The versions a case file records (`biostudy_version`, `version_<package>`) that its numbers depend on."""
+    versions = {"biostudy_version": store.version()}
+    for name in NUMERIC_PACKAGES:
+        try:
+            versions[f"version_{name.replace('-', '_')}"] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def _outdated(record: dict) -> str:
+    """'' if a case file was made by the software running now, else which versions differ, e.g.
+    'biostudy 0.0.1 (now 0.1.0), scipy 1.11.4 (now 1.12.0)'."""
+    now = software_versions()
+    return ", ".join(f"{k.removeprefix('version_').removesuffix('_version').replace('_', '-')} {record[k]} "
+                     f"(now {v})" for k, v in now.items() if k in record and str(record[k]) != v)
+
+
 def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
-             retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
+             retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None,
+             rerun_all: bool = False) -> SweepReport:
     """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
 
-    A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped
-    (a recorded failure too, unless `retry_failed`).  notify(event, id, message) is called with event
+    A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
+    recorded failure too, unless `retry_failed`) once its data read back with their checksums (a damaged
+    file is run again); `rerun_all` runs every job again.  notify(event, id, message) is called with event
     "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without `workers` or
-    `scheduler` jobs run here, one after another.
+    `scheduler` jobs run here, one after another.  The caller holds the directory (`owned`).
     """
+    if workers and not scheduler:
+        warm_up()  # the workers' imports overlap the checks below
     out_dir = Path(out_dir)
     cases_dir = out_dir / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
@@ -255,14 +411,20 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     ids, prints = [], {}
     for job in jobs:
         prints[job.id] = fingerprint(job.scene.problem())
-        record = store.recorded(store.case_file(out_dir, job.id))
+        path = store.case_file(out_dir, job.id)
+        record = None if rerun_all else store.recorded(path)
         if record and record.get("fingerprint") == prints[job.id] and (
                 record.get("status") == "done" or (record.get("status") == "failed" and not retry_failed)):
-            report.skipped.append(job.id)
-            if record.get("status") == "failed":
-                report.failed[job.id] = str(record.get("message", ""))
-            notify("skip", job.id, str(record.get("status")))
-            continue
+            if store.intact(path):
+                report.skipped.append(job.id)
+                if record.get("status") == "failed":
+                    report.failed[job.id] = str(record.get("message", ""))
+                outdated = _outdated(record)
+                if outdated:
+                    report.outdated[job.id] = outdated
+                notify("skip", job.id, str(record.get("status")))
+                continue
+            report.damaged.append(job.id)
         ids.append(job.id)
         notify("start", job.id, "")
 
@@ -287,6 +449,15 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     return report
 
 
+@contextlib.contextmanager
+def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False) -> Iterator[Path]:
+    """Claim a sweep's directory for `owner` (`ownership.claimed`) and check, before anything runs, that its
+    summary file (study.nc, ...) may be replaced."""
+    with ownership.claimed(out_dir, owner, force) as directory:
+        store.replaceable(directory / summary)
+        yield directory
+
+
 def plan_jobs(plan: Plan, **attrs) -> list[Job]:
     """One job per case of a study or catalogue; each case file records the case's id and its own
     attributes, the overrides that made it and `attrs` (e.g. the study file)."""
@@ -295,17 +466,27 @@ def plan_jobs(plan: Plan, **attrs) -> list[Job]:
             for case in plan.cases]
 
 
+def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
+    """Who a study's or catalogue's directory belongs to: its kind, name, base scene and swept keys."""
+    keys = tuple(plan.keys) if kind == "study" else ()
+    return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
+
+
 def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
-          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
-    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`)."""
+          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None,
+          force: bool = False, rerun_all: bool = False) -> SweepReport:
+    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`);
+    the directory must be this study's (or new, or `force`) and not in use by another run."""
     jobs = plan_jobs(plan, study_file=str(plan.file.resolve()))
-    report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify)
-    combine.write_study(plan, Path(out_dir))
+    with owned(out_dir, plan_owner(plan, "study"), "study.nc", force):
+        report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify, rerun_all)
+        combine.write_study(plan, Path(out_dir))
     return report
 
 
 def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None:
-    """Write one case's file: its dataset, or the failure record."""
+    """Write one case's file: its dataset, or the failure record.  A file that cannot be written stops the
+    sweep (`SweepError`): the cases recorded so far are kept."""
     extra = {**job.attrs, "fingerprint": fingerprint}
     if outcome.status == "done":
         ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
@@ -313,4 +494,9 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     else:
         ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
                                   job.scene_file, job.overrides, error=outcome.error, **extra)
-    store.write_atomic(ds, store.case_file(out_dir, job.id))
+    path = store.case_file(out_dir, job.id)
+    try:
+        store.write_atomic(ds, path)
+    except OSError as error:
+        raise SweepError(f"cannot write {path} ({error.strerror or error}); the cases recorded so far are kept, "
+                         "run again to resume") from None

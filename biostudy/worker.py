@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import platform
 import signal
+import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -47,6 +48,37 @@ def start() -> None:
     worker must not die mid-task on its own; the solver is imported while the parent prepares."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     import solver.output  # noqa: F401  (FiPy, xarray: a second of imports before the first case arrives)
+
+
+def serve(tasks, lifeline) -> None:
+    """A local worker process (`runner`'s pool): solve each problem that comes through `tasks` and send back
+    its `Outcome`, until `tasks` closes.
+
+    `lifeline` is the reading end of a pipe whose only writer is the sweep's process: when that process
+    ends, however it ends (SIGKILL included), the pipe closes and this process ends at once, even in the
+    middle of a simulation, instead of computing on for nobody (and keeping the fork server and the resource
+    tracker alive with it).
+    """
+    start()
+    threading.Thread(target=_end_with, args=(lifeline,), name="lifeline", daemon=True).start()
+    while True:
+        try:
+            problem = tasks.recv()
+        except (EOFError, OSError):
+            return  # the sweep is done with this worker
+        outcome = solve(problem)
+        try:
+            tasks.send(outcome)
+        except (BrokenPipeError, OSError):
+            return
+
+
+def _end_with(lifeline) -> None:
+    try:
+        lifeline.recv_bytes()  # nothing is ever sent: returns (EOFError) when the sweep's process has ended
+    except (EOFError, OSError):
+        pass
+    os._exit(1)
 
 
 def provenance() -> dict[str, str]:

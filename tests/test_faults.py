@@ -25,7 +25,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 import solver
-from biostudy import runner, store
+from biostudy import ownership, runner, store
 from biostudy.cli import app
 from biostudy.study import load_study
 
@@ -155,6 +155,75 @@ def test_a_sweep_leaves_other_writers_temporaries_alone(tiny_study, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
+# 3. A sweep directory belongs to one study; one run writes into it at a time
+
+
+def test_another_study_is_refused_unless_forced(write_toml, tiny_study, tmp_path):
+    out = tmp_path / "out"
+    assert invoke("sweep", tiny_study, "-o", out, "-q").exit_code == 0
+    before = {p.name: p.stat().st_mtime_ns for p in [out / "study.nc", *(out / "cases").iterdir()]}
+    other = write_toml("other.toml", 'scene = "tiny.toml"\n[sweep]\ng = [1e8, 1e9]\n')
+    line = one_line_error(invoke("sweep", other, "-o", out, "-q"))
+    assert line.startswith(f"error: {out}: belongs to study 'tiny-sweep' of ") and "--force" in line
+    assert {p.name: p.stat().st_mtime_ns for p in [out / "study.nc", *(out / "cases").iterdir()]} == before
+    # the same study with other values resumes there; a folder of a user's files is refused too
+    assert invoke("sweep", tiny_study, "-o", out, "-q", "--set", "time.steps=10").exit_code == 0
+    folder = tmp_path / "papers"
+    folder.mkdir()
+    (folder / "draft.tex").write_text("mine")
+    line = one_line_error(invoke("sweep", tiny_study, "-o", folder, "-q"))
+    assert "holds files that no biostudy run recorded as its own (draft.tex)" in line
+    assert sorted(os.listdir(folder)) == [".biostudy.lock", "draft.tex"]
+    forced = invoke("sweep", other, "-o", out, "-q", "--force")
+    assert forced.exit_code == 0 and xr.open_dataset(out / "study.nc").attrs["sweep_keys"] == "g"
+
+
+def test_a_second_sweep_into_a_directory_in_use_is_refused_and_the_first_goes_on(write_toml, tiny_scene,
+                                                                                 tmp_path):
+    study = slow_study(write_toml, 300, (50.0, 60.0))
+    out = tmp_path / "out"
+    first = command("sweep", study, "-o", out, "-q")
+    try:
+        wait_for(lambda: f"pid {first.pid}" in (out / ownership.LOCK).read_text()
+                 if (out / ownership.LOCK).exists() else False, 60, "the first sweep's lock")
+        line = one_line_error(invoke("sweep", study, "-o", out, "-q"))
+        assert f"another biostudy run is writing into this directory (pid {first.pid} on " in line
+        _, stderr = first.communicate(timeout=120)
+    finally:
+        first.kill()
+        first.wait()
+    assert first.returncode == 0, stderr
+    assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
+    with ownership.claimed(out, runner.plan_owner(load_study(study), "study")):  # held here: the same answer
+        assert "another biostudy run is writing" in one_line_error(invoke("sweep", study, "-o", out, "-q"))
+
+
+# ---------------------------------------------------------------------------------------------
+# 4. Damage that keeps a file's size is found on resume (checksums) and the case computed again
+
+
+def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
+    out = tmp_path / "out"
+    plan = load_study(tiny_study)
+    runner.sweep(plan, out)
+    path = store.case_file(out, "g=1e+09_r=50")
+    good = xr.open_dataset(path).phi.values
+    raw = bytearray(path.read_bytes())
+    at = raw.find(np.ascontiguousarray(good[-1]).tobytes())  # the last snapshot of phi, as stored
+    assert at > 0
+    raw[at + 64:at + 64 + 1024] = b"\x7f" * 1024  # values of ~1e306, the size unchanged
+    path.write_bytes(raw)
+    assert not store.intact(path) and store.recorded(path)["status"] == "done"
+    assert "damaged: its data cannot be read" in one_line_error(invoke("show", path))
+    report = runner.sweep(plan, out)
+    assert report.damaged == report.ran == ["g=1e+09_r=50"] and len(report.skipped) == 3
+    np.testing.assert_array_equal(xr.open_dataset(path).phi.values, good)
+    study = xr.open_dataset(out / "study.nc")
+    np.testing.assert_array_equal(study.phi.sel(g=1e9, r=50).values, good)
+    assert float(study.alpha.max()) < 1
+
+
+# ---------------------------------------------------------------------------------------------
 # 5. inf is bad input wherever NaN is
 
 
@@ -170,6 +239,120 @@ def test_inf_in_a_study_names_the_case(write_toml, tiny_scene, tmp_path):
     study = write_toml("infinite.toml", 'scene = "tiny.toml"\n[sweep]\ng = [1e8, inf]\n')
     line = one_line_error(invoke("sweep", study, "-o", tmp_path / "out"))
     assert line == f"error: {study}: case g=inf: params.g: must be a finite number (got inf)"
+
+
+# ---------------------------------------------------------------------------------------------
+# 6. An output that cannot be written is refused before anything is computed
+
+
+@pytest.mark.parametrize("target, expected", [
+    ("/proc/o.nc", "cannot write here"),
+    ("{dir}", "is a directory"),
+    ("{dir}/tiny.toml/o.nc", "tiny.toml is a file, not a directory"),
+    ("{dir}/" + "x" * 300 + ".nc", "File name too long"),
+])
+def test_an_unwritable_output_is_refused_before_computing(tiny_scene, tmp_path, no_simulation, target, expected):
+    line = one_line_error(invoke("run", tiny_scene, "-o", target.replace("{dir}", str(tmp_path))))
+    assert expected in line
+    assert sorted(os.listdir(tmp_path)) == ["tiny.toml"]
+
+
+def test_an_unwritable_sweep_directory_is_refused_before_computing(tiny_study, tmp_path, no_simulation):
+    assert "cannot write here" in one_line_error(invoke("sweep", tiny_study, "-o", "/proc/sweep"))
+    assert "is a file, not a directory" in one_line_error(invoke("sweep", tiny_study, "-o", tiny_study))
+
+
+def test_a_long_case_id_gets_a_bounded_file_name_and_keeps_its_id(write_toml, tiny_scene, tmp_path):
+    long = "x" * 300
+    study = write_toml("long.toml", f'scene = "tiny.toml"\n[sweep]\ndescription = ["short", "{long}"]\n')
+    out = tmp_path / "out"
+    assert invoke("sweep", study, "-o", out, "-q").exit_code == 0
+    names = sorted(p.name for p in (out / "cases").iterdir())
+    assert names[0] == "description=short.nc" and len(names[1].encode()) <= store.CASE_NAME_BYTES + 3
+    assert xr.open_dataset(out / "cases" / names[1]).attrs["case_id"] == f"description={long}"
+    assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
+
+
+# ---------------------------------------------------------------------------------------------
+# 7. Workers end with the sweep's process, however it ends
+
+
+def test_no_process_of_a_sweep_survives_its_main_process_killed(write_toml, tiny_scene, tmp_path):
+    study = slow_study(write_toml, 4000)
+    sweep = command("sweep", study, "-o", tmp_path / "out", "-q", "--workers", "2")
+    try:
+        main = psutil.Process(sweep.pid)
+        wait_for(lambda: len(computing_workers(main)) == 2, 60, "two computing workers")
+        family = main.children(recursive=True)  # fork server, resource tracker, workers
+        assert len(family) >= 4
+        sweep.kill()  # SIGKILL: no handler, no finally
+        sweep.wait()
+        assert ended(family, timeout=10) == []
+    finally:
+        sweep.kill()
+        sweep.wait()
+
+
+# ---------------------------------------------------------------------------------------------
+# 8. A worker that dies takes only its own case; the sweep goes on, and resumes past it
+
+
+def test_a_killed_worker_fails_its_case_and_the_others_finish(write_toml, tiny_scene, tmp_path):
+    study = slow_study(write_toml, 600)
+    out = tmp_path / "out"
+    sweep = command("sweep", study, "-o", out, "-q", "--workers", "2")
+    try:
+        wait_for(lambda: len(computing_workers(psutil.Process(sweep.pid))) == 2, 60, "two computing workers")
+        victim = computing_workers(psutil.Process(sweep.pid))[0]
+        victim.send_signal(signal.SIGKILL)
+        _, stderr = sweep.communicate(timeout=120)
+    finally:
+        sweep.kill()
+        sweep.wait()
+    assert sweep.returncode == 1, stderr
+    assert "1 of 3 cases failed" in stderr and "worker died: signal 9 (SIGKILL" in stderr
+    assert "Traceback" not in stderr
+    ds = xr.open_dataset(out / "study.nc")
+    assert sorted(ds.status.values.tolist()) == ["done", "done", "failed"]
+    assert "worker died: signal 9" in ds.message.where(ds.status == "failed", drop=True).item()
+
+
+def deadly_serve(tasks, lifeline):
+    """A worker whose case r = 60 kills it (as a case that runs out of memory would), every time."""
+    import biostudy.worker as worker
+
+    solve = worker.solve
+
+    def solve_or_die(problem):
+        if problem.params.r == 60.0:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return solve(problem)
+
+    worker.solve = solve_or_die
+    worker.serve(tasks, lifeline)
+
+
+def _sweep_with_a_deadly_case(study, out, *options) -> subprocess.CompletedProcess:
+    script = textwrap.dedent(f"""\
+        import sys
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        import biostudy.worker, test_faults
+        biostudy.worker.serve = test_faults.deadly_serve
+        from biostudy.cli import app
+        app(["sweep", {str(study)!r}, "-o", {str(out)!r}, "-q", "--workers", "2", *{list(options)!r}])
+        """)
+    return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=180)
+
+
+def test_a_case_that_always_kills_its_worker_does_not_block_the_rest(write_toml, tiny_scene, tmp_path):
+    study = slow_study(write_toml, 20, (50.0, 60.0, 70.0, 80.0))
+    out = tmp_path / "out"
+    first = _sweep_with_a_deadly_case(study, out)
+    assert first.returncode == 1 and "r=60 failed: worker died: signal 9" in first.stderr, first.stderr
+    assert xr.open_dataset(out / "study.nc").status.values.tolist() == ["done", "failed", "done", "done"]
+    assert runner.sweep(load_study(study), out).ran == []  # the failure is recorded: resuming skips it
+    retried = _sweep_with_a_deadly_case(study, out, "--retry-failed")  # it dies again; nothing else is lost
+    assert "1 cases run, 3 skipped" in retried.stderr and "r=60 failed: worker died" in retried.stderr
 
 
 # ---------------------------------------------------------------------------------------------
@@ -245,3 +428,26 @@ def test_the_solver_says_which_check_failed(tiny_scene, tmp_path):
     assert "BiCGSTAB did not converge: it stopped after" in result.stderr
     assert "on its own recursive residual, but the true residual |b - A x| = " in result.stderr
     assert "info 0" not in result.stderr
+# ---------------------------------------------------------------------------------------------
+# 14. Cases made by another software version are reused with a warning; --rerun-all runs them again
+
+
+def test_cases_of_another_version_are_reported_and_rerun_on_request(tiny_study, tmp_path):
+    import netCDF4
+    import scipy
+
+    out = tmp_path / "out"
+    assert invoke("sweep", tiny_study, "-o", out, "-q").exit_code == 0
+    with netCDF4.Dataset(store.case_file(out, "g=1e+08_r=50"), "a") as nc:
+        nc.setncattr("biostudy_version", "0.0.1")
+        nc.setncattr("version_scipy", "1.0.0")
+    again = invoke("sweep", tiny_study, "-o", out, "-q")
+    assert again.exit_code == 0 and "0 cases run, 4 skipped" in again.stderr
+    assert (f"warning: 1 finished cases were computed by other software versions (biostudy 0.0.1 (now "
+            f"{store.version()}), scipy 1.0.0 (now {scipy.__version__})) and were reused; --rerun-all computes "
+            "every case again") in again.stderr
+    rerun = invoke("sweep", tiny_study, "-o", out, "-q", "--rerun-all")
+    assert rerun.exit_code == 0 and "4 cases run, 0 skipped" in rerun.stderr and "warning" not in rerun.stderr
+    assert xr.open_dataset(store.case_file(out, "g=1e+08_r=50")).attrs["biostudy_version"] == store.version()
+
+
