@@ -189,10 +189,11 @@ def show(path: Path = typer.Argument(..., help="dataset written by run or sweep 
                                                   "sweep's directory)")):
     """Print a readable summary: scene, parameters, run time, final averages."""
     with _guarded():
+        from .store import open_result
         from .summary import summarize
-        from .store import open_dataset
 
-        summarize(open_dataset(path / "study.nc" if path.is_dir() else path), out)
+        summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
+                              "study.nc"), out)
 
 
 @app.command()
@@ -212,10 +213,10 @@ def plot(
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with _guarded():
         from .plots import plot as draw
-        from .store import open_dataset
+        from .store import open_result
 
         source = path / "study.nc" if path.is_dir() else path
-        ds = open_dataset(source)
+        ds = open_result(source, ("run", "study"), "nothing to plot")
         try:
             written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut, warp=warp)
         except ValueError as error:
@@ -232,9 +233,9 @@ def export(
     """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
     with _guarded():
         from .export import export as write
-        from .store import open_dataset
+        from .store import open_result
 
-        ds = open_dataset(path)
+        ds = open_result(path, ("run",), "export writes one run's fields")
         try:
             written = write(ds, directory)
         except ValueError as error:
@@ -397,7 +398,7 @@ def stability(
             failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}
             return _Finished(f"wrote {directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of "
                              f"{ds.sizes['case']} cases completed within bounds or stopped with a diagnosis",
-                             failed, ds.sizes["case"], table)
+                             failed, ds.sizes["case"], table, warnings=report.warnings())
 
         return f"stability {path.stem}", run
 

@@ -356,6 +356,63 @@ def test_a_case_that_always_kills_its_worker_does_not_block_the_rest(write_toml,
 
 
 # ---------------------------------------------------------------------------------------------
+# 10. show, plot and export answer a file they cannot use in one line, and leave nothing half-written
+
+
+@pytest.fixture
+def results(tiny_scene, tmp_path):
+    """A run, a foreign netCDF file, a biostudy dataset with no variables and a failed case's record."""
+    run = tmp_path / "run.nc"
+    assert invoke("run", tiny_scene, "-o", run, "-q").exit_code == 0
+    foreign = tmp_path / "foreign.nc"
+    xr.Dataset({"temperature": ("t", [1.0, 2.0])}).to_netcdf(foreign)
+    empty = store.write_atomic(store.stamp(xr.Dataset(), "", tiny_scene, ""), tmp_path / "empty.nc")
+    failed = store.write_atomic(store.failure_record("t = 0.1: it broke", 1.0, "tiny", "", tiny_scene, ""),
+                                tmp_path / "failed.nc")
+    return {"run": run, "foreign": foreign, "empty": empty, "failed": failed}
+
+
+@pytest.mark.parametrize("command", ["show", "plot", "export"])
+@pytest.mark.parametrize("name, expected", [("foreign", "not a dataset biostudy wrote"),
+                                            ("empty", "a dataset with no variables"),
+                                            ("failed", "a failed case's record (t = 0.1: it broke)")])
+def test_a_file_a_command_cannot_use_is_one_line_and_leaves_nothing(results, tmp_path, command, name, expected):
+    if command == "show" and name == "failed":
+        pytest.skip("show summarises a failed case")
+    before = sorted(os.listdir(tmp_path))
+    args = {"show": [], "plot": ["-o", tmp_path / "fig.png"], "export": [tmp_path / "vtk"]}[command]
+    line = one_line_error(invoke(command, results[name], *args))
+    assert line.startswith(f"error: {results[name]}: {expected}")
+    assert sorted(os.listdir(tmp_path)) == before
+
+
+def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, monkeypatch):
+    import meshio
+
+    import biostudy.plots.fields as fields
+
+    def broken(*args, **kwargs):
+        raise ValueError("broken on purpose")
+
+    monkeypatch.setattr(fields, "map_figure", broken)  # the second figure of a 2-D run, after the series
+    line = one_line_error(invoke("plot", results["run"], "-o", tmp_path / "fig.png"))
+    assert "broken on purpose" in line and not list(tmp_path.glob("fig*"))
+    calls = []
+    write = meshio.write
+
+    def second_fails(path, *args, **kwargs):
+        calls.append(path)
+        if len(calls) == 2:
+            raise ValueError("disk trouble on purpose")
+        return write(path, *args, **kwargs)
+
+    monkeypatch.setattr(meshio, "write", second_fails)
+    assert "disk trouble" in one_line_error(invoke("export", results["run"], tmp_path / "vtk"))
+    assert not (tmp_path / "vtk").exists()
+    assert not [p for p in tmp_path.rglob("*") if p.suffix in (".tmp", ".png", ".vtu", ".pvd")]
+
+
+# ---------------------------------------------------------------------------------------------
 # 11. Mask files: confined to the scene's folder unless absolute; never unpickled; headers checked
 
 
