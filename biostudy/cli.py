@@ -80,13 +80,16 @@ def run(
     with _guarded():
         from solver import SimulationError, simulate
 
-        from . import store
+        from . import resources, store
         from .scene import load_scene, overrides_text, parse_override
 
         path = bundled.resolve(scene)
         loaded = load_scene(path, overrides)
         target = output or Path(re.sub(r"[^\w.+-]", "-", loaded.name) + ".nc")
         replacing = _replacing(target, path, loaded, force)  # before anything is computed
+        too_big = resources.run_problem({loaded.name: resources.estimate(loaded)}, 1, target)
+        if too_big:
+            raise BadInput(too_big, path)
         problem = loaded.problem()
         try:
             with _simulation_progress(loaded.name, problem.t_end, quiet) as report:
@@ -186,12 +189,16 @@ def scenes():
 
 @app.command()
 def show(path: Path = typer.Argument(..., help="dataset written by run or sweep (a case file, study.nc, or a "
-                                                  "sweep's directory)")):
-    """Print a readable summary: scene, parameters, run time, final averages."""
+                                                  "sweep's directory), or a scene or study file (TOML)")):
+    """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
+    running it needs (memory, disk)."""
     with _guarded():
         from .store import open_result
-        from .summary import summarize
+        from .summary import needs, summarize
 
+        if path.suffix == ".toml" or (not path.exists() and not path.suffix):
+            typer.echo(needs(bundled.resolve(path)))
+            return
         summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
                               "study.nc"), out)
 

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
-from . import combine, ownership, store, worker
+from . import combine, ownership, resources, store, worker
 from .errors import BadInput
 from .scene import Scene, overrides_text
 from .study import Plan
@@ -408,7 +408,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     notify = notify or (lambda *args: None)
     by_id = {job.id: job for job in jobs}
 
-    ids, prints = [], {}
+    ids, prints, events = [], {}, []
     for job in jobs:
         prints[job.id] = fingerprint(job.scene.problem())
         path = store.case_file(out_dir, job.id)
@@ -422,11 +422,19 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
                 outdated = _outdated(record)
                 if outdated:
                     report.outdated[job.id] = outdated
-                notify("skip", job.id, str(record.get("status")))
+                events.append(("skip", job.id, str(record.get("status"))))
                 continue
             report.damaged.append(job.id)
         ids.append(job.id)
-        notify("start", job.id, "")
+        events.append(("start", job.id, ""))
+
+    estimates = {i: resources.estimate(by_id[i].scene) for i in ids}
+    too_big = resources.run_problem(estimates, 0 if scheduler else (workers or 1), out_dir,
+                                    2 * sum(e.disk for e in estimates.values()))
+    if too_big:  # before any case runs; on disk: the case files and the summary stacking them
+        raise BadInput(too_big, out_dir)
+    for event in events:
+        notify(*event)
 
     def compile_(job_id: str) -> "solver.Problem":
         return by_id[job_id].scene.problem()

@@ -219,6 +219,11 @@ class Scene(BaseModel):
 
     @model_validator(mode="after")
     def _fits_the_grid(self):
+        from .resources import validation_problem
+
+        too_big = validation_problem(self)  # before any array of the grid's size is made
+        if too_big:
+            raise InvalidAt("grid.shape", too_big)
         grid = self.grid.solver_grid()
         for kind in ("biofilm", "nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):

@@ -110,7 +110,7 @@ BAD_INPUT = [
      ["negative.toml: case r=-5: params.r: must be >= 0 (got -5)"]),
     ("both --workers and --scheduler", ["sweep", "{study}", "--workers", "2", "--scheduler", "tcp://x:1"],
      ["--workers", "not both"]),
-    ("show a file that is not netCDF", ["show", "{scene}"], ["{scene}", "not a netCDF dataset"]),
+    ("show a file that is not netCDF", ["show", "{dir}/mask.npy"], ["mask.npy", "not a netCDF dataset"]),
 ]
 
 
