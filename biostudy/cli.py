@@ -355,12 +355,13 @@ def _job_command(command: str, workers: int | None, scheduler: str | None, quiet
     failed, or a pool that broke down, is exit status 1.
     """
     with _guarded():
-        from . import runner
-        from .runner import SweepError
-
         _one_pool(workers, scheduler)
         if workers:
-            runner.warm_up()  # the workers' imports overlap validating the input
+            from .pool import warm_up
+
+            warm_up()  # the fork server imports the solver while this process imports it and validates
+        from .runner import SweepError
+
         title, run = start()
         with _job_progress(title, quiet) as notify:
             try:
