@@ -128,7 +128,8 @@ def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[
         if u is not None and np.isfinite(u[t]).any():
             point_data["u"] = np.pad(u[t].astype(float), ((0, 0), (0, 3 - u.shape[-1])))
         mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
-        written.append(_atomic(directory / SNAPSHOT.format(t), lambda path: meshio.write(path, mesh, file_format="vtu")))
+        written.append(_atomic(directory / SNAPSHOT.format(t),
+                               lambda path: meshio.write(path, mesh, file_format="vtu")))
     written.append(_atomic(directory / COLLECTION, lambda path: _write_collection(path, written, ds["time"].values)))
     return written
 

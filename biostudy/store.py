@@ -193,6 +193,10 @@ def replaceable(path: str | Path, inputs: Iterable[str | Path] = ()) -> dict | N
         if Path(given).exists() and os.path.samefile(path, given):
             raise BadInput(f"is an input of this run ({given}); choose another output", path)
     attrs = _attributes(path) if path.is_file() else None
+    if attrs is None and path.is_file():
+        with open(path, "rb") as handle:
+            if handle.read(8) == b"\x89HDF\r\n\x1a\n":
+                return {}  # a netCDF4 file too damaged to read: nothing in it is left to keep
     if attrs is None or "biostudy_version" not in attrs:
         raise BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it (choose another "
                        "output, or remove the file first)", path)

@@ -28,6 +28,7 @@ import solver
 from biostudy import ownership, resources, runner, store
 from biostudy.cli import app
 from biostudy.study import load_study
+from test_sweep import _wait_for as wait_for
 
 cli = CliRunner()
 
@@ -40,14 +41,6 @@ def command(*args, **kw) -> subprocess.Popen:
     """`biostudy ARGS` in a process of its own (stderr as text); the test ends it."""
     return subprocess.Popen([sys.executable, "-m", "biostudy", *map(str, args)], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True, **kw)
-
-
-def wait_for(condition, timeout: float, what: str):
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
 
 
 def computing_workers(process: psutil.Process) -> list[psutil.Process]:
@@ -78,16 +71,6 @@ def no_simulation(monkeypatch):
     monkeypatch.setattr(runner, "solve", refuse)
 
 
-def slow_study(write_toml, steps: int, values=(50.0, 60.0, 70.0)):
-    """A study of the tiny scene whose cases take a few seconds each (to be killed while they run)."""
-    return write_toml("slow.toml", f"""\
-        scene = "tiny.toml"
-        [set]
-        "time.t_end" = 1.0
-        "time.steps" = {steps}
-        [sweep]
-        r = {list(values)}
-        """)
 
 
 def one_line_error(result) -> str:
@@ -178,14 +161,13 @@ def test_another_study_is_refused_unless_forced(write_toml, tiny_study, tmp_path
     assert forced.exit_code == 0 and xr.open_dataset(out / "study.nc").attrs["sweep_keys"] == "g"
 
 
-def test_a_second_sweep_into_a_directory_in_use_is_refused_and_the_first_goes_on(write_toml, tiny_scene,
-                                                                                 tmp_path):
-    study = slow_study(write_toml, 300, (50.0, 60.0))
+def test_a_second_sweep_into_a_directory_in_use_is_refused_and_the_first_goes_on(slow_study, tmp_path):
+    study = slow_study(300, (50.0, 60.0))
     out = tmp_path / "out"
     first = command("sweep", study, "-o", out, "-q")
     try:
         wait_for(lambda: f"pid {first.pid}" in (out / ownership.LOCK).read_text()
-                 if (out / ownership.LOCK).exists() else False, 60, "the first sweep's lock")
+                 if (out / ownership.LOCK).exists() else False, 60)
         line = one_line_error(invoke("sweep", study, "-o", out, "-q"))
         assert f"another biostudy run is writing into this directory (pid {first.pid} on " in line
         _, stderr = first.communicate(timeout=120)
@@ -215,6 +197,8 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     path.write_bytes(raw)
     assert not store.intact(path) and store.recorded(path)["status"] == "done"
     assert "damaged: its data cannot be read" in one_line_error(invoke("show", path))
+    study_nc = (out / "study.nc").read_bytes()
+    (out / "study.nc").write_bytes(study_nc[:8] + b"\0" * (len(study_nc) - 8))  # beyond reading: replaced
     report = runner.sweep(plan, out)
     assert report.damaged == report.ran == ["g=1e+09_r=50"] and len(report.skipped) == 3
     np.testing.assert_array_equal(xr.open_dataset(path).phi.values, good)
@@ -277,12 +261,12 @@ def test_a_long_case_id_gets_a_bounded_file_name_and_keeps_its_id(write_toml, ti
 # 7. Workers end with the sweep's process, however it ends
 
 
-def test_no_process_of_a_sweep_survives_its_main_process_killed(write_toml, tiny_scene, tmp_path):
-    study = slow_study(write_toml, 4000)
+def test_no_process_of_a_sweep_survives_its_main_process_killed(slow_study, tmp_path):
+    study = slow_study(4000, (50.0, 60.0, 70.0))
     sweep = command("sweep", study, "-o", tmp_path / "out", "-q", "--workers", "2")
     try:
         main = psutil.Process(sweep.pid)
-        wait_for(lambda: len(computing_workers(main)) == 2, 60, "two computing workers")
+        wait_for(lambda: len(computing_workers(main)) == 2, 60)
         family = main.children(recursive=True)  # fork server, resource tracker, workers
         assert len(family) >= 4
         sweep.kill()  # SIGKILL: no handler, no finally
@@ -297,12 +281,12 @@ def test_no_process_of_a_sweep_survives_its_main_process_killed(write_toml, tiny
 # 8. A worker that dies takes only its own case; the sweep goes on, and resumes past it
 
 
-def test_a_killed_worker_fails_its_case_and_the_others_finish(write_toml, tiny_scene, tmp_path):
-    study = slow_study(write_toml, 600)
+def test_a_killed_worker_fails_its_case_and_the_others_finish(slow_study, tmp_path):
+    study = slow_study(600, (50.0, 60.0, 70.0))
     out = tmp_path / "out"
     sweep = command("sweep", study, "-o", out, "-q", "--workers", "2")
     try:
-        wait_for(lambda: len(computing_workers(psutil.Process(sweep.pid))) == 2, 60, "two computing workers")
+        wait_for(lambda: len(computing_workers(psutil.Process(sweep.pid))) == 2, 60)
         victim = computing_workers(psutil.Process(sweep.pid))[0]
         victim.send_signal(signal.SIGKILL)
         _, stderr = sweep.communicate(timeout=120)
@@ -344,8 +328,8 @@ def _sweep_with_a_deadly_case(study, out, *options) -> subprocess.CompletedProce
     return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=180)
 
 
-def test_a_case_that_always_kills_its_worker_does_not_block_the_rest(write_toml, tiny_scene, tmp_path):
-    study = slow_study(write_toml, 20, (50.0, 60.0, 70.0, 80.0))
+def test_a_case_that_always_kills_its_worker_does_not_block_the_rest(slow_study, tmp_path):
+    study = slow_study(20)
     out = tmp_path / "out"
     first = _sweep_with_a_deadly_case(study, out)
     assert first.returncode == 1 and "r=60 failed: worker died: signal 9" in first.stderr, first.stderr

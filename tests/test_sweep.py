@@ -150,17 +150,6 @@ def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
     assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")
 
 
-def _slow_study(write_toml, steps):
-    return write_toml("slow.toml", f"""\
-        scene = "tiny.toml"
-        [set]
-        "time.t_end" = 1.0
-        "time.steps" = {steps}
-        [sweep]
-        r = [50.0, 60.0, 70.0, 80.0]
-        """)
-
-
 def _wait_for(condition, timeout):
     deadline = time.monotonic() + timeout
     while not condition():
@@ -170,8 +159,8 @@ def _wait_for(condition, timeout):
 
 
 @pytest.mark.slow
-def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_scene, tmp_path):
-    study = _slow_study(write_toml, 600)
+def test_a_killed_sweep_leaves_only_complete_files_and_resumes(slow_study, tmp_path):
+    study = slow_study(600)
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q"],
                                stderr=subprocess.PIPE)
@@ -188,9 +177,9 @@ def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
 
 
-def test_sigterm_stops_local_workers_and_exits_130(write_toml, tiny_scene, tmp_path):
+def test_sigterm_stops_local_workers_and_exits_130(slow_study, tmp_path):
     psutil = pytest.importorskip("psutil")
-    study = _slow_study(write_toml, 4000)
+    study = slow_study(4000)
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q",
                                 "--workers", "2"], stderr=subprocess.PIPE, text=True)
