@@ -101,6 +101,8 @@ def solve(problem: "solver.Problem") -> Outcome:
         frame = traceback.extract_tb(error.__traceback__)[-1]
         where = f" (at {Path(frame.filename).name}:{frame.lineno})"
         message = f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}{where}"
+        if isinstance(error, MemoryError):
+            message = f"out of memory ({message})"
         return Outcome("failed", None, message, time.perf_counter() - began, type(error).__name__)
     ds.attrs.update(provenance())
     return Outcome("done", ds, "", time.perf_counter() - began)

@@ -339,6 +339,20 @@ def test_a_case_that_always_kills_its_worker_does_not_block_the_rest(slow_study,
     assert "1 cases run, 3 skipped" in retried.stderr and "r=60 failed: worker died" in retried.stderr
 
 
+def test_a_case_out_of_memory_is_recorded_as_such_and_the_others_go_on(tiny_study, tmp_path, monkeypatch):
+    simulate = solver.simulate
+
+    def greedy(problem, **kwargs):
+        if problem.params.g == 1e9 and problem.params.r == 50:
+            raise MemoryError("Unable to allocate 1.2 TiB for an array")
+        return simulate(problem, **kwargs)
+
+    monkeypatch.setattr(solver, "simulate", greedy)
+    report = runner.sweep(load_study(tiny_study), tmp_path / "out")
+    assert list(report.failed) == ["g=1e+09_r=50"] and len(report.ran) == 4
+    assert report.failed["g=1e+09_r=50"].startswith("out of memory (MemoryError: Unable to allocate 1.2 TiB")
+
+
 # ---------------------------------------------------------------------------------------------
 # 9. Memory and disk are estimated before anything is allocated; what cannot fit is refused with the estimate
 
