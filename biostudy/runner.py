@@ -29,9 +29,8 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
-from . import combine, ownership, resources, store
+from . import combine, ownership, pool, resources, store
 from .errors import BadInput
-from .pool import local, warm_up
 from .scene import Scene, overrides_text
 from .study import Plan
 from .worker import Outcome, solve
@@ -206,7 +205,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     `scheduler` jobs run here, one after another.  The caller holds the directory (`owned`).
     """
     if workers and not scheduler:
-        warm_up()  # the workers' imports overlap the checks below
+        pool.warm_up()  # the workers' imports overlap the checks below
     out_dir = Path(out_dir)
     cases_dir = out_dir / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
@@ -251,7 +250,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     elif scheduler:
         results = _dask(ids, compile_, scheduler)
     elif workers:
-        results = local(ids, compile_, workers)
+        results = pool.local(ids, compile_, workers)
     else:
         results = _serial(ids, compile_)
     with contextlib.closing(results):

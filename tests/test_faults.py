@@ -25,7 +25,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 import solver
-from biostudy import ownership, resources, runner, store
+from biostudy import ownership, pool, resources, runner, store
 from biostudy.cli import app
 from biostudy.study import load_study
 from test_sweep import _wait_for as wait_for
@@ -381,6 +381,7 @@ def test_too_many_outputs_workers_or_bytes_are_refused_before_running(tiny_scene
     assert line.startswith(f"error: {tiny_scene}: needs ~") and "of memory, 500 MB available (tiny: " in line
     assert "outputs ~" in line
     out = tmp_path / "out"
+    monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
     line = one_line_error(invoke("sweep", tiny_study, "-o", out, "--workers", "4"))
     assert "4 runs at once need ~" in line and "use fewer workers" in line and not list(out.rglob("*.nc"))
     monkeypatch.setattr(resources, "free_disk", lambda path: 1e3)
