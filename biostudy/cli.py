@@ -80,16 +80,13 @@ def run(
     with _guarded():
         from solver import SimulationError, simulate
 
-        from . import resources, store
+        from . import runner, store
         from .scene import load_scene, overrides_text, parse_override
 
         path = bundled.resolve(scene)
         loaded = load_scene(path, overrides)
         target = output or Path(re.sub(r"[^\w.+-]", "-", loaded.name) + ".nc")
-        replacing = _replacing(target, path, loaded, force)  # before anything is computed
-        too_big = resources.run_problem({loaded.name: resources.estimate(loaded)}, 1, target)
-        if too_big:
-            raise BadInput(too_big, path)
+        replacing = runner.check_run(loaded, path, target, force)  # before anything is computed
         problem = loaded.problem()
         try:
             with _simulation_progress(loaded.name, problem.t_end, quiet) as report:
@@ -97,34 +94,12 @@ def run(
         except SimulationError as error:
             raise _fail(f"simulation failed: {path}: {error}", 1) from None
         text = overrides_text([parse_override(o) for o in overrides])
-        store.write_atomic(store.stamp(ds, loaded.to_toml(), path, text, **worker.provenance()), target)
+        try:
+            store.write_atomic(store.stamp(ds, loaded.to_toml(), path, text, **worker.provenance()), target)
+        except OSError as error:  # e.g. the disk filled up while it ran
+            raise _fail(f"cannot write {target} ({error.strerror or error}); the result is lost", 1) from None
         err.print(f"wrote {target} (wall time {ds.attrs['wall_time']:.3g} s, {ds.attrs['steps_taken']} steps, "
                   f"{ds.attrs['steps_bisected']} bisected){replacing}", markup=False, highlight=False, soft_wrap=True)
-
-
-def _replacing(target: Path, scene_file: Path, scene, force: bool) -> str:
-    """Check that `run` may write `target` (bad input if not); what the message adds when it replaces a file.
-
-    Never an input (the scene file, a mask) nor a file biostudy did not write; an earlier result of the same
-    scene is replaced, anything else biostudy wrote (another scene's result, a sweep's file) only with --force.
-    """
-    from . import store
-
-    store.writable(target)
-    masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
-             if getattr(r, "shape", None) == "mask"]
-    previous = store.replaceable(target, [scene_file, *masks])
-    if previous is None:
-        return ""
-    if "case_id" in previous or "sweep_mode" in previous:
-        what = "a file of a sweep"
-    elif previous.get("scene_file") != str(Path(scene_file).resolve()):
-        what = f"the result of another scene ({previous.get('scene_file', 'unknown')})"
-    else:
-        return "; it replaces the earlier result of the same scene"
-    if not force:
-        raise BadInput(f"holds {what}; give --force to replace it, or choose another output", target)
-    return f"; it replaces {what} (--force)"
 
 
 @contextlib.contextmanager

@@ -272,6 +272,34 @@ def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool
         yield directory
 
 
+def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False) -> str:
+    """Before one run computes anything: `BadInput` unless its dataset can be written to `target` and the
+    run fits in memory; returns what the final message adds when `target` is replaced.
+
+    `target` is never an input (the scene file, a mask) nor a file biostudy did not write; an earlier result
+    of the same scene is replaced, anything else biostudy wrote (another scene's result, a sweep's file)
+    only with `force`.
+    """
+    store.writable(target)
+    masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
+             if getattr(r, "shape", None) == "mask"]
+    previous = store.replaceable(target, [scene_file, *masks])
+    too_big = resources.run_problem({scene.name: resources.estimate(scene)}, 1, target)
+    if too_big:
+        raise BadInput(too_big, scene_file)
+    if previous is None:
+        return ""
+    if "case_id" in previous or "sweep_mode" in previous:
+        what = "a file of a sweep"
+    elif previous.get("scene_file") != str(Path(scene_file).resolve()):
+        what = f"the result of another scene ({previous.get('scene_file', 'unknown')})"
+    else:
+        return "; it replaces the earlier result of the same scene"
+    if not force:
+        raise BadInput(f"holds {what}; give --force to replace it, or choose another output", target)
+    return f"; it replaces {what} (--force)"
+
+
 def plan_jobs(plan: Plan, **attrs) -> list[Job]:
     """One job per case of a study or catalogue; each case file records the case's id and its own
     attributes, the overrides that made it and `attrs` (e.g. the study file)."""
