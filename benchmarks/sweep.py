@@ -158,12 +158,14 @@ def speedup(directory: Path, steps: int) -> list[tuple[str, float]]:
     times = {}
     for label, workers in (("serial", None), ("2 local workers", 2)):
         out = directory / f"speedup-{workers}"
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         with Others() as others:
             runner.sweep(plan, out, workers=workers)
         times[label] = time.perf_counter() - began
         rows.append((f"{label}: sweep wall time (s)", times[label]))
         rows.append((f"{label}: simulation per case (s)", simulated_seconds(out) / len(plan.cases)))
+        rows.append((f"{label}: CPU s of this process (with workers: writing, combining)",
+                     time.process_time() - cpu))
         rows.append((f"{label}: CPU s used by other processes", others.seconds))
     rows.append(("speed-up", times["serial"] / times["2 local workers"]))
     for label, workers in (("serial", []), ("2 local workers", ["--workers", "2"])):  # as a user runs it
