@@ -20,6 +20,7 @@ p and u are written at the times the mechanics was solved; at other times
 """
 from __future__ import annotations
 
+import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -29,6 +30,8 @@ import xarray as xr
 
 from solver import Grid
 from solver.problem import AXES
+
+from .store import temporary_name
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
 SNAPSHOT = "snapshot_{:04d}.vtu"
@@ -76,7 +79,23 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
     """Write one VTU per snapshot and `series.pvd` into `directory`; return the paths (PVD last)."""
     _check(ds)
     directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise ValueError(f"{directory} is a file, not a directory for the snapshots")
+    created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        return _write_series(ds, directory, written)
+    except BaseException:  # nothing half-written: this call's files go, and the directory if it made it
+        for path in written:
+            path.unlink(missing_ok=True)
+        if created and not any(directory.iterdir()):
+            directory.rmdir()
+        raise
+
+
+def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[Path]:
+    """The snapshots and the PVD, each written to a temporary and renamed; `written` lists them as they come."""
     grid = _grid(ds)
     cell_dims = tuple(reversed(grid.axes))
     points, cells, kind = _lattice(grid)
@@ -99,7 +118,6 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
         u = ds["u"].transpose("time", *(f"{d}_node" for d in cell_dims), "component").values
         u = u.reshape(u.shape[0], -1, u.shape[-1])[:, used]
 
-    written = []
     for t in range(ds.sizes["time"]):
         cell_data = {name: [values] for name, values in static.items()}
         for name, values in ((n, f[t]) for n, f in fields.items()):
@@ -110,11 +128,20 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
         if u is not None and np.isfinite(u[t]).any():
             point_data["u"] = np.pad(u[t].astype(float), ((0, 0), (0, 3 - u.shape[-1])))
         mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
-        path = directory / SNAPSHOT.format(t)
-        meshio.write(path, mesh, file_format="vtu")
-        written.append(path)
-    written.append(_write_collection(directory / COLLECTION, written, ds["time"].values))
+        written.append(_atomic(directory / SNAPSHOT.format(t),
+                               lambda path: meshio.write(path, mesh, file_format="vtu")))
+    written.append(_atomic(directory / COLLECTION, lambda path: _write_collection(path, written, ds["time"].values)))
     return written
+
+
+def _atomic(path: Path, write) -> Path:
+    temporary = temporary_name(path)
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return path
 
 
 def _write_collection(path: Path, files: list[Path], times: np.ndarray) -> Path:

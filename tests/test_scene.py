@@ -105,7 +105,7 @@ def test_bad_values_name_the_key(tiny_scene, override, key, problem):
     with pytest.raises(BadInput) as error:
         load_scene(tiny_scene, [override])
     line = str(error.value)
-    assert line.startswith(f"{tiny_scene}: {key}: "), line
+    assert line.startswith(f"--set: {key}: "), line  # the override gave the value, not the scene file
     assert problem in line
     assert "\n" not in line
 
