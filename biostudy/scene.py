@@ -124,10 +124,11 @@ class NumericsSpec(BaseModel):
     max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
                                                        "a run needing less stops with a diagnosis", "1", ge=1)
     growth_velocity: Literal["front", "pointwise"] = Field(
-        _NUMERICS.growth_velocity, description="front: the growth speed taken at the phi = 1/2 front and extended "
-                                               "along its normals (dense biofilm stays dense on 1 µm cells); "
-                                               "pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
-                                               "written; needs cells of 1/8 µm to keep dense biofilm dense)")
+        _NUMERICS.growth_velocity, description="pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
+                                               "written; keeps dense biofilm dense only on cells of ~1/8 µm); "
+                                               "front: the growth speed taken at the phi = 1/2 front and carried "
+                                               "along its normals: the sharp-interface limit, dense biofilm stays "
+                                               "dense on 1 µm cells (docs/paper.md)")
     front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
                                                      "the front take the front's speed", "1", ge=1, le=10)
 

@@ -26,7 +26,7 @@ from solver import simulate
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 REFERENCE = json.loads((Path(__file__).parent / "data" / "dense_reference.json").read_text())
-GROWING = {"agar2d": 0.4, "agar2d-g1e10": 1.0}  # compared up to this T*: the agar colony reaches the lid at ~0.4
+GROWING = {"agar2d": 0.4, "agar2d-g1e10": 0.3}  # compared up to T*: the lid at ~0.4; g = 1e10 stops rising at ~0.2
 
 
 def coarse_run(name: str, refine: int, t_end: float):
@@ -56,7 +56,7 @@ def test_front_velocity_matches_the_refined_model_while_the_colony_grows(name, r
     assert np.all(np.abs(top - pick("top")) <= h + 1e-9), (top, pick("top"))
     assert np.all(measures.max_phi(ds)[pick("max_phi") >= measures.DENSE] >= measures.DENSE)
     inside = pick("phi_at_c_min") >= measures.DENSE
-    assert inside.sum() >= 3, "compare at least three outputs"
+    assert inside.sum() >= 2, "compare the start and at least one output after it"
     dense = np.nan_to_num(ds.phi.values) >= measures.DENSE
     area, bound = measures.dense_volume(ds), np.array([perimeter(m, h) for m in dense])
     assert np.all((np.abs(area - pick("dense_area")) <= bound)[inside]), (area, pick("dense_area"), bound)
