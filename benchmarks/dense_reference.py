@@ -69,10 +69,12 @@ def run(name: str, refine: int, velocity: str, results: Path, t_end: float | Non
     return result
 
 
-def row(result: dict, columns: int) -> str:
-    cells = [f"{m:.2f}/{t:.1f}/{a:.0f}/{y:.1f}:{p:.2f}" for m, t, a, y, p in
+def row(result: dict, times: list[float], brief: bool) -> str:
+    cells = [f"{m:.2f}/{t:.1f}/{a:.0f}" + ("" if brief else f"/{y:.1f}:{p:.2f}") for m, t, a, y, p in
              zip(result["max_phi"], result["top"], result["dense_area"], result["c_min_y"], result["phi_at_c_min"])]
-    cells += ["–"] * (columns - len(cells))  # a run cut short (--t-end)
+    cells = [c.replace("nan", "–") for c in cells] + ["–"] * (len(result["time"]) - len(cells))
+    at = {round(t, 9): c for t, c in zip(result["time"], cells)}
+    cells = [at.get(round(t, 9), "–") for t in times]  # a run cut short (--t-end) has no later columns
     return f"| {result['velocity']} | {result['h']:g} | " + " | ".join(cells) + f" | {result['wall_time']:.0f} |"
 
 
@@ -85,6 +87,8 @@ def main():
     parser.add_argument("--results", type=Path, default=ROOT / "docs" / "measured" / "dense-reference")
     parser.add_argument("--json", type=Path, help="store the finest pointwise run of each scene here")
     parser.add_argument("--t-end", type=float, help="run only to this T* (the finest pointwise level only)")
+    parser.add_argument("--times", type=float, nargs="+", help="print only these output times")
+    parser.add_argument("--brief", action="store_true", help="print max phi / top / dense area only")
     args = parser.parse_args()
     args.results.mkdir(parents=True, exist_ok=True)
     finest = 2**args.finest
@@ -103,13 +107,14 @@ def main():
     for name in args.scenes:
         mine = sorted((r for r in results if r["scene"] == name), key=lambda r: (r["velocity"] != "pointwise", -r["h"]))
         print(f"\n### {name}\n")
-        print("max phi / top of phi >= 0.5 (µm) / area of phi >= 0.8 (µm²) / y of the nutrient minimum : phi there")
+        print("max phi / top of phi >= 0.5 (µm) / area of phi >= 0.8 (µm²)"
+              + ("" if args.brief else " / y of the nutrient minimum : phi there") + "; – where there is none")
         print()
-        times = max((r["time"] for r in mine), key=len)
+        times = args.times or max((r["time"] for r in mine), key=len)
         print("| growth velocity | h µm | " + " | ".join(f"T* = {t:g}" for t in times) + " | wall s |")
         print("|---|---|" + "---|" * len(times) + "---|")
         for result in mine:
-            print(row(result, len(times)))
+            print(row(result, times, args.brief))
         reference[name] = min((r for r in mine if r["velocity"] == "pointwise"), key=lambda r: r["h"])
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
