@@ -29,7 +29,7 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
     assert result.exit_code == 0, result.output
     assert "wrote" in result.stderr and "20 steps" in result.stderr
     ds = xr.open_dataset(out)
-    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18}
+    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
 
