@@ -24,7 +24,7 @@ import threading
 import uuid
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
@@ -221,6 +221,7 @@ class Job:
     scene_file: Path
     overrides: str  # the overrides as TOML text, for the record
     attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
+    layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
 
 
 def fingerprint(problem: "solver.Problem") -> str:
@@ -298,7 +299,8 @@ def plan_jobs(plan: Plan, **attrs) -> list[Job]:
 def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
           retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
     """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`)."""
-    jobs = plan_jobs(plan, study_file=str(plan.file.resolve()))
+    layouts = combine.case_layouts(plan)
+    jobs = [replace(job, layout=layouts[job.id]) for job in plan_jobs(plan, study_file=str(plan.file.resolve()))]
     report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify)
     combine.write_study(plan, Path(out_dir))
     return report
@@ -313,4 +315,4 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     else:
         ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
                                   job.scene_file, job.overrides, error=outcome.error, **extra)
-    store.write_atomic(ds, store.case_file(out_dir, job.id))
+    store.write_atomic(job.layout.apply(ds) if job.layout else ds, store.case_file(out_dir, job.id))

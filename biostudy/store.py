@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from . import netcdf
 from .errors import BadInput
 
 TMP_GLOB = ".*.tmp"
@@ -45,7 +46,7 @@ def now() -> str:
 def with_provenance(attrs: dict) -> dict:
     """`attrs` as netCDF can store them, with the biostudy version and the time of writing: every file
     biostudy writes says which version made it and when."""
-    return legal_attrs({**attrs, "biostudy_version": version(), "created": now()})
+    return legal_attrs({**attrs, "biostudy_version": version(), "created": now(), "history": netcdf.history()})
 
 
 def legal_attrs(attrs: dict) -> dict:
@@ -81,7 +82,7 @@ def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     temporary = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
     try:
-        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4")
+        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4", encoding=netcdf.encoding(ds))
         with open(temporary, "rb+") as handle:
             os.fsync(handle.fileno())
         os.replace(temporary, path)
@@ -109,13 +110,14 @@ def remove_temporaries(directory: str | Path) -> list[Path]:
 
 
 def open_dataset(path: str | Path) -> xr.Dataset:
-    """A result file, loaded into memory and closed; an unreadable file is `BadInput`."""
+    """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
+    an unreadable file is `BadInput`."""
     path = Path(path)
     if not path.is_file():
         raise BadInput("no such file", path)
     try:
         with xr.open_dataset(path, engine="netcdf4") as ds:
-            return ds.load()
+            return netcdf.as_run(ds.load())
     except (OSError, ValueError) as error:
         raise BadInput(f"not a netCDF dataset ({str(error).splitlines()[0]})", path) from None
 

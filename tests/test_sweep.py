@@ -34,13 +34,17 @@ def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_st
     ds = xr.open_dataset(out / "study.nc")
     assert ds.phi_mean.dims == ("g", "r", "time") and ds.phi.dims == ("g", "r", "time", "y", "x")
     assert ds.g.values.tolist() == [1e8, 1e9] and ds.r.values.tolist() == [50.0, 100.0]
-    assert ds.g.attrs["units"] == "1/T*" and "consumption" in ds.g.attrs["long_name"]
+    assert ds.g.attrs["units"] == "1" and "consumption" in ds.g.attrs["long_name"] and "1/T*" in ds.g.attrs["long_name"]
+    assert ds.r.attrs["units"] == "um" and "µm/T*" in ds.r.attrs["long_name"]
     assert (ds.status.values == "done").all() and ds.case_id.sel(g=1e9, r=50).item() == "g=1e+09_r=50"
     for name in list(ds.data_vars) + list(ds.coords):
+        if name.endswith("_bounds"):  # CF 7.1: bounds carry their cell centre's units and long name
+            continue
         assert "units" in ds[name].attrs and ds[name].attrs.get("long_name"), name
-    # each entry is that case's own dataset
+    # each entry is that case's own dataset, which has its place in the study as dimensions of length 1
     one = xr.open_dataset(out / "cases" / "g=1e+09_r=50.nc")
-    np.testing.assert_array_equal(ds.phi_mean.sel(g=1e9, r=50).values, one.phi_mean.values)
+    assert one.phi_mean.dims == ("g", "r", "time") and one.g.values.tolist() == [1e9]
+    np.testing.assert_array_equal(ds.phi_mean.sel(g=1e9, r=50).values, one.phi_mean.values[0, 0])
     assert one.attrs["status"] == "done" and one.attrs["case_id"] == "g=1e+09_r=50"
     assert one.attrs["g"] == 1e9 and one.attrs["overrides"] == "g = 1e+09\nr = 50.0"
     # swept parameters vary, so they are coordinates, not attributes, of study.nc
@@ -106,8 +110,10 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert np.isnan(ds.phi_mean.sel(case="k_alpha=1e+100")).all()
     assert np.isfinite(ds.phi_mean.sel(case="k_alpha=0.002")).all()
     assert ds.attrs["cases_failed"] == 1 and "k_alpha" not in ds.attrs  # swept: a coordinate, never an attribute
-    record = xr.open_dataset(out / "cases" / "k_alpha=1e+100.nc")
-    assert record.attrs["status"] == "failed" and record.attrs["message"] == message and not record.data_vars
+    record = xr.load_dataset(out / "cases" / "k_alpha=1e+100.nc")  # closed: the sweep below rewrites it
+    assert record.attrs["status"] == "failed" and record.attrs["message"] == message
+    assert set(record.data_vars) == set(combine.CASE_VARIABLES)  # its place in the study, no fields
+    assert record.status.dims == ("case",) and record.k_alpha.values.tolist() == [1e100]
     assert "failed" in cli.invoke(app, ["show", str(out / "cases" / "k_alpha=1e+100.nc")]).stdout
     # re-running keeps the recorded failure; --retry-failed runs it again
     plan = load_study(study)
