@@ -256,7 +256,7 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
             set_key(data, key, value)
         return scene_from_data(data, scene_file)
     except BadInput as error:
-        raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {case_name}", error.key)))) from None
+        raise error.relocated(path, lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
 
 
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
