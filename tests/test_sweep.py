@@ -114,6 +114,13 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert record.attrs["status"] == "failed" and record.attrs["message"] == message
     assert set(record.data_vars) == set(combine.CASE_VARIABLES)  # its place in the study, no fields
     assert record.status.dims == ("case",) and record.k_alpha.values.tolist() == [1e100]
+    for new_defaults in (False, True):  # the README's recipe, under xarray's present and coming defaults
+        with xr.set_options(use_new_combine_kwarg_defaults=new_defaults), xr.open_mfdataset(
+                sorted((out / "cases").glob("*.nc")), data_vars="minimal", join="outer", compat="no_conflicts",
+                combine_attrs="drop_conflicts") as cases:
+            cases = cases.sel(case=ds.case).load()
+        assert cases.status.values.tolist() == ds.status.values.tolist()
+        np.testing.assert_array_equal(cases.phi_mean.values, ds.phi_mean.values)
     assert "failed" in cli.invoke(app, ["show", str(out / "cases" / "k_alpha=1e+100.nc")]).stdout
     # re-running keeps the recorded failure; --retry-failed runs it again
     plan = load_study(study)
