@@ -47,6 +47,31 @@ lower = [0.0, 12.0]
 upper = [3.0, 16.0]
 """
 
+# A 3-D 10 x 9 x 8 scene of 2 µm cells, 10 steps, with a cylindrical obstacle along z.
+CUBE_SCENE = """\
+name = "cube"
+[grid]
+shape = [10, 9, 8]
+spacing = 2.0
+[time]
+t_end = 0.1
+steps = 10
+outputs = 3
+[[biofilm]]
+shape = "sphere"
+center = [10.0, 9.0, 8.0]
+radius = 4.0
+[[nutrient]]
+shape = "box"
+lower = [16.0, 14.0, 12.0]
+upper = [20.0, 18.0, 16.0]
+[[obstacle]]
+shape = "cylinder"
+center = [4.0, 4.0, 8.0]
+radius = 2.0
+axis = "z"
+"""
+
 
 @pytest.fixture
 def write_toml(tmp_path):

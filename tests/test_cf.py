@@ -1,6 +1,6 @@
 """Datasets as the ecosystem's own tools take them (issue 11): the CF checker, udunits spellings through cf_xarray's
 pint registry, xarray's open_mfdataset on a study's case files, the netCDF layout (flags, fill values,
-compression, history).  Tiny runs: an 8³ and a 16² scene with mechanics, a 2 x 2 grid study and a zip study."""
+compression, history).  Tiny runs: a 10 x 9 x 8 and a 16² scene with mechanics, a 2 x 2 grid study and a zip study."""
 from __future__ import annotations
 
 import json
@@ -15,35 +15,11 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from conftest import TINY_SCENE
+from conftest import CUBE_SCENE, TINY_SCENE
 
 pytestmark = [pytest.mark.filterwarnings("ignore:In a future version of xarray the default value:FutureWarning"),
               pytest.mark.filterwarnings("ignore:The ioos_sos checker is deprecated:DeprecationWarning")]
 
-CUBE = """\
-name = "cube"
-[grid]
-shape = [8, 8, 8]
-[time]
-t_end = 0.1
-steps = 10
-outputs = 3
-[[biofilm]]
-shape = "sphere"
-center = [4.0, 4.0, 4.0]
-radius = 2.0
-[[nutrient]]
-shape = "box"
-lower = [7.0, 7.0, 7.0]
-upper = [8.0, 8.0, 8.0]
-[[obstacle]]
-shape = "box"
-lower = [0.0, 0.0, 0.0]
-upper = [2.0, 2.0, 8.0]
-[mechanics]
-clamp = ["z-"]
-every = 2
-"""
 # The CF checker's one high-priority complaint the docs accept (docs/model.md, "The dataset"): T* is a
 # dimensionless normalised time, not a CF time (no unit of time, no epoch), so the dimension named `time`
 # carries no standard_name "time"; with one, the checker fails the units instead (§3.1, §4.4).
@@ -56,7 +32,7 @@ def made(tmp_path_factory):
     """The files: runs (3-D, 2-D, both with mechanics), a grid study, a zip study, an analysis."""
     root = tmp_path_factory.mktemp("cf")
     (root / "tiny.toml").write_text(TINY_SCENE + "[mechanics]\nevery = 2\n")
-    (root / "cube.toml").write_text(CUBE)
+    (root / "cube.toml").write_text(CUBE_SCENE + '[mechanics]\nclamp = ["z-"]\nevery = 2\n')
     (root / "grid.toml").write_text(textwrap.dedent("""\
         scene = "tiny.toml"
         [sweep]
@@ -223,8 +199,8 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
             assert "_FillValue" not in nc[name].ncattrs(), name
         for name in ("phi", "c", "alpha", "p"):
             assert nc[name].filters()["zlib"] and nc[name].filters()["shuffle"], name
-            assert nc[name].chunking() == [1, 8, 8, 8], name
-        assert nc["u"].chunking() == [1, 9, 9, 9, 3]
+            assert nc[name].chunking() == [1, 8, 9, 10], name
+        assert nc["u"].chunking() == [1, 9, 10, 11, 3]
         assert nc["phi_mean"].chunking() == "contiguous"
     with netCDF4.Dataset(made / "grid" / "study.nc") as nc:
         assert nc["phi"].chunking() == [1, 1, 1, 16, 16] and nc["phi"].filters()["zlib"]

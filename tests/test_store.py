@@ -8,6 +8,7 @@ import xarray as xr
 
 from biostudy import store
 from biostudy.scene import load_scene
+from conftest import CUBE_SCENE
 from solver import simulate
 
 
@@ -57,29 +58,7 @@ def test_remove_temporaries_touches_only_temporaries(tmp_path):
 def test_dataset_layout_after_a_netcdf_round_trip(write_toml, tmp_path):
     """docs/model.md, "The dataset": dims, units and long_name everywhere, obstacles NaN, the scene and its
     provenance in attrs."""
-    path = write_toml("cube.toml", """\
-        name = "cube"
-        [grid]
-        shape = [10, 9, 8]
-        spacing = 2.0
-        [time]
-        t_end = 0.1
-        steps = 10
-        outputs = 3
-        [[biofilm]]
-        shape = "sphere"
-        center = [10.0, 9.0, 8.0]
-        radius = 4.0
-        [[nutrient]]
-        shape = "box"
-        lower = [16.0, 14.0, 12.0]
-        upper = [20.0, 18.0, 16.0]
-        [[obstacle]]
-        shape = "cylinder"
-        center = [4.0, 4.0, 8.0]
-        radius = 2.0
-        axis = "z"
-        """)
+    path = write_toml("cube.toml", CUBE_SCENE)
     scene = load_scene(path, ["params.g=2e8"])
     ds = simulate(scene.problem())
     out = tmp_path / "cube.nc"
