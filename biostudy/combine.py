@@ -146,7 +146,7 @@ def _as_run(ds: xr.Dataset, coords: dict) -> xr.Dataset:
     """A case file as its run wrote it: without the study's coordinates and the per-case variables (nor a
     swept parameter as a variable, as a case file written without its layout has it)."""
     dims = [d.strip() for d in str(ds.attrs.get(netcdf.CASE_DIMENSIONS, "")).split(",") if d.strip()]
-    ds = ds.isel({d: 0 for d in dims if d in ds.dims}, drop=True)
+    ds = netcdf.renamed(ds).isel({d: 0 for d in dims if d in ds.dims}, drop=True)
     return ds.drop_vars([n for n in (*CASE_VARIABLES, *coords) if n in ds.variables])
 
 

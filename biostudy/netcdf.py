@@ -9,8 +9,9 @@
   README ("Looking at the results").
 * `history`: the CF ``history`` attribute, the command line that made the file.
 * `as_run`: a sweep's case file carries its place in the study as dimensions of
-  length 1 (`combine.case_layout`, so that ``xr.open_mfdataset`` combines the
+  length 1 (`combine.CaseLayout`, so that ``xr.open_mfdataset`` combines the
   cases by itself); read as one run, they are squeezed to scalar coordinates.
+  A file written before takes today's names (`renamed`).
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ COMPRESSION = {"zlib": True, "complevel": 4, "shuffle": True}
 # Dimensions a snapshot spans whole; every other dimension (time, time_mechanics, a study's) is cut in 1s.
 SNAPSHOT_DIMS = frozenset({"x", "y", "z", "x_node", "y_node", "z_node", "component", "bounds"})
 CASE_DIMENSIONS = "case_dimensions"  # attribute of a case file: its study dimensions (length 1)
+OLD_NAMES = {"steps_bisections": "steps_bisected"}  # a run's variables as named before issue 11
 
 
 def encoding(ds: xr.Dataset) -> dict[str, dict]:
@@ -53,9 +55,16 @@ def history(argv: list[str] | None = None) -> str:
     return f"{stamp}: {shlex.join([program, *argv[1:]])}"
 
 
+def renamed(ds: xr.Dataset) -> xr.Dataset:
+    """A dataset written before a variable was renamed, with today's names."""
+    old = {name: new for name, new in OLD_NAMES.items() if name in ds.variables and new not in ds.variables}
+    return ds.rename(old) if old else ds
+
+
 def as_run(ds: xr.Dataset) -> xr.Dataset:
     """A sweep's case file as one run: its study dimensions (length 1) squeezed into scalar coordinates.
-    Any other dataset is returned as it is."""
+    Any other dataset is returned as it is (with today's names)."""
+    ds = renamed(ds)
     dims = [d.strip() for d in str(ds.attrs.get(CASE_DIMENSIONS, "")).split(",") if d.strip()]
     dims = [d for d in dims if ds.sizes.get(d) == 1]
     return ds.squeeze(dims) if dims else ds

@@ -3,6 +3,7 @@ pint registry, xarray's open_mfdataset on a study's case files, the netCDF layou
 compression, history).  Tiny runs: a 10 x 9 x 8 and a 16² scene with mechanics, a 2 x 2 grid study and a zip study."""
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import textwrap
@@ -205,3 +206,25 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
     with netCDF4.Dataset(made / "grid" / "study.nc") as nc:
         assert nc["phi"].chunking() == [1, 1, 1, 16, 16] and nc["phi"].filters()["zlib"]
         assert nc.history
+
+
+def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
+    """A case file read as one run (show, plot, export) is squeezed; an old run's steps_bisections is
+    steps_bisected; combine reads both."""
+    from biostudy import combine, netcdf, store
+    from biostudy.study import load_study
+
+    case = store.open_dataset(made / "grid" / "cases" / "g=1e+08_r=50.nc")
+    assert case.phi.dims == ("time", "y", "x") and float(case.g) == 1e8 and case.status.item() == "done"
+    old = xr.load_dataset(made / "run2d.nc").rename(steps_bisected="steps_bisections")
+    assert "steps_bisected" in netcdf.as_run(old) and "steps_bisections" not in netcdf.as_run(old)
+    plan = load_study(made / "grid.toml")
+    for path in (made / "grid" / "cases").glob("*.nc"):  # as a sweep before issue 11 wrote them
+        with xr.open_dataset(path) as ds:
+            before = combine._as_run(ds.load(), {}).rename(steps_bisected="steps_bisections")
+        before.attrs.pop(netcdf.CASE_DIMENSIONS)
+        store.write_atomic(before, tmp_path / "cases" / path.name)
+    with contextlib.ExitStack() as opened:
+        study = combine.combine(plan, tmp_path, opened).load()
+    assert study.steps_bisected.dims == ("g", "r", "time") and (study.status == "done").all()
+    xr.testing.assert_equal(study.phi, xr.load_dataset(made / "grid" / "study.nc").phi)
