@@ -34,6 +34,9 @@ out = Console()
 SET_HELP = "override a scene key, KEY=VALUE with the value as TOML (params.g=1e10, grid.shape=[40,40,40]); repeatable"
 SET = "KEY=VALUE"  # metavars: what an option takes
 FLAG = ""  # a flag takes nothing (typer would show <bool>)
+FORCE_HELP = ("use the output directory even if it belongs to another study or holds files no biostudy run "
+              "recorded (cases of the same ids are replaced)")
+RERUN_HELP = "run every case again, also those finished before (e.g. after a software upgrade)"
 
 
 def _version(value: bool) -> None:
@@ -82,28 +85,35 @@ def run(
     output: Optional[Path] = typer.Option(None, "-o", "--output", metavar="OUT.nc",
                                           help="dataset to write (default: NAME.nc, the scene's name)"),
     overrides: List[str] = typer.Option([], "--set", metavar=SET, help=SET_HELP),
+    force: bool = typer.Option(False, "--force", metavar=FLAG,
+                               help="replace OUT.nc even if it holds the result of another scene or a sweep's file "
+                                    "(never an input or a file biostudy did not write)"),
     quiet: bool = typer.Option(False, "-q", "--quiet", metavar=FLAG, help="no progress bar or lines"),
 ):
     """Run one simulation and write its dataset (netCDF)."""
     with _guarded():
         from solver import SimulationError, simulate
 
-        from . import store
+        from . import runner, store
         from .scene import load_scene, overrides_text, parse_override
 
         path = bundled.resolve(scene)
         loaded = load_scene(path, overrides)
-        problem = loaded.problem()
         target = output or Path(re.sub(r"[^\w.+-]", "-", loaded.name) + ".nc")
+        replacing = runner.check_run(loaded, path, target, force)  # before anything is computed
+        problem = loaded.problem()
         try:
             with _simulation_progress(loaded.name, problem.t_end, quiet) as report:
                 ds = simulate(problem, progress=report)
         except SimulationError as error:
             raise _fail(f"simulation failed: {path}: {error}", 1) from None
         text = overrides_text([parse_override(o) for o in overrides])
-        store.write_atomic(store.stamp(ds, loaded.to_toml(), path, text, **worker.provenance()), target)
+        try:
+            store.write_atomic(store.stamp(ds, loaded.to_toml(), path, text, **worker.provenance()), target)
+        except OSError as error:  # e.g. the disk filled up while it ran
+            raise _fail(f"cannot write {target} ({error.strerror or error}); the result is lost", 1) from None
         err.print(f"wrote {target} (wall time {ds.attrs['wall_time']:.3g} s, {ds.attrs['steps_taken']} steps, "
-                  f"{ds.attrs['steps_bisected']} bisected)")
+                  f"{ds.attrs['steps_bisected']} bisected){replacing}", markup=False, highlight=False, soft_wrap=True)
 
 
 @contextlib.contextmanager
@@ -170,7 +180,9 @@ def sweep(
                                                  "or tls://... (README: 'Sweeps on a Dask cluster')"),
     overrides: List[str] = typer.Option([], "--set", metavar=SET, help=SET_HELP + "; applied to every case"),
     retry_failed: bool = typer.Option(False, "--retry-failed", metavar=FLAG,
-                                      help="run failed cases again (finished ones are always skipped)"),
+                                      help="run failed cases again (finished ones are skipped unless --rerun-all)"),
+    force: bool = typer.Option(False, "--force", metavar=FLAG, help=FORCE_HELP),
+    rerun_all: bool = typer.Option(False, "--rerun-all", metavar=FLAG, help=RERUN_HELP),
     quiet: bool = typer.Option(False, "-q", "--quiet", metavar=FLAG, help="no progress bar or lines"),
 ):
     """Run every case of a study; re-running skips finished cases."""
@@ -184,9 +196,10 @@ def sweep(
 
         def run(notify) -> _Finished:
             report = runner.sweep(plan, directory, workers=workers, scheduler=scheduler,
-                                  retry_failed=retry_failed, notify=notify)
+                                  retry_failed=retry_failed, notify=notify, force=force, rerun_all=rerun_all)
             return _Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
-                             f"{len(report.failed)} failed; wrote {report.study}", report.failed, len(plan.cases))
+                             f"{len(report.failed)} failed; wrote {report.study}", report.failed, len(plan.cases),
+                             warnings=report.warnings())
 
         return plan.spec.name, run
 
@@ -207,14 +220,19 @@ def scenes():
 
 
 @app.command()
-def show(path: Path = typer.Argument(..., metavar="FILE.nc", help="dataset written by run or sweep (a case file, study.nc, or a "
-                                                  "sweep's directory)")):
-    """Print a readable summary: scene, parameters, run time, final averages."""
+def show(path: Path = typer.Argument(..., metavar="FILE", help="dataset written by run or sweep (a case file, study.nc, "
+                                                                 "or a sweep's directory), or a scene or study file (TOML)")):
+    """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
+    running it needs (memory, disk)."""
     with _guarded():
-        from .summary import summarize
-        from .store import open_dataset
+        from .store import open_result
+        from .summary import needs, summarize
 
-        summarize(open_dataset(path / "study.nc" if path.is_dir() else path), out)
+        if path.suffix == ".toml" or (not path.exists() and not path.suffix):
+            typer.echo(needs(bundled.resolve(path)))
+            return
+        summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
+                              "study.nc"), out)
 
 
 @app.command()
@@ -235,10 +253,10 @@ def plot(
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with _guarded():
         from .plots import plot as draw
-        from .store import open_dataset
+        from .store import open_result
 
         source = path / "study.nc" if path.is_dir() else path
-        ds = open_dataset(source)
+        ds = open_result(source, ("run", "study"), "nothing to plot")
         try:
             written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut, warp=warp)
         except ValueError as error:
@@ -272,9 +290,9 @@ def export(
     """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
     with _guarded():
         from .export import export as write
-        from .store import open_dataset
+        from .store import open_result
 
-        ds = open_dataset(path)
+        ds = open_result(path, ("run",), "export writes one run's fields")
         try:
             written = write(ds, directory)
         except ValueError as error:
@@ -295,6 +313,8 @@ def convergence(
     workers: Optional[int] = typer.Option(None, "--workers", min=1, metavar="N", help="run levels on N local processes"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler"),
     overrides: List[str] = typer.Option([], "--set", metavar=SET, help=SET_HELP + "; applied to level 0"),
+    force: bool = typer.Option(False, "--force", metavar=FLAG, help=FORCE_HELP),
+    rerun_all: bool = typer.Option(False, "--rerun-all", metavar=FLAG, help=RERUN_HELP),
     reference: Optional[Path] = typer.Option(None, "--reference", metavar="RUN.nc", help="measure every level against this run of "
                                                                        "the same scene (e.g. refined, another "
                                                                        "scheme) instead of the finest level"),
@@ -317,13 +337,13 @@ def convergence(
 
         def run(notify) -> _Finished:
             ds, report = refinement.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
-                                        notify, fixed, reference, time)
+                                        notify, fixed, reference, time, force, rerun_all)
             table = refinement.table_text(ds)
             (directory / "convergence.md").write_text(table)
             work_precision(ds, directory / "work_precision.png")
             return _Finished(f"wrote {directory / 'convergence.nc'}, convergence.md, work_precision.png "
                              f"({len(report.ran)} runs, {len(report.skipped)} finished before)", report.failed,
-                             len(report.ran) + len(report.skipped), table, "runs")
+                             len(report.ran) + len(report.skipped), table, "runs", report.warnings())
 
         return f"convergence {path.stem}", run
 
@@ -352,15 +372,18 @@ def _one_pool(workers: int | None, scheduler: str | None) -> None:
 def _job_progress(title: str, quiet: bool, noun: str = "cases"):
     """A progress bar over the jobs of a sweep, convergence or stability run (plain lines where stderr is not
     a terminal); yields run_jobs' notify.  A job that fails is told at once (also with --quiet): the others
-    go on.  When every job had finished before, it says so instead of showing an empty bar."""
+    go on.  The bar shows from the first job on: input found bad before (an output directory in use, say) is
+    told on its own line.  When every job had finished before, it says so instead of showing an empty bar."""
     counts = {"start": 0, "skip": 0, "failed before": 0, "finished": 0, "failed": 0}
     lines = None if quiet or err.is_terminal else _Lines(title, 0)
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err,
-                  disable=quiet or lines is not None) as progress:
-        task = progress.add_task(title, total=0, last="", visible=False)
-
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                        TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=err,
+                        disable=quiet or lines is not None)
+    task = progress.add_task(title, total=0, last="", visible=False)
+    try:
         def notify(event: str, job_id: str, message: str):
+            if not progress.live.is_started:
+                progress.start()
             if event == "skip":
                 counts["skip"] += 1
                 counts["failed before"] += message == "failed"
@@ -379,6 +402,9 @@ def _job_progress(title: str, quiet: bool, noun: str = "cases"):
                                  f"{counts['failed']} failed, last {job_id} {event}", force=event == "failed")
 
         yield notify
+    finally:
+        if progress.live.is_started:
+            progress.stop()
     if counts["start"] == 0 and counts["skip"]:
         again = (f", {counts['failed before']} of them failed (--retry-failed runs them again)"
                  if counts["failed before"] else "")
@@ -394,6 +420,10 @@ class _Finished:
     total: int  # jobs in all
     table: str = ""  # printed on stdout
     noun: str = "cases"
+    warnings: list[str] = None  # printed on stderr, before the summary
+
+    def __post_init__(self):
+        self.warnings = self.warnings or []
 
 
 def _job_command(command: str, workers: int | None, scheduler: str | None, quiet: bool,
@@ -405,9 +435,13 @@ def _job_command(command: str, workers: int | None, scheduler: str | None, quiet
     failed, or a pool that broke down, is exit status 1.
     """
     with _guarded():
+        _one_pool(workers, scheduler)
+        if workers:
+            from .pool import warm_up
+
+            warm_up()  # the fork server imports the solver while this process imports it and validates
         from .runner import SweepError
 
-        _one_pool(workers, scheduler)
         title, run = start()
         with _job_progress(title, quiet, "runs" if command == "convergence" else "cases") as notify:
             try:
@@ -416,6 +450,8 @@ def _job_command(command: str, workers: int | None, scheduler: str | None, quiet
                 raise _fail(f"{command} stopped: {error}", 1) from None
         if finished.table:
             typer.echo(finished.table)
+        for warning in finished.warnings:
+            typer.echo(f"warning: {warning}", err=True)
         err.print(finished.summary)
         if finished.failures:
             raise _fail(f"{len(finished.failures)} of {finished.total} {finished.noun} failed: "
@@ -430,6 +466,8 @@ def stability(
     workers: Optional[int] = typer.Option(None, "--workers", min=1, metavar="N", help="run cases on N local processes"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler"),
     overrides: List[str] = typer.Option([], "--set", metavar=SET, help=SET_HELP + "; applied to every case"),
+    force: bool = typer.Option(False, "--force", metavar=FLAG, help=FORCE_HELP),
+    rerun_all: bool = typer.Option(False, "--rerun-all", metavar=FLAG, help=RERUN_HELP),
     quiet: bool = typer.Option(False, "-q", "--quiet", metavar=FLAG, help="no progress bar or lines"),
 ):
     """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
@@ -442,13 +480,13 @@ def stability(
         directory = output or Path(f"{path.stem}-results")
 
         def run(notify) -> _Finished:
-            ds, _ = catalogue_run.run(plan, directory, workers, scheduler, notify)
+            ds, report = catalogue_run.run(plan, directory, workers, scheduler, notify, force, rerun_all)
             table = catalogue_run.table_text(ds)
             (directory / "stability.md").write_text(table)
             failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}
             return _Finished(f"wrote {directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of "
                              f"{ds.sizes['case']} cases completed within bounds or stopped with a diagnosis",
-                             failed, ds.sizes["case"], table)
+                             failed, ds.sizes["case"], table, warnings=report.warnings())
 
         return f"stability {path.stem}", run
 

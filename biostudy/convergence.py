@@ -42,8 +42,9 @@ from solver.output import on_output_times
 from . import measures, observables, store
 from .errors import BadInput
 from .formatting import number
-from .runner import Job, SweepReport, run_jobs
-from .scene import Scene, overrides_text, scene_from_data, set_key
+from .ownership import Owner
+from .runner import Job, SweepReport, owned, run_jobs
+from .scene import Scene, given_by, overrides_text, scene_from_data, set_key
 
 SERIES = ("space", "time", "both", "adaptive")
 FIRST_TOLERANCE = 1e-2  # adaptive level 0: local error in phi per step
@@ -135,24 +136,27 @@ def check_refinable(base: Scene, scene_file: Path) -> None:
 def run(data: dict, scene_file: Path, out_dir: Path, levels: int, series: tuple[str, ...] = SERIES,
         tolerance: float = FIRST_TOLERANCE, workers: int | None = None, scheduler: str | None = None,
         notify=None, fixed: dict | None = None, reference: Path | None = None,
-        time: float | None = None) -> tuple[xr.Dataset, SweepReport]:
-    """Run every level (skipping finished ones), measure, write DIR/convergence.nc; returns it and the report."""
+        time: float | None = None, force: bool = False, rerun_all: bool = False) -> tuple[xr.Dataset, SweepReport]:
+    """Run every level (skipping finished ones), measure, write DIR/convergence.nc; returns it and the report.
+    DIR belongs to this scene's convergence runs (`runner.owned`; `force` takes over another's)."""
     if levels < 2:
         raise BadInput("needs at least 2 levels (the finest is the reference)", None, "--levels")
-    base = scene_from_data(copy.deepcopy(data), scene_file)
+    base = scene_from_data(copy.deepcopy(data), scene_file, given_by(fixed or {}, "--set"))
     check_refinable(base, scene_file)
     given = None if reference is None else load_reference(reference, base, time)
     wanted = plan(base, levels, series, tolerance)
     scenes = {level.job_id: refined(data, scene_file, level) for level in wanted}
     text = overrides_text(fixed or {})
     jobs = [Job(job_id, scene, scene_file, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
-    report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
-    ds = measure(wanted, out_dir, levels, series, base, given, time)
-    if reference is not None:
-        ds.attrs["reference"] = f"the run in {Path(reference).resolve()} (T* = {given['time']:g})"
-    ds.attrs = store.with_provenance({**ds.attrs, "scene": base.to_toml(), "scene_file": str(scene_file.resolve()),
-                                      "overrides": text})
-    store.write_atomic(ds, out_dir / "convergence.nc")
+    owner = Owner("convergence", scene_file.stem, str(scene_file.resolve()))
+    with owned(out_dir, owner, "convergence.nc", force):
+        report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify, rerun_all=rerun_all)
+        ds = measure(wanted, out_dir, levels, series, base, given, time)
+        if reference is not None:
+            ds.attrs["reference"] = f"the run in {Path(reference).resolve()} (T* = {given['time']:g})"
+        ds.attrs = store.with_provenance({**ds.attrs, "scene": base.to_toml(),
+                                          "scene_file": str(scene_file.resolve()), "overrides": text})
+        store.write_atomic(ds, out_dir / "convergence.nc")
     return ds, report
 
 

@@ -46,9 +46,9 @@ class BadInput(Exception):
         """The same problem, attributed to `file` unless it already names one."""
         return self if self.file else BadInput(self.problem, file, self.key, self.more)
 
-    def relocated(self, file: str | Path, key) -> "BadInput":
-        """Every problem attributed to `file`, its key rewritten by key(old key or None)."""
-        return BadInput(self.problem, file, key(self.key), tuple(o.relocated(file, key) for o in self.more))
+    def relocated(self, file, key) -> "BadInput":
+        """Every problem attributed to file(old file or None), its key rewritten by key(old key or None)."""
+        return BadInput(self.problem, file(self.file), key(self.key), tuple(o.relocated(file, key) for o in self.more))
 
 
 class InvalidAt(ValueError):

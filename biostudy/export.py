@@ -24,6 +24,7 @@ filters; the cell count of each file is the number of open cells.
 """
 from __future__ import annotations
 
+import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -33,6 +34,8 @@ import xarray as xr
 
 from solver import Grid
 from solver.problem import AXES
+
+from .store import temporary_name
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
 MECHANICS_TIME = "time_mechanics"
@@ -82,7 +85,23 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
     _check(ds)
     ds = _on_mechanics_time(ds)
     directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise ValueError(f"{directory} is a file, not a directory for the snapshots")
+    created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        return _write_series(ds, directory, written)
+    except BaseException:  # nothing half-written: this call's files go, and the directory if it made it
+        for path in written:
+            path.unlink(missing_ok=True)
+        if created and not any(directory.iterdir()):
+            directory.rmdir()
+        raise
+
+
+def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[Path]:
+    """The snapshots and the PVD, each written to a temporary and renamed; `written` lists them as they come."""
     grid = _grid(ds)
     cell_dims = tuple(reversed(grid.axes))
     points, cells, kind = _lattice(grid)
@@ -109,7 +128,6 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
         u = ds["u"].transpose(MECHANICS_TIME, *(f"{d}_node" for d in cell_dims), "component").values
         u = np.pad(u.reshape(u.shape[0], -1, u.shape[-1])[:, used], ((0, 0), (0, 0), (0, 3 - u.shape[-1])))
 
-    written = []
     for t in range(ds.sizes["time"]):
         cell_data = {name: [values] for name, values in static.items()}
         for name, values in fields.items():
@@ -123,11 +141,10 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
                 point_data["u"] = u[m].astype(float) if m >= 0 else np.zeros((len(points), 3))
             field_data["mechanics_time"] = float(ds[MECHANICS_TIME].values[m]) if m >= 0 else float("nan")
         mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
-        path = directory / SNAPSHOT.format(t)
-        meshio.write(path, mesh, file_format="vtu")
-        _annotate(path, field_data, scalars="phi", vectors="u" if point_data else None)
-        written.append(path)
-    written.append(_write_collection(directory / COLLECTION, written, times))
+        vectors = "u" if point_data else None
+        written.append(_atomic(directory / SNAPSHOT.format(t),
+                               lambda path: _write_vtu(path, mesh, field_data, vectors)))  # noqa: B023 (called at once)
+    written.append(_atomic(directory / COLLECTION, lambda path: _write_collection(path, written, times)))
     return written
 
 
@@ -149,6 +166,11 @@ def _on_mechanics_time(ds: xr.Dataset) -> xr.Dataset:
     return ds.drop_vars(list(moved)).assign(moved)
 
 
+def _write_vtu(path: Path, mesh: meshio.Mesh, field_data: dict, vectors: str | None) -> None:
+    meshio.write(path, mesh, file_format="vtu")
+    _annotate(path, field_data, scalars="phi", vectors=vectors)
+
+
 def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -> None:
     """Add what meshio's VTU writer leaves out: field data (one value each, e.g. `TimeValue`) and the
     active scalars and vectors."""
@@ -166,6 +188,17 @@ def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -
     if vectors is not None:
         piece.find("PointData").set("Vectors", vectors)
     tree.write(path)
+
+
+def _atomic(path: Path, write) -> Path:
+    """write(temporary) beside `path`, then renamed to it: the file is complete or absent."""
+    temporary = temporary_name(path)
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return path
 
 
 def _write_collection(path: Path, files: list[Path], times: np.ndarray) -> Path:

@@ -46,7 +46,7 @@ def value_text(value) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
-        return number(value, 6)
+        return "nan" if math.isnan(value) else number(value, 6)
     if isinstance(value, str):
         return repr(value)
     if isinstance(value, (list, tuple)):

@@ -4,8 +4,11 @@
   zlib-compressed with the shuffle filter, one snapshot per chunk (length 1
   along time, time_mechanics and a study's dimensions, whole along x, y, z and
   the nodes), so reading one time of one case reads one chunk; masks and bounds
-  are compressed whole; time series and scalars stay contiguous (too small to
-  gain).  Coordinates have no ``_FillValue`` (CF 2.5.1).  Measured in the
+  are compressed whole; time series and scalars are not compressed (too small
+  to gain).  Every numeric variable of more than one value carries a fletcher32
+  checksum per chunk (so `store.intact` tells a damaged file from a good one;
+  HDF5 filters need chunked storage, so only scalars and strings stay
+  contiguous).  Coordinates have no ``_FillValue`` (CF 2.5.1).  Measured in the
   README ("Looking at the results").
 * `history`: the CF ``history`` attribute, the command line that made the file.
 * `as_run`: a sweep's case file carries its place in the study as dimensions of
@@ -41,6 +44,8 @@ def encoding(ds: xr.Dataset) -> dict[str, dict]:
             result[name] = {**COMPRESSION, "chunksizes": chunks}
         else:
             result[name] = {key: var.encoding[key] for key in ("_FillValue", "dtype") if key in var.encoding}
+        if var.ndim and var.size > 1 and var.dtype.kind in "biuf":
+            result[name].update(fletcher32=True, contiguous=False)
     return result
 
 

@@ -15,6 +15,7 @@ linear_solver, and ``[time] output_times`` (an explicit list instead of
 from __future__ import annotations
 
 import copy
+import re
 import tomllib
 import typing
 from pathlib import Path
@@ -31,7 +32,7 @@ from .formatting import units_text, value_text
 from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
 from .tomltext import dumps as toml_dumps
 
-CONFIG = ConfigDict(extra="forbid", strict=True)
+CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
 DEFAULT_OUTPUTS = 11
 _NUMERICS = solver.Numerics()
 _MECHANICS = solver.MechanicsSetup()
@@ -123,10 +124,11 @@ class NumericsSpec(BaseModel):
     max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
                                                        "a run needing less stops with a diagnosis", "1", ge=1)
     growth_velocity: Literal["front", "pointwise"] = Field(
-        _NUMERICS.growth_velocity, description="front: the growth speed taken at the phi = 1/2 front and extended "
-                                               "along its normals (dense biofilm stays dense on 1 µm cells); "
-                                               "pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
-                                               "written; needs cells of 1/8 µm to keep dense biofilm dense)")
+        _NUMERICS.growth_velocity, description="pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
+                                               "written; keeps dense biofilm dense only on cells of ~1/8 µm); "
+                                               "front: the growth speed taken at the phi = 1/2 front and carried "
+                                               "along its normals: the sharp-interface limit, dense biofilm stays "
+                                               "dense on 1 µm cells (docs/paper.md)")
     front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
                                                      "the front take the front's speed", "1", ge=1, le=10)
 
@@ -218,6 +220,11 @@ class Scene(BaseModel):
 
     @model_validator(mode="after")
     def _fits_the_grid(self):
+        from .resources import validation_problem
+
+        too_big = validation_problem(self)  # before any array of the grid's size is made
+        if too_big:
+            raise InvalidAt("grid.shape", too_big)
         grid = self.grid.solver_grid()
         for kind in ("biofilm", "nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):
@@ -369,8 +376,38 @@ def key_info(key: str) -> tuple[str, str]:
             str(extra.get("units", "1")))
 
 
-def scene_from_data(data: dict, file: str | Path) -> Scene:
-    """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths."""
+# Where overridden keys came from: dotted key -> (where it was given: "--set" or a study file, the key's prefix
+# there, e.g. "set."), so that an error in an overridden value names the place that gave it, not the scene file.
+Origins = dict[str, tuple[str, str]]
+
+
+def given_by(keys, where: str | Path, prefix: str = "") -> Origins:
+    """Origins of `keys` (dotted keys, or (key, value) pairs), all given at `where`."""
+    return {(key if isinstance(key, str) else key[0]): (str(where), prefix) for key in keys}
+
+
+def blame(error: BadInput, origins: Origins | None) -> BadInput:
+    """`error` attributed to where the value at its key was given, if an override gave it (the last one wins);
+    each of its other problems (`BadInput.more`) likewise."""
+    if not origins:
+        return error
+    more = tuple(blame(other, origins) for other in error.more)
+    if error.key:
+        parts = [p for p in re.split(r"[.\[\]]+", error.key) if p]
+        for key, (where, prefix) in reversed(list(origins.items())):
+            try:
+                given = key_parts(key)
+            except BadInput:
+                continue
+            n = min(len(given), len(parts))
+            if given[:n] == parts[:n]:
+                return BadInput(error.problem, where, prefix + error.key, more)
+    return BadInput(error.problem, error.file, error.key, more)
+
+
+def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None) -> Scene:
+    """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
+    value that an override gave names that override instead (`origins`)."""
     file = Path(file)
     data = copy.deepcopy(data)
     if isinstance(data.get("name", ""), str) and not data.get("name"):
@@ -378,7 +415,7 @@ def scene_from_data(data: dict, file: str | Path) -> Scene:
     try:
         return Scene.model_validate(data, context={"base": file.parent})
     except ValidationError as error:
-        raise from_validation_error(error, file, known_keys=SCENE_KEYS) from None
+        raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS), origins) from None
 
 
 def read_scene_data(path: str | Path) -> dict:
@@ -405,8 +442,7 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...], file: st
 def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
     """Read, override and validate a scene file: the only way a scene file becomes a `Scene`."""
     data = read_scene_data(path)
-    apply_overrides(data, overrides)
-    return scene_from_data(data, path)
+    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"))
 
 
 def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:

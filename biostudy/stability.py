@@ -44,7 +44,7 @@ from solver.problem import parameter_infos
 
 from . import store
 from .formatting import number
-from .runner import Job, SweepReport, plan_jobs, run_jobs
+from .runner import Job, SweepReport, owned, plan_jobs, plan_owner, run_jobs
 from .study import Case, FlatSet, ManyCases, Plan, load_plan
 
 
@@ -196,16 +196,18 @@ def _dataset(rows: list[dict]) -> xr.Dataset:
     return xr.Dataset(data, coords=coords)
 
 
-def run(plan: Plan, out_dir: Path, workers=None, scheduler=None, notify=None) -> tuple[xr.Dataset, SweepReport]:
-    """Run a loaded catalogue (see `load`), judge every case, write DIR/stability.nc."""
+def run(plan: Plan, out_dir: Path, workers=None, scheduler=None, notify=None, force: bool = False,
+        rerun_all: bool = False) -> tuple[xr.Dataset, SweepReport]:
+    """Run a loaded catalogue (see `load`), judge every case, write DIR/stability.nc (DIR: `runner.owned`)."""
     jobs = plan_jobs(plan, catalogue_file=str(plan.file.resolve()))
-    report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
-    ds = verdicts(jobs, out_dir)
-    ds.attrs = store.with_provenance({
-        "Conventions": "CF-1.10", "title": f"stability catalogue: {plan.spec.name}",
-        "catalogue": plan.file.read_text(encoding="utf-8"), "catalogue_file": str(plan.file.resolve()),
-        "scene_file": str(plan.scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
-    store.write_atomic(ds, Path(out_dir) / "stability.nc")
+    with owned(out_dir, plan_owner(plan, "catalogue"), "stability.nc", force):
+        report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify, rerun_all=rerun_all)
+        ds = verdicts(jobs, out_dir)
+        ds.attrs = store.with_provenance({
+            "Conventions": "CF-1.10", "title": f"stability catalogue: {plan.spec.name}",
+            "catalogue": plan.file.read_text(encoding="utf-8"), "catalogue_file": str(plan.file.resolve()),
+            "scene_file": str(plan.scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
+        store.write_atomic(ds, Path(out_dir) / "stability.nc")
     return ds, report
 
 

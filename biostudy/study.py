@@ -35,7 +35,8 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 from . import designs
 from .errors import BadInput, InvalidAt, from_validation_error, read_toml
 from .formatting import value_text
-from .scene import Scene, apply_overrides, key_parts, read_scene_data, scene_from_data, set_key
+from .scene import (Origins, Scene, apply_overrides, given_by, key_parts, parse_override, read_scene_data,
+                    scene_from_data, set_key)
 from .tomltext import float_literal
 
 RESERVED_DIMS = frozenset({"time", "x", "y", "z", "x_node", "y_node", "z_node", "component", "case"})
@@ -248,15 +249,18 @@ def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) 
     return scene_file, data, {**fixed_set, **dict(apply_overrides(data, overrides))}
 
 
-def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str) -> Scene:
-    """One case's validated scene: the base data with the case's values; errors name the case."""
+def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
+               origins: Origins | None = None) -> Scene:
+    """One case's validated scene: the base data with the case's values; errors name the case, and the
+    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault."""
     data = copy.deepcopy(base_data)
     try:
         for key, value in values.items():
             set_key(data, key, value)
-        return scene_from_data(data, scene_file)
+        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)})
     except BadInput as error:
-        raise error.relocated(path, lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
+        raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
+                              lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
 
 
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
@@ -276,15 +280,16 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
     except ValidationError as error:
         raise from_validation_error(error, path, known_keys=model.model_fields) from None
     scene_file, base_data, fixed = base_scene(path, spec.scene, spec.set, overrides)
-    base = scene_from_data(base_data, scene_file)
+    origins = {**given_by(spec.set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
+    base = scene_from_data(base_data, scene_file, origins)
     spec.check(base_data, scene_file, path)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)
     if repeated:
         raise BadInput(f"case {repeated} comes twice", path, "sweep" if isinstance(spec, Study) else "case")
-    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.attrs.get("case_id", case.id))
-              for case in cases}
+    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.attrs.get("case_id", case.id),
+                                  origins) for case in cases}
     return Plan(path, spec, scene_file, base, cases, scenes, fixed)
 
 

@@ -155,3 +155,31 @@ def study_summary(ds: xr.Dataset) -> Group:
 
 def summarize(ds: xr.Dataset, console: Console) -> None:
     console.print(study_summary(ds) if "sweep_mode" in ds.attrs else run_summary(ds))
+
+
+def needs(path) -> str:
+    """What running a scene or a study file needs (validated first: bad input is `BadInput`), as text."""
+    from . import resources
+    from .errors import read_toml
+    from .scene import load_scene
+    from .study import load_study
+
+    available = f"{resources.size(resources.available_memory()).lstrip('~')} of memory available"
+    if "scene" in read_toml(path) and "grid" not in read_toml(path):
+        plan = load_study(path)
+        found = {case.id: resources.estimate(plan.scenes[case.id]) for case in plan.cases}
+        largest = max(found, key=lambda i: found[i].memory)
+        return "\n".join([
+            f"{plan.spec.name}: {len(found)} cases of {plan.scene_file.name}",
+            f"largest case  {largest}: {resources.size(found[largest].memory)} of memory ({found[largest].parts()})",
+            f"on disk       {resources.size(sum(e.disk for e in found.values()))} of case files, as much again "
+            "for study.nc",
+            f"here          {available}; N local workers need about N times the largest case"])
+    scene = load_scene(path)
+    found = resources.estimate(scene)
+    mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
+    return "\n".join([
+        f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
+        f"{found.outputs} outputs, mechanics {mechanics}",
+        f"memory  {resources.size(found.memory)} ({found.parts()}); {available} here",
+        f"on disk {resources.size(found.disk)} for the dataset"])

@@ -7,15 +7,17 @@ phi with the normal speed
 
 which is what the pointwise velocity v = r c/(k+c) n_c does (`biofilm.Velocity`).
 Near the nutrient minimum n_c turns round, so v diverges there and the phi
-found at the minimum is spread in every direction.  In the continuous model
-the minimum lies inside the dense colony and the value spread is ~1.  On
-cells of 1 µm the front is smeared over 2-3 cells, their consumption moves the
-discrete minimum into the smeared front, and its 0.3-0.5 is spread through
-the colony: dense biofilm dilutes (docs/paper.md has the measurements).
+found at the minimum is spread in every direction.  While the minimum lies in
+dense biofilm the value spread is ~1 and the colony stays dense; once it lies
+in the colony's diffuse edge, or on a wall the colony has reached, a partial
+phi spreads and the colony dissolves.  Refined runs show the model itself
+doing so late in a run; on 1 µm cells the smeared front's own consumption
+pulls the minimum into it within T* ~ 0.2 (docs/paper.md has the measurements).
 
-Level-set numerics cure this by velocity extension: the speed is taken where
-the front is and carried along the normals, so that the front's profile
-translates instead of being stretched at grid scale.  Here:
+The front velocity computes the sharp-interface limit instead, by the velocity
+extension of level-set numerics: the speed is taken where the front is and
+carried along the normals, so that the front's profile translates and the
+dense side moves with it.  Here:
 
 1. The front is the phi = 1/2 level, located on every face whose two cells lie
    on either side of it, by linear interpolation (sub-cell).  There c, grad c
@@ -25,21 +27,22 @@ translates instead of being stretched at grid scale.  Here:
    as the pointwise velocity.  The crossing's cell (the nearer of the two)
    holds the vector F N (averaged over its crossings).
 2. Every cell on the dense side (phi >= 1/2) and every cell within `band`
-   cells of a front cell takes the vector of its nearest front cell (nearest
-   along paths through open cells, from face to face: obstacles are walls,
-   and a front does not lend its speed to the corridor behind a wall); a
-   face between two such cells gets the mean of their vectors' normal
-   components.  The dense side moves with its
-   front: its interior no longer sees the nutrient minimum, and where the
-   vectors of two fronts meet inside it (the medial axis) the value spread is
-   that of the interior.  (A band on the dense side too would move the
-   minimum's spreading to the band's edge, 3 cells behind the front, where the
-   smeared profile is not yet 1: measured, it diluted the agar colony.)
+   cells of a front cell takes the vector of its nearest front cell, nearest
+   along paths through open cells from face to face (obstacles are walls: a
+   front does not lend its speed to the corridor behind one); a face between
+   two such cells gets the mean of their vectors' normal components.  The
+   interior no longer sees the nutrient minimum; where the vectors of two
+   fronts meet inside it (the medial axis) the value spread is the interior's.
+   (A band on the dense side too moves the spreading to the band's edge, where
+   the smeared profile is not yet 1: measured, it diluted the agar colony.)
 3. Elsewhere - the void beyond the band, or everywhere when phi nowhere
    reaches 1/2 (a thin, diluted film) - the pointwise velocity is kept.
 
 The advection itself (upwind or TVD, implicit, bounded) is unchanged: only the
-velocity field differs.
+velocity field differs.  Where a front is wide and resolved (large beta against
+h, as in the maze's Table 6) the pointwise velocity is the better choice: a
+rigidly moved profile has no spreading at its minimum, and diffusion alone
+then thins a colony that the model as written keeps.
 """
 from __future__ import annotations
 

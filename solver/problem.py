@@ -152,10 +152,11 @@ class Numerics:
     time_tolerance: None = fixed nominal steps (bisected on failure); a number =
         error-controlled steps by step doubling, local error in phi (max norm)
         per step kept below it.
-    growth_velocity: "front" (the growth speed taken at the phi = 1/2 front and
-        extended along its normals over the dense side and `front_band` cells
-        into the void, see `front.py`: dense biofilm stays dense on coarse
-        cells) or "pointwise" (r c/(k+c) n_c in every cell, Eq. 34 as written).
+    growth_velocity: "pointwise" (r c/(k+c) n_c in every cell: Eq. 34 as
+        written; keeps dense biofilm dense only on cells of ~1/8 µm) or "front"
+        (the growth speed taken at the phi = 1/2 front and carried along its
+        normals over the dense side and `front_band` cells into the void, see
+        `front.py`: the sharp-interface limit, dense biofilm stays dense).
     front_band: reach of the extension into the void ahead of the front, in cells.
     """
 
@@ -165,7 +166,7 @@ class Numerics:
     biofilm_tolerance: float = 1e-12
     max_substeps: int = 1_000_000
     time_tolerance: float | None = None
-    growth_velocity: GrowthVelocity = "front"
+    growth_velocity: GrowthVelocity = "pointwise"
     front_band: float = 3.0
 
 

@@ -103,6 +103,24 @@ def tiny_study(write_toml, tiny_scene) -> Path:
         """)
 
 
+@pytest.fixture
+def slow_study(write_toml, tiny_scene):
+    """slow_study(steps, values) -> a study of the tiny scene over r whose cases take seconds each (to be
+    interrupted or killed while they run)."""
+
+    def write(steps: int, values=(50.0, 60.0, 70.0, 80.0)) -> Path:
+        return write_toml("slow.toml", f"""\
+            scene = "tiny.toml"
+            [set]
+            "time.t_end" = 1.0
+            "time.steps" = {steps}
+            [sweep]
+            r = {list(values)}
+            """)
+
+    return write
+
+
 @pytest.fixture(scope="session")
 def tiny_run():
     """tiny_run(shape, spacing=1.0) -> the dataset of a few steps of a blob growing toward a source in the

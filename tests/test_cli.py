@@ -82,18 +82,18 @@ def _write_mask(tmp_path, shape):
 
 # Each entry: id, command line (with {scene}, {study}, {dir} placeholders), what the one line must contain.
 BAD_INPUT = [
-    ("unknown key", ["run", "{scene}", "--set", "params.gamma=1"], ["{scene}", "params.gamma", "unknown key"]),
-    ("wrong type", ["run", "{scene}", "--set", "grid.spacing='one'"], ["{scene}", "grid.spacing", "valid number"]),
-    ("negative diffusivity", ["run", "{scene}", "--set", "params.d=-1"], ["{scene}", "params.d: must be > 0 (got -1)"]),
+    ("unknown key", ["run", "{scene}", "--set", "params.gamma=1"], ["--set: params.gamma", "unknown key"]),
+    ("wrong type", ["run", "{scene}", "--set", "grid.spacing='one'"], ["--set: grid.spacing", "valid number"]),
+    ("negative diffusivity", ["run", "{scene}", "--set", "params.d=-1"], ["--set: params.d: must be > 0 (got -1)"]),
     ("Poisson ratio 0.5", ["run", "{scene}", "--set", "params.nu=0.5"], ["params.nu: must be < 0.5"]),
     ("shape outside the grid", ["run", "{scene}", "--set", "biofilm.0.center=[30.0, 8.0]"],
-     ["{scene}", "biofilm[0].center", "outside the grid"]),
+     ["--set: biofilm[0].center", "outside the grid"]),
     ("source inside an obstacle", ["run", "{scene}", "--set", "obstacle.0.upper=[16.0, 16.0]"],
      ["{scene}", "nutrient[0]", "inside obstacle[0]"]),
     ("missing mask file", ["run", "{scene}", "--set", "obstacle.0={shape='mask', path='gone.npy'}"],
-     ["{scene}", "obstacle[0].path", "not found"]),
+     ["--set: obstacle[0].path", "not found"]),
     ("mask of the wrong shape", ["run", "{scene}", "--set", "obstacle.0={shape='mask', path='mask.npy'}"],
-     ["{scene}", "obstacle[0].path", "array has shape [4, 4]"]),
+     ["--set: obstacle[0].path", "array has shape [4, 4]"]),
     ("output time after t_end", ["run", "{scene}", "--set", "time.output_times=[0.0, 5.0]"],
      ["time.output_times[1]", "outside [0, t_end = 0.2]"]),
     ("zero steps", ["run", "{scene}", "--set", "time.steps=0"], ["time.steps: must be >= 1 (got 0)"]),
@@ -115,7 +115,7 @@ BAD_INPUT = [
     ("misspelled bundled scene", ["run", "directonal"],
      ["directonal: no such file", "did you mean 'directional'?", "`biostudy scenes`"]),
     ("misspelled bundled study", ["sweep", "directional-swep"], ["did you mean 'directional-sweep'?"]),
-    ("show a file that is not netCDF", ["show", "{scene}"], ["{scene}", "not a netCDF dataset"]),
+    ("show a file that is not netCDF", ["show", "{dir}/mask.npy"], ["mask.npy", "not a netCDF dataset"]),
 ]
 
 

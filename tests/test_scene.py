@@ -105,7 +105,7 @@ def test_bad_values_name_the_key(tiny_scene, override, key, problem):
     with pytest.raises(BadInput) as error:
         load_scene(tiny_scene, [override])
     line = str(error.value)
-    assert line.startswith(f"{tiny_scene}: {key}: "), line
+    assert line.startswith(f"--set: {key}: "), line  # the override gave the value, not the scene file
     assert problem in line
     assert "\n" not in line
 
@@ -116,9 +116,15 @@ def test_obstacle_covering_everything_or_a_source_is_rejected(tiny_scene):
 
 
 def test_every_error_is_told(tiny_scene):
+    """Every problem, one line each, each naming where its value was given (the scene file or --set)."""
     with pytest.raises(BadInput) as caught:
         load_scene(tiny_scene, ["params.d=-1", "params.k=0"])
-    assert caught.value.lines() == [f"{tiny_scene}: params.d: must be > 0 (got -1)",
+    assert caught.value.lines() == ["--set: params.d: must be > 0 (got -1)",
+                                    "--set: params.k: must be > 0 (got 0)"]
+    tiny_scene.write_text(tiny_scene.read_text().replace("g = 1e8", "g = 1e8\nk = 0.0"))
+    with pytest.raises(BadInput) as caught:
+        load_scene(tiny_scene, ["params.d=-1"])
+    assert caught.value.lines() == ["--set: params.d: must be > 0 (got -1)",
                                     f"{tiny_scene}: params.k: must be > 0 (got 0)"]
 
 

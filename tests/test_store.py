@@ -1,5 +1,6 @@
 """Datasets on disk: netCDF-legal attributes, atomic writes, the dataset layout after a round trip."""
 import os
+import subprocess
 import tomllib
 
 import numpy as np
@@ -47,12 +48,16 @@ def test_an_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path, mon
     assert not (tmp_path / "new.nc").exists()
 
 
-def test_remove_temporaries_touches_only_temporaries(tmp_path):
-    (tmp_path / ".a.nc.123.abcd.tmp").write_text("half")
+def test_remove_temporaries_touches_only_temporaries_of_writers_that_are_gone(tmp_path):
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    (tmp_path / f".a.nc.{dead.pid}.0123abcd.tmp").write_text("half")
+    (tmp_path / f".b.nc.{os.getppid()}.0123abcd.tmp").write_text("in flight")  # its writer is running
+    (tmp_path / ".draft.tmp").write_text("a user's")
     (tmp_path / "a.nc").write_text("kept")
     removed = store.remove_temporaries(tmp_path)
-    assert [p.name for p in removed] == [".a.nc.123.abcd.tmp"]
-    assert os.listdir(tmp_path) == ["a.nc"]
+    assert [p.name for p in removed] == [f".a.nc.{dead.pid}.0123abcd.tmp"]
+    assert sorted(os.listdir(tmp_path)) == [f".b.nc.{os.getppid()}.0123abcd.tmp", ".draft.tmp", "a.nc"]
 
 
 def test_dataset_layout_after_a_netcdf_round_trip(write_toml, tmp_path):

@@ -61,7 +61,10 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     assert len(first.ran) == 4 and not first.skipped
     # as if a run had been killed: one case missing, a half-written temporary beside the others
     (out / "cases" / "g=1e+09_r=100.nc").unlink()
-    (out / "cases" / ".g=1e+09_r=100.nc.4242.dead.tmp").write_bytes(b"\x89HDF half")
+    dead = subprocess.Popen(["true"])  # the pid of a writer that is gone
+    dead.wait()
+    leftover = f".g=1e+09_r=100.nc.{dead.pid}.0123abcd.tmp"
+    (out / "cases" / leftover).write_bytes(b"\x89HDF half")
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.nc")}
     combine.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
     partial = xr.open_dataset(out / "study.nc")
@@ -69,7 +72,7 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
     again = runner.sweep(load_study(tiny_study), out)
     assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
-    assert [p.name for p in again.removed] == [".g=1e+09_r=100.nc.4242.dead.tmp"]
+    assert [p.name for p in again.removed] == [leftover]
     assert case_files(out) == sorted([*stamps, "g=1e+09_r=100.nc"])
     assert all((out / "cases" / n).stat().st_mtime_ns == t for n, t in stamps.items())  # untouched
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
@@ -193,17 +196,6 @@ def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
     assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")
 
 
-def _slow_study(write_toml, steps):
-    return write_toml("slow.toml", f"""\
-        scene = "tiny.toml"
-        [set]
-        "time.t_end" = 1.0
-        "time.steps" = {steps}
-        [sweep]
-        r = [50.0, 60.0, 70.0, 80.0]
-        """)
-
-
 def _wait_for(condition, timeout):
     deadline = time.monotonic() + timeout
     while not condition():
@@ -213,8 +205,8 @@ def _wait_for(condition, timeout):
 
 
 @pytest.mark.slow
-def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_scene, tmp_path):
-    study = _slow_study(write_toml, 600)
+def test_a_killed_sweep_leaves_only_complete_files_and_resumes(slow_study, tmp_path):
+    study = slow_study(600)
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q"],
                                stderr=subprocess.PIPE)
@@ -231,9 +223,9 @@ def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
 
 
-def test_sigterm_stops_local_workers_and_exits_130(write_toml, tiny_scene, tmp_path):
+def test_sigterm_stops_local_workers_and_exits_130(slow_study, tmp_path):
     psutil = pytest.importorskip("psutil")
-    study = _slow_study(write_toml, 4000)
+    study = slow_study(4000)
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q",
                                 "--workers", "2"], stderr=subprocess.PIPE, text=True)

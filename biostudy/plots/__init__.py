@@ -16,12 +16,15 @@
 
 Options narrow it down: `variable` draws one field (or one sweep output),
 `time` the output nearest to it, `cut` the plane of a 3-D run.  Bad options
-raise ValueError with a one-line message before anything is drawn.
+raise ValueError with a one-line message before anything is drawn.  Every
+figure is drawn before the first is saved, and each is saved atomically:
+a failure leaves no picture of this call behind, complete or partial.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import xarray as xr
 
 from solver.output import on_output_times
@@ -70,7 +73,25 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
         shown = warped.solved_indices(ds, indices)  # refuses before anything is drawn
         figures.append(("warped", lambda: warped.figure(ds, shown, warp)))
     paths = output_paths(Path(out), [tag for tag, _ in figures])
-    return [save(draw(), path) for (_, draw), path in zip(figures, paths)]
+    drawn = []
+    try:
+        for _, draw in figures:
+            drawn.append(draw())
+    except BaseException:
+        for fig in drawn:
+            plt.close(fig)
+        raise
+    saved = []
+    try:
+        for fig, path in zip(drawn, paths):
+            saved.append(save(fig, path))
+    except BaseException:
+        for path in saved:
+            path.unlink(missing_ok=True)
+        for fig in drawn:
+            plt.close(fig)
+        raise
+    return saved
 
 
 def _marks(ds: xr.Dataset, indices: list[int], time: float | None) -> list[float]:
