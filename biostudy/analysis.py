@@ -333,7 +333,8 @@ def _dataset(ds, flat: Cases, names, indices, params, data, used, blocks, confid
     if "time" in ds.dims:
         times = ds["time"].values[indices]
         coords["time"] = (("time",), times, ds["time"].attrs) if several else ((), times[0], ds["time"].attrs)
-    notes = _notes(flat, design)
+    notes = _notes(flat, design) + _undefined_notes(flat, names, ds["time"].values[indices] if "time" in ds.dims
+                                                    else [None], used, blocks)
     from .store import with_provenance
 
     attrs = with_provenance({
@@ -375,6 +376,24 @@ def _notes(flat: Cases, design: Sample | None) -> list[str]:
                      f"as wide as the full design's would be.")
     if not notes:
         notes.append(f"All {total} cases finished.")
+    return notes
+
+
+def _undefined_notes(flat: Cases, names, times, used, blocks) -> list[str]:
+    """Outputs without a value in some finished cases (a height where no biofilm is dense, say): left out too."""
+    done = int((flat.status == "done").sum())
+    design = flat.design
+    notes = []
+    for t, time in enumerate(times):
+        for o, name in enumerate(names):
+            if used[t, o] == done:
+                continue
+            when = f" at T* = {number(time)}" if time is not None else ""
+            text = (f"{name}{when} has no value in {done - used[t, o]} of {done} finished cases (it is undefined "
+                    f"there) and they are left out")
+            if design is not None and design.method in ("sobol", "morris"):
+                text += f"; its indices come from {blocks[t, o]} complete blocks"
+            notes.append(text + ".")
     return notes
 
 
