@@ -8,8 +8,13 @@
   to gain).  Every numeric variable of more than one value carries a fletcher32
   checksum per chunk (so `store.intact` tells a damaged file from a good one;
   HDF5 filters need chunked storage, so only scalars and strings stay
-  contiguous).  Coordinates have no ``_FillValue`` (CF 2.5.1).  Measured in the
-  README ("Looking at the results").
+  contiguous).  Coordinates have no ``_FillValue`` (CF 2.5.1).  Text (a case
+  file's status, message and case id, study coordinates such as ``case``) is
+  written as characters (CF 2.2), not as variable-length strings: reading
+  those through a second handle of a file held open in the same process
+  (a case open in a notebook while a sweep resumes, which reads every finished
+  case back) corrupts HDF5's state and crashes a later open (HDFGroup/hdf5#5359,
+  Unidata/netcdf-c#2510).  Measured in the README ("Looking at the results").
 * `history`: the CF ``history`` attribute, the command line that made the file.
 * `as_run`: a sweep's case file carries its place in the study as dimensions of
   length 1 (`combine.CaseLayout`, so that ``xr.open_mfdataset`` combines the
@@ -46,6 +51,8 @@ def encoding(ds: xr.Dataset) -> dict[str, dict]:
             result[name] = {key: var.encoding[key] for key in ("_FillValue", "dtype") if key in var.encoding}
         if var.ndim and var.size > 1 and var.dtype.kind in "biuf":
             result[name].update(fletcher32=True, contiguous=False)
+        if var.dtype.kind in "OUS" and var.size and all(isinstance(v, str) for v in var.values.ravel()):
+            result[name]["dtype"] = "S1"  # characters, not variable-length strings (see above)
     return result
 
 

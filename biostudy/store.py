@@ -253,16 +253,22 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
 
 
 def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
-    """Whether every variable of a netCDF file reads back (checksums verified where it has them), read in
-    slabs of at most `slab_bytes`; False for a file that cannot be opened."""
+    """Whether every numeric variable of a netCDF file reads back (checksums verified where it has them),
+    read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
+
+    Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
+    checksum and are not read: read through a second handle of a file that is open elsewhere in this
+    process, they leave HDF5 in a state that crashes a later open (HDFGroup/hdf5#5359)."""
     import netCDF4
 
     try:
         with netCDF4.Dataset(path) as nc:
             nc.set_auto_mask(False)
             for var in nc.variables.values():
-                if not var.ndim or not var.shape[0] or not isinstance(var.dtype, np.dtype):
-                    var[...]  # a scalar, an empty or a string variable
+                if not isinstance(var.dtype, np.dtype):
+                    continue  # a variable-length string: no checksum to verify
+                if not var.ndim or not var.shape[0]:
+                    var[...]  # a scalar or an empty variable
                     continue
                 row = math.prod(var.shape[1:]) * var.dtype.itemsize
                 step = max(1, slab_bytes // max(row, 1))

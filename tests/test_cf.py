@@ -207,6 +207,7 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
         assert nc["phi_mean"].chunking() == [3] and not nc["phi_mean"].filters()["zlib"]  # one chunk, not compressed
     with netCDF4.Dataset(made / "grid" / "study.nc") as nc:
         assert nc["phi"].chunking() == [1, 1, 1, 16, 16] and nc["phi"].filters()["zlib"]
+        assert nc["status"].dtype == np.dtype("S1") and nc["case_id"].dtype == np.dtype("S1")  # text: characters
         assert nc.history
 
 

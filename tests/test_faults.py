@@ -225,6 +225,19 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     assert float(study.alpha.max()) < 1
 
 
+def test_resuming_while_this_process_holds_a_case_file_open(tiny_study, tmp_path):
+    """Resume checks read numbers only: a variable-length string read through a second handle of a file held
+    open here would crash HDF5 at a later open (store.intact)."""
+    out = tmp_path / "out"
+    plan = load_study(tiny_study)
+    runner.sweep(plan, out)
+    held = xr.open_dataset(store.case_file(out, "g=1e+09_r=50"))
+    assert held.status.item() == "done"
+    for _ in range(3):
+        assert len(runner.sweep(plan, out).skipped) == 4
+    held.close()
+
+
 # ---------------------------------------------------------------------------------------------
 # 5. inf is bad input wherever NaN is
 
