@@ -274,6 +274,7 @@ def analyze(ds: xr.Dataset, outputs: list[str] | None = None, times: list[float]
     return _dataset(ds, flat, names, indices, params, data, used, blocks, confidence)
 
 
+OUTPUT_UNITS = None  # Morris effects are in each output's units (coordinate output_units): no one units attribute
 LONG_NAMES = {
     "S1": ("first-order Sobol' index (share of the output's variance due to the parameter alone)", "1"),
     "S1_conf": ("half-width of the S1 bootstrap confidence interval", "1"),
@@ -282,11 +283,11 @@ LONG_NAMES = {
     "S2": ("second-order Sobol' index of the parameter pair (upper triangle)", "1"),
     "S2_conf": ("half-width of the S2 bootstrap confidence interval", "1"),
     "mu_star": ("Morris mu*: mean |elementary effect| per whole range (log ranges: per their span in log10)",
-                "see output_units"),
-    "mu_star_conf": ("half-width of the mu* bootstrap confidence interval", "see output_units"),
-    "mu": ("Morris mu: mean elementary effect per whole range", "see output_units"),
+                OUTPUT_UNITS),
+    "mu_star_conf": ("half-width of the mu* bootstrap confidence interval", OUTPUT_UNITS),
+    "mu": ("Morris mu: mean elementary effect per whole range", OUTPUT_UNITS),
     "sigma": ("Morris sigma: standard deviation of the elementary effects (nonlinearity, interactions)",
-              "see output_units"),
+              OUTPUT_UNITS),
     "spearman": ("Spearman rank correlation of parameter and output", "1"),
     "spearman_low": ("lower end of the Spearman confidence interval (Fisher z)", "1"),
     "spearman_high": ("upper end of the Spearman confidence interval (Fisher z)", "1"),
@@ -307,7 +308,9 @@ def _dataset(ds, flat: Cases, names, indices, params, data, used, blocks, confid
     for key, values in data.items():
         dims = (*lead, "parameter") + (("parameter2",) if values.ndim == 4 else ())
         long_name, units = LONG_NAMES[key]
-        variables[key] = (dims, squeeze(values), {"long_name": long_name, "units": units})
+        attrs = {"long_name": long_name, "units": units} if units is not OUTPUT_UNITS else {
+            "long_name": f"{long_name}, in the units of each output (output_units)"}
+        variables[key] = (dims, squeeze(values), attrs)
     variables["cases_used"] = (lead, squeeze(used), {"long_name": "finished cases the output was analysed from",
                                                       "units": "1"})
     design = flat.design

@@ -37,6 +37,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from solver.output import on_output_times
+
 from . import measures, observables, store
 from .errors import BadInput
 from .formatting import number
@@ -170,7 +172,7 @@ def _final(path: Path, time: float | None = None) -> dict | None:
 def summary(ds: xr.Dataset, time: float | None = None) -> dict:
     """A run's fields and measured quantities at its last output, or the output nearest `time`."""
     index = -1 if time is None else int(np.argmin(np.abs(ds["time"].values - time)))
-    last = ds.isel(time=index)
+    last = on_output_times(ds).isel(time=index)
     return {
         "phi": last["phi"].values, "p": last["p"].values if "p" in ds else None,
         **{q: observables.value(ds, OBSERVED.get(q, q), index) for q in ("biofilm_volume", "c_mean", "dense_volume",

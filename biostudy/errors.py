@@ -1,10 +1,11 @@
-"""Bad input, told in one line: the file, the key, what is wrong.
+"""Bad input, told in one line per problem: the file, the key, what is wrong.
 
 Everything a user can fix by editing a file or a command line ends up as a
 `BadInput` (the CLI prints it and exits with status 2, no traceback).  The
 schema's validators raise `InvalidAt` to say which key a cross-field problem
 belongs to; `from_validation_error` and `from_toml_error` turn pydantic's and
-tomllib's multi-line reports into that one line.
+tomllib's multi-line reports into such lines: every problem pydantic found,
+so that an incomplete scene is fixed in one go.
 """
 from __future__ import annotations
 
@@ -23,20 +24,31 @@ SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
 
 
 class BadInput(Exception):
-    """Input a user can fix.  str() is 'file: key: problem' (parts that are known)."""
+    """Input a user can fix.  str() is 'file: key: problem' (parts that are known); `more` holds the
+    other problems found in the same input, `lines()` all of them."""
 
-    def __init__(self, problem: str, file: str | Path | None = None, key: str | None = None):
+    def __init__(self, problem: str, file: str | Path | None = None, key: str | None = None,
+                 more: tuple["BadInput", ...] = ()):
         self.problem = problem
         self.file = None if file is None else str(file)
         self.key = key
+        self.more = tuple(more)
         super().__init__(problem)
 
     def __str__(self) -> str:
         return ": ".join(part for part in (self.file, self.key, self.problem) if part)
 
+    def lines(self) -> list[str]:
+        """Every problem, one line each."""
+        return [str(self), *(str(other) for other in self.more)]
+
     def within(self, file: str | Path) -> "BadInput":
         """The same problem, attributed to `file` unless it already names one."""
-        return self if self.file else BadInput(self.problem, file, self.key)
+        return self if self.file else BadInput(self.problem, file, self.key, self.more)
+
+    def relocated(self, file, key) -> "BadInput":
+        """Every problem attributed to file(old file or None), its key rewritten by key(old key or None)."""
+        return BadInput(self.problem, file(self.file), key(self.key), tuple(o.relocated(file, key) for o in self.more))
 
 
 class InvalidAt(ValueError):
@@ -101,15 +113,14 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
 
 def from_validation_error(error: ValidationError, file: str | Path | None,
                           prefix: str = "", known_keys: Iterable[str] = ()) -> BadInput:
-    """The first of pydantic's errors as one line; '(and N more)' if there were several."""
-    errors = error.errors()
-    first = errors[0]
-    extra, problem = _problem(first, known_keys)
-    key = key_path(first["loc"])
-    key = ".".join(part for part in (prefix, key, extra) if part)
-    if len(errors) > 1:
-        problem += f" (and {len(errors) - 1} more)"
-    return BadInput(problem, file, key or None)
+    """Every one of pydantic's errors as one line (the first, with the others in `more`)."""
+    found = []
+    for item in error.errors():
+        extra, problem = _problem(item, known_keys)
+        key = ".".join(part for part in (prefix, key_path(item["loc"]), extra) if part)
+        if (problem, key) not in [(f.problem, f.key or "") for f in found]:
+            found.append(BadInput(problem, file, key or None))
+    return BadInput(found[0].problem, file, found[0].key, tuple(found[1:]))
 
 
 def from_toml_error(error: tomllib.TOMLDecodeError, file: str | Path) -> BadInput:

@@ -3,8 +3,10 @@
 * `number`: 1e+08 -> "1e8", 41.0 -> "41", NaN -> "-"; significant digits as asked,
   or a fixed mantissa (``exponent=True``: "2.6e-2") for columns of errors.
 * `value_text`: a scene value as a user writes it in TOML, for error messages.
-* `units_text`: datasets keep CF spellings (``um2/T*``, ``1`` for dimensionless);
-  what is printed or drawn shows ``µm²/T*`` and leaves dimensionless units out.
+* `units_text`: datasets keep CF spellings (``um2``, ``1`` for dimensionless);
+  what is printed or drawn shows ``µm²`` and leaves dimensionless units out.
+  `shown_units` gives a model parameter its model units back (``d``: ``µm²/T*``;
+  a dataset writes ``um2``, T* being dimensionless: `solver.output.cf_units`).
 
 Case ids are not formatted here: they must never change (`study.id_text`), and
 scene text written back to files is exact (`tomltext`).
@@ -57,3 +59,12 @@ def value_text(value) -> str:
 def units_text(units: str) -> str:
     """'um2/T*' -> 'µm²/T*', '1' -> '' (dimensionless)."""
     return SHOWN_UNITS.get(str(units), str(units))
+
+
+def shown_units(name: str, units: str) -> str:
+    """The units of a dataset variable as people read them: a model parameter's own (per T*: 'r' -> 'µm/T*'),
+    else `units_text`."""
+    from solver.problem import parameter_infos
+
+    declared = {info.name: info.units for info in parameter_infos()}
+    return units_text(declared.get(name, units))

@@ -26,6 +26,8 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import map_coordinates
 
+from solver.output import on_output_times
+
 THRESHOLD = 0.5
 DENSE = 0.8
 
@@ -179,9 +181,10 @@ def front_advance(ds: xr.Dataset) -> np.ndarray:
 def stress_extremes(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
     """(largest compression -min p, largest tension max p) in Pa per output time; NaN where p was not solved."""
     dims = _cell_dims(ds)
-    solved = ds["p"].notnull().any(dims).values
-    low = ds["p"].min(dims, skipna=True).values
-    high = ds["p"].max(dims, skipna=True).values
+    p = on_output_times(ds)["p"]
+    solved = p.notnull().any(dims).values
+    low = p.min(dims, skipna=True).values
+    high = p.max(dims, skipna=True).values
     return np.where(solved, -low, np.nan), np.where(solved, high, np.nan)
 
 

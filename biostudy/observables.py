@@ -112,7 +112,7 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     missing = [v for v in observable.needs if v not in ds]
     if missing:
         raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
-    extra = [d for d in ds[observable.needs[0]].dims if d not in ("time", *CELL_DIMS)]
+    extra = [d for d in ds[observable.needs[0]].dims if d not in ("time", "time_mechanics", *CELL_DIMS)]
     if not extra:
         values = observable.compute(ds)
         return xr.DataArray(values, dims=("time",), coords={"time": ds["time"]}, name=name,

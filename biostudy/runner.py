@@ -23,7 +23,7 @@ import contextlib
 import hashlib
 import importlib.metadata
 import uuid
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
@@ -156,6 +156,7 @@ class Job:
     scene_file: Path
     overrides: str  # the overrides as TOML text, for the record
     attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
+    layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
 
 
 def fingerprint(problem: "solver.Problem") -> str:
@@ -319,7 +320,8 @@ def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler
           force: bool = False, rerun_all: bool = False) -> SweepReport:
     """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`);
     the directory must be this study's (or new, or `force`) and not in use by another run."""
-    jobs = plan_jobs(plan, study_file=str(plan.file.resolve()))
+    layouts = combine.case_layouts(plan)
+    jobs = [replace(job, layout=layouts[job.id]) for job in plan_jobs(plan, study_file=str(plan.file.resolve()))]
     with owned(out_dir, plan_owner(plan, "study"), "study.nc", force):
         report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify, rerun_all)
         combine.write_study(plan, Path(out_dir))
@@ -338,7 +340,7 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
                                   job.scene_file, job.overrides, error=outcome.error, **extra)
     path = store.case_file(out_dir, job.id)
     try:
-        store.write_atomic(ds, path)
+        store.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
     except OSError as error:
         raise SweepError(f"cannot write {path} ({error.strerror or error}); the cases recorded so far are kept, "
                          "run again to resume") from None

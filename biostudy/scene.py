@@ -387,19 +387,22 @@ def given_by(keys, where: str | Path, prefix: str = "") -> Origins:
 
 
 def blame(error: BadInput, origins: Origins | None) -> BadInput:
-    """`error` attributed to where the value at its key was given, if an override gave it (the last one wins)."""
-    if not origins or not error.key:
+    """`error` attributed to where the value at its key was given, if an override gave it (the last one wins);
+    each of its other problems (`BadInput.more`) likewise."""
+    if not origins:
         return error
-    parts = [p for p in re.split(r"[.\[\]]+", error.key) if p]
-    for key, (where, prefix) in reversed(list(origins.items())):
-        try:
-            given = key_parts(key)
-        except BadInput:
-            continue
-        n = min(len(given), len(parts))
-        if given[:n] == parts[:n]:
-            return BadInput(error.problem, where, prefix + error.key)
-    return error
+    more = tuple(blame(other, origins) for other in error.more)
+    if error.key:
+        parts = [p for p in re.split(r"[.\[\]]+", error.key) if p]
+        for key, (where, prefix) in reversed(list(origins.items())):
+            try:
+                given = key_parts(key)
+            except BadInput:
+                continue
+            n = min(len(given), len(parts))
+            if given[:n] == parts[:n]:
+                return BadInput(error.problem, where, prefix + error.key, more)
+    return BadInput(error.problem, error.file, error.key, more)
 
 
 def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None) -> Scene:

@@ -39,6 +39,7 @@ import xarray as xr
 from pydantic import ConfigDict, Field, model_validator
 
 from solver.bounds import ROUNDOFF
+from solver.output import cf_attrs, on_output_times
 from solver.problem import parameter_infos
 
 from . import store
@@ -88,6 +89,7 @@ def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
 
 def examine(ds: xr.Dataset) -> dict:
     """Independent checks of a finished run: extremes, bounds, non-finite values."""
+    ds = on_output_times(ds)
     open_cells = ~ds["obstacle"].values.astype(bool)
     fields = {name: ds[name].values[:, open_cells] for name in ("phi", "c", "alpha")}
     times = ds["time"].values
@@ -138,7 +140,7 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
             facts = examine(ds)
             row.update({k: v for k, v in facts.items() if k != "broken"})
             row.update(wall_time=float(ds.attrs["wall_time"]), steps=int(ds.attrs["steps_taken"]),
-                       bisections=int(ds.attrs["steps_bisected"]), rejected=int(ds.attrs["steps_rejected"]),
+                       steps_bisected=int(ds.attrs["steps_bisected"]), rejected=int(ds.attrs["steps_rejected"]),
                        **{name: float(ds.attrs.get(name, np.nan)) for name in PROJECTED})
             if facts["broken"]:
                 row.update(verdict="failed", ok=0, message=f"bounds broken: {facts['broken']}")
@@ -159,7 +161,7 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
 
 NUMBERS = {"ok": ("1", "1 = completed within bounds or refused by the mechanics with a diagnosis"),
            "wall_time": ("s", "wall time"), "steps": ("1", "accepted steps"),
-           "bisections": ("1", "bisected (failed) steps"), "rejected": ("1", "steps rejected by the error control"),
+           "steps_bisected": ("1", "bisected (failed) steps"), "rejected": ("1", "steps rejected by the error control"),
            "phi_min": ("1", "smallest phi"), "phi_max": ("1", "largest phi"),
            "phi_bound": ("1", "upper bound of phi from the k_alpha alpha source"),
            "c_min": ("1", "smallest c"), "c_max": ("1", "largest c"), "alpha_min": ("1", "smallest alpha"),
@@ -186,8 +188,7 @@ def _dataset(rows: list[dict]) -> xr.Dataset:
                       {"units": "1", "long_name": long_name})
     coords = {"case": ("case", np.array([r["name"] for r in rows], dtype=object), {"units": "1", "long_name": "case"})}
     for info in parameter_infos():
-        coords[info.name] = ("case", np.array([r[info.name] for r in rows]),
-                             {"units": info.units, "long_name": info.long_name})
+        coords[info.name] = ("case", np.array([r[info.name] for r in rows]), cf_attrs(info.units, info.long_name))
     for name, (units, long_name) in COORDS.items():
         coords[name] = ("case", np.array([r[name] for r in rows]), {"units": units, "long_name": long_name})
     for name in ("consumption", "advection"):
@@ -220,7 +221,7 @@ def table_text(ds: xr.Dataset) -> str:
         row = ds.isel(case=i)
         lines.append("| " + " | ".join([
             str(row.case.values), str(row.why.values), f"{int(row.cells)}", str(row.verdict.values),
-            number(row.steps, 9), number(row.bisections, 9), number(row.wall_time, 3),
+            number(row.steps, 9), number(row.steps_bisected, 9), number(row.wall_time, 3),
             f"[{number(row.phi_min, 3)}, {number(row.phi_max, 4)}]",
             f"[{number(row.c_min, 3)}, {number(row.c_max, 3)}]",
             *(_projected(row, name) for name in ("c", "phi")),

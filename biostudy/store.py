@@ -11,8 +11,9 @@ sweep in that directory removes once that process is gone; other files,
 and the temporaries of processes still running, are never touched.
 
 Every numeric variable of more than one value carries a fletcher32 checksum
-per chunk (netCDF4/HDF5), so `intact` tells a damaged file from a good one
-even when the damage keeps its size.  `writable` and `replaceable` check a
+per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), so
+`intact` tells a damaged file from a good one even when the damage keeps its
+size.  `writable` and `replaceable` check a
 target before anything is computed: a result is never lost to an unwritable
 path afterwards, and never overwrites an input or a file biostudy did not
 write.
@@ -38,6 +39,7 @@ from typing import Any, Iterable
 import numpy as np
 import xarray as xr
 
+from . import netcdf
 from .errors import BadInput
 
 TMP_GLOB = ".*.tmp"
@@ -59,7 +61,7 @@ def now() -> str:
 def with_provenance(attrs: dict) -> dict:
     """`attrs` as netCDF can store them, with the biostudy version and the time of writing: every file
     biostudy writes says which version made it and when."""
-    return legal_attrs({**attrs, "biostudy_version": version(), "created": now()})
+    return legal_attrs({**attrs, "biostudy_version": version(), "created": now(), "history": netcdf.history()})
 
 
 def legal_attrs(attrs: dict) -> dict:
@@ -94,24 +96,14 @@ def temporary_name(path: Path) -> Path:
     return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
 
 
-def checksummed(ds: xr.Dataset) -> dict:
-    """netCDF encodings adding a fletcher32 checksum to every numeric variable of more than one value (HDF5
-    filters need chunked storage: not for scalars, not for variable-length strings)."""
-    encoding = {}
-    for name, var in ds.variables.items():
-        if var.ndim and var.size > 1 and var.dtype.kind in "biuf":
-            encoding[name] = {"fletcher32": True, "contiguous": False}
-    return encoding
-
-
 def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write `ds` to `path` as netCDF4 with checksums: temporary file beside it, fsync, rename; nothing else on
-    failure."""
+    """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
+    beside it, fsync, rename; nothing else on failure."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     temporary = temporary_name(path)
     try:
-        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4", encoding=checksummed(ds))
+        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4", encoding=netcdf.encoding(ds))
         with open(temporary, "rb+") as handle:
             os.fsync(handle.fileno())
         os.replace(temporary, path)
@@ -213,13 +205,14 @@ def _bounded(name: str) -> str:
 
 
 def open_dataset(path: str | Path) -> xr.Dataset:
-    """A result file, loaded into memory and closed; an unreadable or damaged file is `BadInput`."""
+    """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
+    an unreadable or damaged file is `BadInput`."""
     path = Path(path)
     if not path.is_file():
         raise BadInput("no such file", path)
     try:
         with xr.open_dataset(path, engine="netcdf4") as ds:
-            return ds.load()
+            return netcdf.as_run(ds.load())
     except (OSError, ValueError) as error:
         raise BadInput(f"not a netCDF dataset ({str(error).splitlines()[0]})", path) from None
     except RuntimeError as error:  # netCDF4/HDF5 while reading data: a checksum that does not match
@@ -260,16 +253,22 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
 
 
 def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
-    """Whether every variable of a netCDF file reads back (checksums verified where it has them), read in
-    slabs of at most `slab_bytes`; False for a file that cannot be opened."""
+    """Whether every numeric variable of a netCDF file reads back (checksums verified where it has them),
+    read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
+
+    Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
+    checksum and are not read: read through a second handle of a file that is open elsewhere in this
+    process, they leave HDF5 in a state that crashes a later open (HDFGroup/hdf5#5359)."""
     import netCDF4
 
     try:
         with netCDF4.Dataset(path) as nc:
             nc.set_auto_mask(False)
             for var in nc.variables.values():
-                if not var.ndim or not var.shape[0] or not isinstance(var.dtype, np.dtype):
-                    var[...]  # a scalar, an empty or a string variable
+                if not isinstance(var.dtype, np.dtype):
+                    continue  # a variable-length string: no checksum to verify
+                if not var.ndim or not var.shape[0]:
+                    var[...]  # a scalar or an empty variable
                     continue
                 row = math.prod(var.shape[1:]) * var.dtype.itemsize
                 step = max(1, slab_bytes // max(row, 1))

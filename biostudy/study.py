@@ -259,8 +259,8 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
             set_key(data, key, value)
         return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)})
     except BadInput as error:
-        where = path if error.file in (None, str(scene_file)) else error.file
-        raise BadInput(error.problem, where, ": ".join(filter(None, (f"case {case_name}", error.key)))) from None
+        raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
+                              lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
 
 
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),

@@ -116,9 +116,8 @@ def study_summary(ds: xr.Dataset) -> Group:
     dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
     rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
     names = [n.strip() for n in str(attrs.get("sweep_keys", "")).split(",") if n.strip()]
-    swept = [c for c in ds.coords if c not in ds.dims or c in dims]
-    values = [f"{c} = " + ", ".join(number(v) for v in np.unique(ds[c].values)) for c in swept
-              if c not in ("case", "time", "x", "y", "z", "component") and not c.endswith("_node")]
+    swept = [c for c in ds.coords if ds[c].dims and set(ds[c].dims) <= set(dims) and c != "case"]
+    values = [f"{c} = " + ", ".join(number(v) for v in np.unique(ds[c].values)) for c in swept]
     rows += [
         ("sweep", f"{attrs.get('sweep_mode')} over {', '.join(names)}"),
         ("values", "; ".join(values)),

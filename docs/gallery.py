@@ -26,6 +26,8 @@ os.environ.setdefault("FIPY_SOLVERS", "scipy")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from findings import FINDINGS  # noqa: E402
 
+from solver.output import on_output_times  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "gallery"
 SCENES = ["directional", "agar-g1e8", "agar-g1e10", "obstacles", "maze", "grate"]
@@ -58,7 +60,7 @@ def main(names: list[str]) -> None:
         biostudy("plot", str(data), "-o", str(OUT / f"{name}.png"), "--warp", "500")
         drawn = time.perf_counter() - began
         with xr.open_dataset(data) as ds:
-            measured = FINDINGS[name](ds, load_scene(ROOT / "studies" / f"{name}.toml"))
+            measured = FINDINGS[name](on_output_times(ds), load_scene(ROOT / "studies" / f"{name}.toml"))
             found[name] = "\n".join(f"| {name} | {statement} | {quantity} | {value} |"
                                      for statement, quantity, value in measured)
             a = ds.attrs

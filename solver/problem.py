@@ -91,7 +91,8 @@ class Grid:
 
 
 def parameter(default: float, units: str, long_name: str, **bounds: float):
-    """A field of `Parameters`: default, units (CF spelling: um2/T*), meaning and allowed range
+    """A field of `Parameters`: default, units (the model's, e.g. um2/T*; datasets write their udunits form,
+    `solver.output.cf_units`), meaning and allowed range
     (bounds: gt, ge, lt, le).  The scene schema, the dataset's attributes and the tables of `show` and
     `stability` are all derived from these declarations, so a new parameter is declared here once."""
     unknown = set(bounds) - {"gt", "ge", "lt", "le"}

@@ -29,7 +29,7 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
     assert result.exit_code == 0, result.output
     assert "wrote" in result.stderr and "20 steps" in result.stderr
     ds = xr.open_dataset(out)
-    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18}
+    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
 
@@ -110,6 +110,11 @@ BAD_INPUT = [
      ["negative.toml: case r=-5: params.r: must be >= 0 (got -5)"]),
     ("both --workers and --scheduler", ["sweep", "{study}", "--workers", "2", "--scheduler", "tcp://x:1"],
      ["--workers", "not both"]),
+    ("tls:// without a TLS configuration", ["sweep", "{study}", "--scheduler", "tls://127.0.0.1:9"],
+     ["--scheduler: tls://127.0.0.1:9 needs a TLS configuration", "distributed.comm.tls.ca-file", "README"]),
+    ("misspelled bundled scene", ["run", "directonal"],
+     ["directonal: no such file", "did you mean 'directional'?", "`biostudy scenes`"]),
+    ("misspelled bundled study", ["sweep", "directional-swep"], ["did you mean 'directional-sweep'?"]),
     ("show a file that is not netCDF", ["show", "{dir}/mask.npy"], ["mask.npy", "not a netCDF dataset"]),
 ]
 
@@ -192,3 +197,75 @@ def test_importing_sets_nothing_and_the_command_pins_the_solver_suite(tiny_scene
     subprocess.run([sys.executable, "-m", "biostudy", "run", str(tiny_scene), "-o", str(out), "-q"], env=env,
                    check=True, capture_output=True)
     assert xr.open_dataset(out).attrs["fipy_solvers"] == "scipy"
+
+
+def test_version_short_help_completion_and_metavars():
+    from importlib.metadata import version
+
+    shown = invoke("--version")
+    assert shown.exit_code == 0 and shown.stdout == f"biostudy {version('biostudy')}\n"
+    wide = {"COLUMNS": "160"}
+    top = invoke("-h", env=wide)
+    assert top.exit_code == 0 and "--install-completion" in top.stdout and "--version" in top.stdout
+    takes = {"run": {"--set": "KEY=VALUE", "--output": "OUT.nc"},
+             "sweep": {"--set": "KEY=VALUE", "--workers": "N", "--scheduler": "ADDRESS", "--output": "DIR"},
+             "convergence": {"--levels": "N", "--set": "KEY=VALUE"}, "plot": {"--time": "T"}}
+    for command, options in takes.items():
+        result = invoke(command, "-h", env=wide)
+        assert result.exit_code == 0 and "Usage: biostudy " + command in result.stdout
+        rows = {line.split()[1]: line for line in result.stdout.splitlines() if line.startswith("│ --")}
+        for option, metavar in options.items():
+            assert f" {metavar} " in rows[option], rows[option]
+        flags = [o for o in ("--quiet", "--retry-failed") if o in rows]
+        assert all("<bool>" not in rows[o] for o in flags), flags  # a flag takes no value
+        assert bool(flags) == (command != "plot")
+
+
+def test_an_incomplete_scene_tells_every_problem_one_line_each(write_toml, tmp_path):
+    scene = write_toml("incomplete.toml", """\
+        name = "incomplete"
+        [params]
+        d = -1
+        g = -2
+        [time]
+        steps = 0
+        """)
+    result = invoke("run", scene, "-o", tmp_path / "out.nc")
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert result.stderr.splitlines() == [f"error: {scene}: grid: required key is missing",
+                                          f"error: {scene}: params.d: must be > 0 (got -1)",
+                                          f"error: {scene}: params.g: must be >= 0 (got -2)",
+                                          f"error: {scene}: time.steps: must be >= 1 (got 0)"]
+
+
+PROGRESS = re.compile(r"tiny: T\* = [\d.e-]+ / 0\.2 \((\d+)%\), steps \d+, bisections \d+, elapsed [\d.]+ s"
+                      r"(, left ~[\d.]+ s)?")
+
+
+def test_progress_without_a_terminal_is_plain_lines(tiny_scene, tiny_study, tmp_path):
+    """A batch job or `| tee`: stderr is a pipe, so progress comes as plain lines (no escape codes), every tenth
+    of the run; a sweep says how many cases are done; a sweep with nothing left to run says so."""
+    out = tmp_path / "run.nc"
+    ran = subprocess.run([sys.executable, "-m", "biostudy", "run", str(tiny_scene), "-o", str(out)],
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    assert "\x1b" not in ran.stderr
+    lines = ran.stderr.splitlines()
+    percents = [int(PROGRESS.fullmatch(line).group(1)) for line in lines[:-1]]
+    assert percents == list(range(10, 101, 10)), lines
+    assert lines[-1].startswith(f"wrote {out}")
+    # the file's CF history is the command line that made it
+    history = xr.open_dataset(out).attrs["history"]
+    assert history.endswith(f": biostudy run {tiny_scene} -o {out}"), history
+
+    command = [sys.executable, "-m", "biostudy", "sweep", str(tiny_study), "-o", str(tmp_path / "sweep"),
+               "--set", "time.steps=4"]
+    swept = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert swept.returncode == 0, swept.stderr
+    assert "\x1b" not in swept.stderr
+    done = [line for line in swept.stderr.splitlines() if line.startswith("tiny-sweep: ")]
+    assert [line.split(" cases ")[0] for line in done] == [f"tiny-sweep: {k}/4" for k in range(1, 5)], done
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert again.returncode == 0 and "\x1b" not in again.stderr
+    assert again.stderr.splitlines()[0] == "nothing to run: all 4 cases finished before", again.stderr
+    assert "0/0" not in again.stderr

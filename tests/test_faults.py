@@ -16,6 +16,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -184,16 +185,33 @@ def test_a_second_sweep_into_a_directory_in_use_is_refused_and_the_first_goes_on
 # 4. Damage that keeps a file's size is found on resume (checksums) and the case computed again
 
 
+def _stored_chunk(raw: bytes, snapshot: np.ndarray) -> tuple[int, int]:
+    """Where a snapshot is stored in a netCDF4 file, as (offset, length): its chunk, deflated after the
+    shuffle and the fletcher32 filters (`biostudy.netcdf.encoding`), found by inflating each zlib stream."""
+    shuffled = np.ascontiguousarray(snapshot).view(np.uint8).reshape(-1, snapshot.itemsize).T.tobytes()
+    for at in range(len(raw) - 1):
+        if raw[at] != 0x78 or (raw[at] * 256 + raw[at + 1]) % 31:
+            continue  # not a zlib header
+        stream = zlib.decompressobj()
+        try:
+            if stream.decompress(raw[at:]).startswith(shuffled):
+                return at, len(raw) - at - len(stream.unused_data)
+        except zlib.error:
+            continue
+    raise AssertionError("snapshot not found in the file")
+
+
 def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     out = tmp_path / "out"
     plan = load_study(tiny_study)
     runner.sweep(plan, out)
     path = store.case_file(out, "g=1e+09_r=50")
-    good = xr.open_dataset(path).phi.values
+    good = store.open_dataset(path).phi.values
     raw = bytearray(path.read_bytes())
-    at = raw.find(np.ascontiguousarray(good[-1]).tobytes())  # the last snapshot of phi, as stored
-    assert at > 0
-    raw[at + 64:at + 64 + 1024] = b"\x7f" * 1024  # values of ~1e306, the size unchanged
+    at, length = _stored_chunk(bytes(raw), good[-1])  # the last snapshot of phi, as stored (compressed)
+    assert at > 0 and length > 128
+    damaged = min(1024, length - 64)
+    raw[at + 64:at + 64 + damaged] = b"\x7f" * damaged  # garbage inside the chunk, the size unchanged
     path.write_bytes(raw)
     assert not store.intact(path) and store.recorded(path)["status"] == "done"
     assert "damaged: its data cannot be read" in one_line_error(invoke("show", path))
@@ -201,10 +219,23 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     (out / "study.nc").write_bytes(study_nc[:8] + b"\0" * (len(study_nc) - 8))  # beyond reading: replaced
     report = runner.sweep(plan, out)
     assert report.damaged == report.ran == ["g=1e+09_r=50"] and len(report.skipped) == 3
-    np.testing.assert_array_equal(xr.open_dataset(path).phi.values, good)
+    np.testing.assert_array_equal(store.open_dataset(path).phi.values, good)
     study = xr.open_dataset(out / "study.nc")
     np.testing.assert_array_equal(study.phi.sel(g=1e9, r=50).values, good)
     assert float(study.alpha.max()) < 1
+
+
+def test_resuming_while_this_process_holds_a_case_file_open(tiny_study, tmp_path):
+    """Resume checks read numbers only: a variable-length string read through a second handle of a file held
+    open here would crash HDF5 at a later open (store.intact)."""
+    out = tmp_path / "out"
+    plan = load_study(tiny_study)
+    runner.sweep(plan, out)
+    held = xr.open_dataset(store.case_file(out, "g=1e+09_r=50"))
+    assert held.status.item() == "done"
+    for _ in range(3):
+        assert len(runner.sweep(plan, out).skipped) == 4
+    held.close()
 
 
 # ---------------------------------------------------------------------------------------------

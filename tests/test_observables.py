@@ -93,7 +93,7 @@ def test_a_runs_own_series_agree_and_a_study_is_evaluated_case_by_case(tiny_run,
     for name in ("phi_mean", "c_mean", "biofilm_volume"):
         np.testing.assert_allclose(values[name].values, ds[name].values, rtol=1e-12, err_msg=name)
     assert set(values) == set(observables.REGISTRY)
-    assert values["compression_max"].values[-1] == pytest.approx(-float(ds.p.isel(time=-1).min()))
+    assert values["compression_max"].values[-1] == pytest.approx(-float(ds.p.isel(time_mechanics=-1).min()))
     study = xr.concat([ds, ds.assign(phi=ds.phi * 0.5)], dim="case")
     both = observables.evaluate(study, "biofilm_volume")
     assert both.dims == ("case", "time")

@@ -11,6 +11,7 @@ from biostudy.plots.cuts import axis_plane, cell_axes, diagonal_plane, plane_for
 from biostudy.plots.isosurface import isosurface
 from biostudy.plots.style import axis_label, colour_scale, on_scale
 from biostudy.plots.sweep import cases, roles
+from solver.output import on_output_times
 
 
 @pytest.fixture(scope="module")
@@ -134,7 +135,7 @@ def test_two_dimensional_run_gives_series_and_maps(run2d, with_mechanics, tmp_pa
     for name, panels in by_field.items():
         for ax, index in zip(panels, indices):
             shown = ax.images[0].get_array()
-            field = ds[name].transpose("time", "y", "x").values[index]
+            field = on_output_times(ds)[name].transpose("time", "y", "x").values[index]
             assert (shown.mask == np.isnan(field)).all() and ds.obstacle.values.any()
             expected = np.maximum(field, ax.images[0].norm.vmin) if name == "c" else field  # c: log scale floor
             np.testing.assert_array_equal(shown.compressed(), expected[~np.isnan(field)])
@@ -149,7 +150,7 @@ def test_options_choose_variable_time_and_cut(run3d, with_mechanics, tmp_path, d
     check_series(drawn["p_series.png"], ds, marks=[0.02])
     (panel,) = rows(drawn["p_cut.png"], ["p"], [2], ds)["p"]
     shown = panel.images[0].get_array()  # 33 x 33 samples, 4 per cell: a cell centre every 4th from the 2nd
-    p = ds.p.transpose("time", "z", "y", "x").values[2, 5]
+    p = on_output_times(ds).p.transpose("time", "z", "y", "x").values[2, 5]
     centres = shown[2::4, 2::4]
     assert centres.shape == p.shape and (centres.mask == np.isnan(p)).all()
     np.testing.assert_allclose(centres.compressed(), p[~np.isnan(p)], rtol=0, atol=1e-12)
@@ -356,7 +357,7 @@ def test_warped_two_dimensional_mesh_is_the_grid_moved_by_factor_u(run2d, with_m
 
     from biostudy.plots import warped
 
-    ds = with_mechanics(run2d, unsolved=1)
+    ds = on_output_times(with_mechanics(run2d, unsolved=1))  # as plot() hands it on: p and u per output
     assert warped.solved_indices(ds, [1]) in ([0], [2])  # not solved at 1: the nearest solved output
     fig = warped.figure(ds, [2], 500.0)
     mesh = next(c for c in fig.axes[0].collections if isinstance(c, QuadMesh))
@@ -371,7 +372,7 @@ def test_warped_two_dimensional_mesh_is_the_grid_moved_by_factor_u(run2d, with_m
 def test_warped_refuses_runs_without_solved_mechanics(run2d, with_mechanics, tmp_path):
     with pytest.raises(ValueError, match="with mechanics"):
         plot(run2d, tmp_path / "w.png", warp=500)
-    every = with_mechanics(run2d)
+    every = on_output_times(with_mechanics(run2d))
     every["u"][:] = np.nan
     with pytest.raises(ValueError, match="not solved at any output"):
         plot(every, tmp_path / "w.png", warp=500)
@@ -387,5 +388,5 @@ def test_warped_three_dimensional_surface_moves_with_u(run3d, with_mechanics, tm
     nodes = np.stack(np.meshgrid(ds.z_node, ds.y_node, ds.x_node, indexing="ij")[::-1], axis=-1)  # (z, y, x, 3): x, y, z
     ds["u"][:] = 0.01 * nodes
     vertices = np.array([[0.3, 1.7, 2.2], [5.9, 4.1, 0.0], [8.0, 8.0, 8.0]])
-    assert np.allclose(warped.displaced_vertices(ds, 0, vertices, 500.0), vertices * (1 + 500 * 0.01))
+    assert np.allclose(warped.displaced_vertices(on_output_times(ds), 0, vertices, 500.0), vertices * (1 + 500 * 0.01))
     assert [p.name for p in plot(ds, tmp_path / "w.png", warp=500)][-1] == "w_warped.png"

@@ -39,6 +39,7 @@ GROWN = textwrap.dedent("""\
     ran = cli.invoke(app, ["run", scene, "--set", "q=3.0", "-o", "run.nc", "-q"])
     found["run"] = [ran.exit_code, ran.output]
     found["attrs_q"] = float(xr.open_dataset("run.nc").attrs["q"])
+    found["variable_q"] = [float(xr.open_dataset("run.nc")["q"]), dict(xr.open_dataset("run.nc")["q"].attrs)]
     found["show"] = cli.invoke(app, ["show", "run.nc"]).stdout
     plan = stability.load(stability.Path(catalogue))
     table = stability.verdicts(stability.plan_jobs(plan), stability.Path("unrun"))
@@ -74,9 +75,12 @@ def test_a_parameter_added_to_the_registry_reaches_schema_dataset_show_and_table
     assert found["bad"][0] == 2 and "params.q: must be >= 0 (got -1)" in found["bad"][1]
     assert found["run"][0] == 0, found["run"][1]
     assert found["attrs_q"] == 3.0
+    assert found["variable_q"] == [3.0, {"units": "1", "long_name": "test rate q [1/T*]"}]
     assert "q = 3 1/T*" in found["show"], found["show"]
-    assert found["stability_q"] == [[0.5, 2.5], {"units": "1/T*", "long_name": "test rate q"}]
-    assert found["sweep_coordinate"]["units"] == "1/T*" and "test rate q" in found["sweep_coordinate"]["long_name"]
+    # datasets write udunits units (T* is dimensionless) and keep the model's in the long name
+    assert found["stability_q"] == [[0.5, 2.5], {"units": "1", "long_name": "test rate q [1/T*]"}]
+    assert found["sweep_coordinate"]["units"] == "1" and "test rate q" in found["sweep_coordinate"]["long_name"]
+    assert "1/T*" in found["sweep_coordinate"]["long_name"]
 
 
 def test_the_parameters_table_of_docs_model_md_is_the_registry():

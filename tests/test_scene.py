@@ -115,9 +115,17 @@ def test_obstacle_covering_everything_or_a_source_is_rejected(tiny_scene):
         load_scene(tiny_scene, ["obstacle.0.lower=[0.0, 0.0]", "obstacle.0.upper=[16.0, 16.0]"])
 
 
-def test_several_errors_are_counted(tiny_scene):
-    with pytest.raises(BadInput, match=r"\(and 1 more\)"):
+def test_every_error_is_told(tiny_scene):
+    """Every problem, one line each, each naming where its value was given (the scene file or --set)."""
+    with pytest.raises(BadInput) as caught:
         load_scene(tiny_scene, ["params.d=-1", "params.k=0"])
+    assert caught.value.lines() == ["--set: params.d: must be > 0 (got -1)",
+                                    "--set: params.k: must be > 0 (got 0)"]
+    tiny_scene.write_text(tiny_scene.read_text().replace("g = 1e8", "g = 1e8\nk = 0.0"))
+    with pytest.raises(BadInput) as caught:
+        load_scene(tiny_scene, ["params.d=-1"])
+    assert caught.value.lines() == ["--set: params.d: must be > 0 (got -1)",
+                                    f"{tiny_scene}: params.k: must be > 0 (got 0)"]
 
 
 def test_mask_file_relative_to_the_scene(write_toml, tmp_path):

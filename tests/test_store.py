@@ -9,6 +9,7 @@ import xarray as xr
 
 from biostudy import store
 from biostudy.scene import load_scene
+from conftest import CUBE_SCENE
 from solver import simulate
 
 
@@ -62,38 +63,19 @@ def test_remove_temporaries_touches_only_temporaries_of_writers_that_are_gone(tm
 def test_dataset_layout_after_a_netcdf_round_trip(write_toml, tmp_path):
     """docs/model.md, "The dataset": dims, units and long_name everywhere, obstacles NaN, the scene and its
     provenance in attrs."""
-    path = write_toml("cube.toml", """\
-        name = "cube"
-        [grid]
-        shape = [10, 9, 8]
-        spacing = 2.0
-        [time]
-        t_end = 0.1
-        steps = 10
-        outputs = 3
-        [[biofilm]]
-        shape = "sphere"
-        center = [10.0, 9.0, 8.0]
-        radius = 4.0
-        [[nutrient]]
-        shape = "box"
-        lower = [16.0, 14.0, 12.0]
-        upper = [20.0, 18.0, 16.0]
-        [[obstacle]]
-        shape = "cylinder"
-        center = [4.0, 4.0, 8.0]
-        radius = 2.0
-        axis = "z"
-        """)
+    path = write_toml("cube.toml", CUBE_SCENE)
     scene = load_scene(path, ["params.g=2e8"])
     ds = simulate(scene.problem())
     out = tmp_path / "cube.nc"
     store.write_atomic(store.stamp(ds, scene.to_toml(), path, '"params.g" = 2e+08'), out)
     back = xr.open_dataset(out, engine="netcdf4")
 
-    assert dict(back.sizes) == {"time": 3, "z": 8, "y": 9, "x": 10}
+    assert dict(back.sizes) == {"time": 3, "z": 8, "y": 9, "x": 10, "bounds": 2}
     assert back.x.values[0] == 1.0 and back.x.values[-1] == 19.0
+    assert back.x_bounds.values[0].tolist() == [0.0, 2.0] and back.x_bounds.values[-1].tolist() == [18.0, 20.0]
     for name in list(back.data_vars) + list(back.coords):
+        if name.endswith("_bounds"):  # CF 7.1: a bounds variable has its cell centre's units and long name
+            continue
         assert back[name].attrs.get("long_name"), name
         assert "units" in back[name].attrs, name
     for name in ("phi", "c", "alpha"):

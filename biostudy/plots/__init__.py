@@ -27,6 +27,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import xarray as xr
 
+from solver.output import on_output_times
+
 from . import analysis, fields, isosurface, series, sweep, warped
 from .cuts import plane_for
 from .style import SERIES_NAMES, field_names, output_paths, save, snapshot_indices
@@ -48,6 +50,7 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
         or 'x=10', 'y=4.5', 'z=5.5' (µm).
     warp: also draw the deformed body with the displacement magnified by this factor (runs with mechanics).
     """
+    ds = on_output_times(ds)  # p and u per output index, NaN where the mechanics was not solved
     if warp is not None and (sweep.is_sweep(ds) or not warp > 0):
         raise ValueError("--warp needs a positive factor and one run's dataset" if sweep.is_sweep(ds)
                          else f"--warp must be a positive factor (got {warp:g})")

@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from ..formatting import number, units_text
+from ..formatting import number, shown_units
 from ..store import temporary_name
 
 OBSTACLE_GREY = "0.6"
@@ -35,7 +35,7 @@ C_FLOOR = 1e-3  # lowest nutrient concentration the log colour scale resolves
 
 def units(var: xr.DataArray) -> str:
     """Display form of a variable's `units` attribute ('' for dimensionless)."""
-    return units_text(var.attrs.get("units", "1"))
+    return shown_units(str(var.name), var.attrs.get("units", "1"))
 
 
 def axis_label(var: xr.DataArray, name: str | None = None) -> str:

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from ..formatting import number
+from ..formatting import number, shown_units
 from .style import SERIES_NAMES, axis_label, suptitle
 
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
@@ -103,8 +103,8 @@ def _layout(ds: xr.Dataset, names: list[str]):
 
 def _x_axis_text(ds: xr.Dataset, found: list[SweepPoint], x_key: str, follow: list[str]) -> str:
     text = x_key
-    if x_key in ds and ds[x_key].attrs.get("units", "1") != "1":
-        text += f" ({ds[x_key].attrs['units']})"
+    if x_key in ds and shown_units(x_key, ds[x_key].attrs.get("units", "1")):
+        text += f" ({shown_units(x_key, ds[x_key].attrs['units'])})"
     for key in follow:
         values = [c.params[key] for c in sorted(found, key=lambda c: _order(c.params[x_key]))]
         text += f"; with {key} = " + ", ".join(dict.fromkeys(_fmt(v) for v in values))
