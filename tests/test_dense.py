@@ -2,7 +2,8 @@
 
 The yardstick (tests/data/dense_reference.json, written by `python benchmarks/dense_reference.py --json`) is
 the finest run of the 2-D refinement scenes (studies/agar2d*.toml, directional2d.toml) with the pointwise
-growth velocity, i.e. Eq. 34 cell by cell, on 1/8-1/16 µm cells where it has converged (docs/transport.md):
+growth velocity, i.e. Eq. 34 cell by cell: agar2d on 1/16 µm cells to T* = 0.4, agar2d-g1e10 on 1/8 µm cells,
+where the series has converged to a few hundredths in max phi (docs/paper.md):
 an independent discretisation of the same model.  Compared while the biofilm grows, before it fills to a
 wall, with tolerances of the coarse grid itself:
 
