@@ -370,9 +370,13 @@ def test_warped_two_dimensional_mesh_is_the_grid_moved_by_factor_u(run2d, with_m
 
 
 def test_warped_refuses_runs_without_solved_mechanics(run2d, with_mechanics, tmp_path):
+    from biostudy.plots import warped
+
     with pytest.raises(ValueError, match="with mechanics"):
         plot(run2d, tmp_path / "w.png", warp=500)
     every = on_output_times(with_mechanics(run2d))
+    every["u"][:, :2, :2] = np.nan  # nodes inside a rigid obstacle have no u: still solved
+    assert list(warped.solved_indices(every, [0, 1, 2])) == [0, 1, 2]
     every["u"][:] = np.nan
     with pytest.raises(ValueError, match="not solved at any output"):
         plot(every, tmp_path / "w.png", warp=500)
