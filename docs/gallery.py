@@ -69,6 +69,10 @@ def main(names: list[str]) -> None:
                           f"{a['wall_time']:.1f} | {a.get('wall_time_mechanics', 0.0):.1f} | {drawn:.1f} |")
         data.unlink()
         print(rows[name], flush=True)
+        write_tables(table, rows, findings, found)  # after every scene: a later failure keeps what was measured
+
+
+def write_tables(table: Path, rows: dict[str, str], findings: Path, found: dict[str, str]) -> None:
     header = ("| scene | cells | steps | bisected | mechanics | run s | of which mechanics s | plot s |\n"
               "|---|---|---|---|---|---|---|---|")
     ordered = [rows[n] for n in SCENES if n in rows] + [r for n, r in rows.items() if n not in SCENES]
