@@ -83,11 +83,14 @@ def measure(n: int, k: float, changes: list[str]) -> dict:
 
 
 def in_run(n: int, steps: int, changes: list[str]) -> dict:
-    from biostudy import catalog
+    try:
+        from biostudy import bundled
+    except ImportError:  # the first version (--baseline) called it biostudy.catalog
+        from biostudy import catalog as bundled
     from biostudy.scene import load_scene
     from solver import Run
 
-    scene = load_scene(catalog.resolve("directional"), [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}",
+    scene = load_scene(bundled.resolve("directional"), [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}",
                                                         f"time.steps={steps}", "time.outputs=6", "mechanics.every=1"])
     problem = scene.problem()
     run = Run(problem)

@@ -89,11 +89,11 @@ def block(n: int):
 
 
 def grate():
-    from biostudy import catalog
+    from biostudy import bundled
     from biostudy.scene import load_scene
     from solver import Run
 
-    scene = load_scene(catalog.resolve("grate"), ["mechanics.every=1000"])
+    scene = load_scene(bundled.resolve("grate"), ["mechanics.every=1000"])
     problem = scene.problem()
     run = Run(problem)
     *_, last = list(run)

@@ -7,10 +7,18 @@ Four refinement series from the scene as given (level 0):
   adaptive  error-controlled steps (step doubling) with the tolerance divided
             by 4 per level (local error ~ dt^2: halves the step), the grid kept.
 The reference of each series is its own finest level (the adaptive series is
-measured against the finest fixed-step level of `time`, same grid).  Errors
-at the final output time: phi in L1 and L2 on the series' coarsest grid
-(finer fields restricted by cell averaging), biofilm_volume (relative),
-c_mean, front position (µm), and p in L2 when the mechanics is on.  The
+measured against the finest fixed-step level of `time`, same grid), or a
+given dataset (`reference`): a refined run of the same scene, perhaps with
+another scheme, e.g. the pointwise growth velocity on 1/16 µm cells as the
+yardstick of the front velocity on 1 µm cells.  Errors at the final output
+time (or the output nearest `time`): phi in L1 and L2 on the series' coarsest
+grid (finer fields restricted by cell averaging), biofilm_volume and the
+dense volume phi >= 0.8 (relative), max phi, the top of phi >= 0.5 along the
+vertical axis (y in 2-D, z in 3-D; µm), c_mean, front position (µm), and p in
+L2 when the mechanics is on.  The scalar ones are errors of the observables
+(`biostudy.observables`; top is `height`, max_phi is `phi_max`), the front position
+of `measures.front_position` (the observable front_advance is its gain since
+T* = 0, which starts elsewhere on every grid).  The
 observed order p is fitted to the differences between successive levels,
 |q_l - q_(l+1)| ~ size^p (unbiased, unlike errors against a finite
 reference); the error of the reference itself is then estimated by
@@ -29,17 +37,28 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import measures, store
+from solver.output import on_output_times
+
+from . import measures, observables, store
 from .errors import BadInput
-from .runner import Job, SweepReport, run_jobs
-from .scene import Scene, overrides_text, scene_from_data, set_key
+from .formatting import number
+from .ownership import Owner
+from .runner import Job, SweepReport, owned, run_jobs
+from .scene import Scene, given_by, overrides_text, scene_from_data, set_key
 
 SERIES = ("space", "time", "both", "adaptive")
 FIRST_TOLERANCE = 1e-2  # adaptive level 0: local error in phi per step
 EXACT = 1e-9  # differences below this are round-off: no order to fit
-QUANTITIES = ("phi_L1", "phi_L2", "biofilm_volume", "c_mean", "front_position", "p_L2")
-UNITS = {"phi_L1": "1", "phi_L2": "1", "biofilm_volume": "1", "c_mean": "1", "front_position": "um", "p_L2": "Pa"}
+QUANTITIES = ("phi_L1", "phi_L2", "biofilm_volume", "dense_volume", "max_phi", "top", "c_mean", "front_position",
+              "p_L2")
+UNITS = {"phi_L1": "1", "phi_L2": "1", "biofilm_volume": "1", "dense_volume": "1", "max_phi": "1", "top": "um",
+         "c_mean": "1", "front_position": "um", "p_L2": "Pa"}
+RELATIVE = ("biofilm_volume", "dense_volume")
+OBSERVED = {"max_phi": "phi_max", "top": "height"}  # quantities named apart from their observables
 LONG_NAMES = {
+    "dense_volume": "relative error of the dense volume (phi >= 0.8)",
+    "max_phi": "error of the largest phi",
+    "top": "error of the top of phi >= 0.5 along the vertical axis (y in 2-D, z in 3-D)",
     "phi_L1": "mean |phi - phi_ref| over open cells (common grid)",
     "phi_L2": "root mean square of phi - phi_ref over open cells (common grid)",
     "biofilm_volume": "relative error of the biofilm volume (phi >= 0.5)",
@@ -50,7 +69,9 @@ LONG_NAMES = {
 
 
 @dataclass(frozen=True)
-class Level:
+class Refinement:
+    """One level of one refinement series: how much finer than the scene as given (level 0) it is."""
+
     series: str
     index: int
     refine: int  # grid refinement factor against level 0
@@ -63,26 +84,36 @@ class Level:
         return text + (f"_tol={self.tolerance:.3g}" if self.tolerance is not None else "")
 
 
-def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES, tolerance: float = FIRST_TOLERANCE) -> list[Level]:
+def chosen_series(text: str) -> tuple[str, ...]:
+    """'space,time' -> ('space', 'time'); an unknown or empty choice is `BadInput`."""
+    chosen = tuple(s.strip() for s in text.split(",") if s.strip())
+    unknown = [s for s in chosen if s not in SERIES]
+    if unknown or not chosen:
+        raise BadInput(f"unknown series {', '.join(unknown) or '(none)'}; choose from {', '.join(SERIES)}",
+                       None, "--series")
+    return chosen
+
+
+def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES, tolerance: float = FIRST_TOLERANCE) -> list[Refinement]:
     """The levels of every requested series (plus the fixed-step reference the adaptive series needs)."""
     steps = base.time.steps
     out = []
     for name in series:
         for i in range(levels):
             if name == "space":
-                out.append(Level(name, i, 2**i, steps, None))
+                out.append(Refinement(name, i, 2**i, steps, None))
             elif name == "time":
-                out.append(Level(name, i, 1, steps * 2**i, None))
+                out.append(Refinement(name, i, 1, steps * 2**i, None))
             elif name == "both":
-                out.append(Level(name, i, 2**i, steps * 2**i, None))
+                out.append(Refinement(name, i, 2**i, steps * 2**i, None))
             else:
-                out.append(Level(name, i, 1, steps, tolerance / 4**i))
+                out.append(Refinement(name, i, 1, steps, tolerance / 4**i))
     if "adaptive" in series and "time" not in series:
-        out.append(Level("time", levels - 1, 1, steps * 2 ** (levels - 1), None))
+        out.append(Refinement("time", levels - 1, 1, steps * 2 ** (levels - 1), None))
     return out
 
 
-def refined(data: dict, scene_file: Path, level: Level) -> Scene:
+def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:
     """The base scene's data with the level's grid, steps and tolerance."""
     data = copy.deepcopy(data)
     grid = data["grid"]
@@ -104,56 +135,97 @@ def check_refinable(base: Scene, scene_file: Path) -> None:
 
 def run(data: dict, scene_file: Path, out_dir: Path, levels: int, series: tuple[str, ...] = SERIES,
         tolerance: float = FIRST_TOLERANCE, workers: int | None = None, scheduler: str | None = None,
-        notify=None, fixed: dict | None = None) -> tuple[xr.Dataset, SweepReport]:
-    """Run every level (skipping finished ones), measure, write DIR/convergence.nc; returns it and the report."""
+        notify=None, fixed: dict | None = None, reference: Path | None = None,
+        time: float | None = None, force: bool = False, rerun_all: bool = False) -> tuple[xr.Dataset, SweepReport]:
+    """Run every level (skipping finished ones), measure, write DIR/convergence.nc; returns it and the report.
+    DIR belongs to this scene's convergence runs (`runner.owned`; `force` takes over another's)."""
     if levels < 2:
         raise BadInput("needs at least 2 levels (the finest is the reference)", None, "--levels")
-    base = scene_from_data(copy.deepcopy(data), scene_file)
+    base = scene_from_data(copy.deepcopy(data), scene_file, given_by(fixed or {}, "--set"))
     check_refinable(base, scene_file)
+    given = None if reference is None else load_reference(reference, base, time)
     wanted = plan(base, levels, series, tolerance)
     scenes = {level.job_id: refined(data, scene_file, level) for level in wanted}
     text = overrides_text(fixed or {})
     jobs = [Job(job_id, scene, scene_file, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
-    report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify)
-    ds = measure(wanted, out_dir, levels, series, base)
-    ds.attrs.update(store.legal_attrs({"scene": base.to_toml(), "scene_file": str(scene_file.resolve()),
-                                       "overrides": text, "biostudy_version": store.version(),
-                                       "created": store.now()}))
-    store.write_atomic(ds, out_dir / "convergence.nc")
+    owner = Owner("convergence", scene_file.stem, str(scene_file.resolve()))
+    with owned(out_dir, owner, "convergence.nc", force):
+        report = run_jobs(jobs, out_dir, workers, scheduler, notify=notify, rerun_all=rerun_all)
+        ds = measure(wanted, out_dir, levels, series, base, given, time)
+        if reference is not None:
+            ds.attrs["reference"] = f"the run in {Path(reference).resolve()} (T* = {given['time']:g})"
+        ds.attrs = store.with_provenance({**ds.attrs, "scene": base.to_toml(),
+                                          "scene_file": str(scene_file.resolve()), "overrides": text})
+        store.write_atomic(ds, out_dir / "convergence.nc")
     return ds, report
 
 
-def _final(path: Path) -> dict | None:
-    """What a level contributes: final fields and scalars, or None if it did not finish."""
+def _final(path: Path, time: float | None = None) -> dict | None:
+    """What a level contributes: fields and scalars at the last output (or the one nearest `time`), or None if
+    it did not finish."""
     record = store.recorded(path)
     if not record or record.get("status") != "done":
         return None
-    ds = store.open_dataset(path)
-    last = ds.isel(time=-1)
+    return summary(store.open_dataset(path), time)
+
+
+def summary(ds: xr.Dataset, time: float | None = None) -> dict:
+    """A run's fields and measured quantities at its last output, or the output nearest `time`."""
+    index = -1 if time is None else int(np.argmin(np.abs(ds["time"].values - time)))
+    last = on_output_times(ds).isel(time=index)
     return {
         "phi": last["phi"].values, "p": last["p"].values if "p" in ds else None,
-        "biofilm_volume": float(last["biofilm_volume"]), "c_mean": float(last["c_mean"]),
-        "front_position": measures.front_position(ds), "wall_time": float(ds.attrs["wall_time"]),
+        **{q: observables.value(ds, OBSERVED.get(q, q), index) for q in ("biofilm_volume", "c_mean", "dense_volume",
+                                                                        "max_phi", "top")},
+        "front_position": measures.front_position(ds, index), "wall_time": float(ds.attrs["wall_time"]),
         "steps": int(ds.attrs["steps_taken"]), "t_end": float(ds["time"].values[-1]),
+        "time": float(ds["time"].values[index]),
+        "extent": tuple(float(ds[a].values[-1]) + 0.5 * measures.spacing(ds) for a in ("x", "y", "z") if a in ds.dims),
     }
 
 
 def _errors(result: dict, reference: dict, factor_result: int, factor_reference: int) -> dict:
-    phi = measures.field_errors(measures.restrict(result["phi"], factor_result),
-                                measures.restrict(reference["phi"], factor_reference))
-    errors = {"phi_L1": phi[0], "phi_L2": phi[1],
-              "biofilm_volume": abs(result["biofilm_volume"] - reference["biofilm_volume"])
-              / max(abs(reference["biofilm_volume"]), 1e-300),
-              "c_mean": abs(result["c_mean"] - reference["c_mean"]),
-              "front_position": abs(result["front_position"] - reference["front_position"]),
-              "p_L2": float("nan")}
-    if result["p"] is not None and reference["p"] is not None:
-        errors["p_L2"] = measures.field_errors(measures.restrict(result["p"], factor_result),
-                                               measures.restrict(reference["p"], factor_reference))[1]
+    """Errors of one level against a reference; factors: refinement of each against the common (coarsest) grid,
+    None where the reference's grid is not a refinement of it (then no field errors)."""
+    errors = {q: float("nan") for q in QUANTITIES}
+    if factor_reference is not None:
+        phi = measures.field_errors(measures.restrict(result["phi"], factor_result),
+                                    measures.restrict(reference["phi"], factor_reference))
+        errors.update(phi_L1=phi[0], phi_L2=phi[1])
+        if result["p"] is not None and reference["p"] is not None:
+            errors["p_L2"] = measures.field_errors(measures.restrict(result["p"], factor_result),
+                                                   measures.restrict(reference["p"], factor_reference))[1]
+    for q in ("biofilm_volume", "dense_volume", "max_phi", "top", "c_mean", "front_position"):
+        difference = abs(result[q] - reference[q])
+        if q in RELATIVE:  # a volume the reference does not have at all: infinitely wrong, unless absent too
+            difference = difference / abs(reference[q]) if reference[q] else (np.inf if difference else 0.0)
+        errors[q] = difference
     return errors
 
 
-def _successive(mine: list[Level], results: dict) -> list[dict]:
+def _factor(reference: dict, coarse_h: float) -> int | None:
+    """How many reference cells span a cell of the coarsest level along each axis, if a whole number."""
+    h = reference["extent"][0] / reference["phi"].shape[-1]
+    ratio = coarse_h / h
+    return int(round(ratio)) if abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1 else None
+
+
+def load_reference(path: Path, base: Scene, time: float | None) -> dict:
+    """A reference run for `measure`: the same domain as the scene, and an output at the compared time."""
+    ds = store.open_dataset(path)
+    if "phi" not in ds:
+        raise BadInput("is not a run's dataset (no phi)", path, "--reference")
+    found = summary(ds, time)
+    extent = tuple(float(e) for e in base.grid.solver_grid().extent)
+    if not np.allclose(found["extent"], extent, rtol=1e-9):
+        raise BadInput(f"covers {found['extent']} µm; the scene covers {extent} µm", path, "--reference")
+    wanted = base.time.t_end if time is None else time
+    if abs(found["time"] - wanted) > 1e-9 * max(1.0, wanted):
+        raise BadInput(f"has no output at T* = {wanted:g} (nearest {found['time']:g})", path, "--reference")
+    return found
+
+
+def _successive(mine: list[Refinement], results: dict) -> list[dict]:
     """Errors of each level against the next finer one (on the series' coarsest grid)."""
     coarse = mine[0].refine
     out = []
@@ -166,9 +238,11 @@ def _successive(mine: list[Level], results: dict) -> list[dict]:
     return out
 
 
-def measure(wanted: list[Level], out_dir: Path, levels: int, series: tuple[str, ...], base: Scene) -> xr.Dataset:
-    """convergence.nc from the finished levels: dimensions (series, level)."""
-    results = {level.job_id: _final(store.case_file(out_dir, level.job_id)) for level in wanted}
+def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[str, ...], base: Scene,
+            given: dict | None = None, time: float | None = None) -> xr.Dataset:
+    """convergence.nc from the finished levels: dimensions (series, level).  `given`: a reference run's
+    `summary` that every level is measured against instead of its series' finest level."""
+    results = {level.job_id: _final(store.case_file(out_dir, level.job_id), time) for level in wanted}
     shape = (len(series), levels)
     table = {name: np.full(shape, np.nan) for name in ("cells", "h", "dt", "tolerance", "wall_time", "steps")}
     errors = {q: np.full(shape, np.nan) for q in QUANTITIES}
@@ -180,7 +254,7 @@ def measure(wanted: list[Level], out_dir: Path, levels: int, series: tuple[str, 
             reference_level = next(lv for lv in wanted if lv.series == "time" and lv.index == levels - 1)
         else:
             reference_level = mine[-1]
-        reference = results[reference_level.job_id]
+        reference = results[reference_level.job_id] if given is None else given
         for level in mine:
             result = results[level.job_id]
             i = level.index
@@ -192,10 +266,10 @@ def measure(wanted: list[Level], out_dir: Path, levels: int, series: tuple[str, 
             table["wall_time"][s, i] = result["wall_time"]
             table["steps"][s, i] = result["steps"]
             table["dt"][s, i] = result["t_end"] / result["steps"]
-            if reference is not None and level.job_id != reference_level.job_id:
+            if reference is not None and (given is not None or level.job_id != reference_level.job_id):
                 coarse = mine[0].refine
-                for q, value in _errors(result, reference, level.refine // coarse,
-                                        reference_level.refine // coarse).items():
+                factor = reference_level.refine // coarse if given is None else _factor(given, h0 / coarse)
+                for q, value in _errors(result, reference, level.refine // coarse, factor).items():
                     errors[q][s, i] = value
         sizes = table["tolerance"][s] if name == "adaptive" else (table["dt"][s] if name == "time" else table["h"][s])
         steps = _successive(mine, results)
@@ -243,11 +317,10 @@ def table_text(ds: xr.Dataset) -> str:
             row = ds.sel(series=name, level=level)
             if not np.isfinite(float(row.cells)):
                 continue
-            cells = [str(name), str(int(level)), f"{int(row.cells)}", f"{float(row.h):.4g}", f"{float(row.dt):.3g}",
-                     f"{float(row.tolerance):.0e}" if np.isfinite(float(row.tolerance)) else "-",
-                     f"{int(row.steps)}" if np.isfinite(float(row.steps)) else "-",
-                     f"{float(row.wall_time):.2f}" if np.isfinite(float(row.wall_time)) else "failed"]
-            cells += [f"{float(row[f'error_{q}']):.2e}" if np.isfinite(float(row[f"error_{q}"])) else "ref"
+            cells = [str(name), str(int(level)), number(row.cells, 12), number(row.h), number(row.dt, 3),
+                     number(row.tolerance, 1, exponent=True), number(row.steps, 9),
+                     number(row.wall_time, 3) if np.isfinite(float(row.wall_time)) else "failed"]
+            cells += [number(row[f"error_{q}"], 3, exponent=True) if np.isfinite(float(row[f"error_{q}"])) else "ref"
                       for q in present]
             lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
@@ -257,11 +330,5 @@ def table_text(ds: xr.Dataset) -> str:
     lines.append("|---|" + "---|" * len(present))
     for name in ds.series.values:
         values = [ds.attrs.get(f"order_{name}_{q}", float("nan")) for q in present]
-        lines.append(f"| {name} | " + " | ".join(_order_text(v) for v in values) + " |")
+        lines.append(f"| {name} | " + " | ".join(v if isinstance(v, str) else number(v, 3) for v in values) + " |")
     return "\n".join(lines) + "\n"
-
-
-def _order_text(value) -> str:
-    if isinstance(value, str):
-        return value
-    return f"{float(value):.2f}" if math.isfinite(float(value)) else "-"

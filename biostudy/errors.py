@@ -1,10 +1,11 @@
-"""Bad input, told in one line: the file, the key, what is wrong.
+"""Bad input, told in one line per problem: the file, the key, what is wrong.
 
 Everything a user can fix by editing a file or a command line ends up as a
 `BadInput` (the CLI prints it and exits with status 2, no traceback).  The
 schema's validators raise `InvalidAt` to say which key a cross-field problem
 belongs to; `from_validation_error` and `from_toml_error` turn pydantic's and
-tomllib's multi-line reports into that one line.
+tomllib's multi-line reports into such lines: every problem pydantic found,
+so that an incomplete scene is fixed in one go.
 """
 from __future__ import annotations
 
@@ -15,26 +16,39 @@ from typing import Iterable
 
 from pydantic import ValidationError
 
+from .formatting import value_text
+
 # Tags of the shape union: pydantic puts them into error locations
 # (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.
 SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
 
 
 class BadInput(Exception):
-    """Input a user can fix.  str() is 'file: key: problem' (parts that are known)."""
+    """Input a user can fix.  str() is 'file: key: problem' (parts that are known); `more` holds the
+    other problems found in the same input, `lines()` all of them."""
 
-    def __init__(self, problem: str, file: str | Path | None = None, key: str | None = None):
+    def __init__(self, problem: str, file: str | Path | None = None, key: str | None = None,
+                 more: tuple["BadInput", ...] = ()):
         self.problem = problem
         self.file = None if file is None else str(file)
         self.key = key
+        self.more = tuple(more)
         super().__init__(problem)
 
     def __str__(self) -> str:
         return ": ".join(part for part in (self.file, self.key, self.problem) if part)
 
+    def lines(self) -> list[str]:
+        """Every problem, one line each."""
+        return [str(self), *(str(other) for other in self.more)]
+
     def within(self, file: str | Path) -> "BadInput":
         """The same problem, attributed to `file` unless it already names one."""
-        return self if self.file else BadInput(self.problem, file, self.key)
+        return self if self.file else BadInput(self.problem, file, self.key, self.more)
+
+    def relocated(self, file, key) -> "BadInput":
+        """Every problem attributed to file(old file or None), its key rewritten by key(old key or None)."""
+        return BadInput(self.problem, file(self.file), key(self.key), tuple(o.relocated(file, key) for o in self.more))
 
 
 class InvalidAt(ValueError):
@@ -60,21 +74,6 @@ def key_path(loc: Iterable) -> str:
     return text
 
 
-def show(value) -> str:
-    """A value as a user wrote it in TOML (short)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return f"{value:g}"
-    if isinstance(value, str):
-        return repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(show(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{...}"
-    return str(value)
-
-
 _BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
            "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
 
@@ -94,12 +93,12 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         return "", "required key is missing"
     if kind in _BOUNDS:
         name, sign = _BOUNDS[kind]
-        return "", f"must be {sign} {show(ctx[name])} (got {show(given)})"
+        return "", f"must be {sign} {value_text(ctx[name])} (got {value_text(given)})"
     if kind == "union_tag_invalid":
-        return "", f"unknown shape {show(ctx.get('tag'))}; shapes are {ctx.get('expected_tags')}"
+        return "", f"unknown shape {value_text(ctx.get('tag'))}; shapes are {ctx.get('expected_tags')}"
     if kind in ("too_short", "too_long"):
         bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
-        return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {show(given)})"
+        return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {value_text(given)})"
     if kind == "union_tag_not_found":
         return "", "needs a 'shape' key (box, sphere, cylinder or mask; obstacles also maze or grate)"
     message = error["msg"]
@@ -108,21 +107,20 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         if message.startswith(before):
             message = after + message[len(before):]
     if not isinstance(given, dict):
-        message += f" (got {show(given)})"
+        message += f" (got {value_text(given)})"
     return "", message
 
 
 def from_validation_error(error: ValidationError, file: str | Path | None,
                           prefix: str = "", known_keys: Iterable[str] = ()) -> BadInput:
-    """The first of pydantic's errors as one line; '(and N more)' if there were several."""
-    errors = error.errors()
-    first = errors[0]
-    extra, problem = _problem(first, known_keys)
-    key = key_path(first["loc"])
-    key = ".".join(part for part in (prefix, key, extra) if part)
-    if len(errors) > 1:
-        problem += f" (and {len(errors) - 1} more)"
-    return BadInput(problem, file, key or None)
+    """Every one of pydantic's errors as one line (the first, with the others in `more`)."""
+    found = []
+    for item in error.errors():
+        extra, problem = _problem(item, known_keys)
+        key = ".".join(part for part in (prefix, key_path(item["loc"]), extra) if part)
+        if (problem, key) not in [(f.problem, f.key or "") for f in found]:
+            found.append(BadInput(problem, file, key or None))
+    return BadInput(found[0].problem, file, found[0].key, tuple(found[1:]))
 
 
 def from_toml_error(error: tomllib.TOMLDecodeError, file: str | Path) -> BadInput:

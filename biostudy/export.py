@@ -3,23 +3,28 @@
 Each output time becomes `snapshot_NNNN.vtu` (meshio, XML unstructured grid,
 zlib-compressed): hexahedra in 3-D, quadrilaterals in the z = 0 plane in 2-D,
 with
-- cell data phi, c, alpha and p (where the run has them) and the int8 mask
-  `nutrient_source` (1 where c is held);
-- point data u, the displacement (µm) as a 3-vector (2-D: z component 0), so
-  ParaView's "Warp By Vector" shows the deformed body.
+- cell data phi, c, alpha and p (where the run has the mechanics) and the int8
+  mask `nutrient_source` (1 where c is held); phi is the active scalar;
+- point data u, the displacement (µm) as a 3-vector (2-D: z component 0), the
+  active vector, so ParaView's "Warp By Vector" shows the deformed body;
+- field data `TimeValue` (the snapshot's T*, VTK's name for a file's time) and,
+  with the mechanics, `mechanics_time` (the T* at which the p and u shown were
+  solved).
+Every file has the same arrays.  The mechanics is solved at some outputs only
+(`[mechanics] every`); at the others a file shows p and u of the latest output
+where it was solved (`mechanics_time` < `TimeValue`), so a warped animation
+holds the last deformed state instead of jumping back to the undeformed body.
 `series.pvd` lists the snapshots with their times (T*): opening it in ParaView
-loads the whole series with a working time slider.  (meshio's VTU writer drops
-field data, so the PVD is where the times live.)
+loads the whole series with a working time slider.
 
 Obstacles are left out of the mesh: their cells are removed, and the nodes
 that only obstacle cells use with them.  ParaView then shows the obstacles
 as holes with real faces instead of NaN cells that break colour ranges and
 filters; the cell count of each file is the number of open cells.
-p and u are written at the times the mechanics was solved; at other times
-(all NaN) they are left out of that file rather than written as NaN.
 """
 from __future__ import annotations
 
+import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -30,7 +35,10 @@ import xarray as xr
 from solver import Grid
 from solver.problem import AXES
 
+from .store import temporary_name
+
 CELL_FIELDS = ("phi", "c", "alpha", "p")
+MECHANICS_TIME = "time_mechanics"
 SNAPSHOT = "snapshot_{:04d}.vtu"
 COLLECTION = "series.pvd"
 
@@ -75,8 +83,25 @@ def _check(ds: xr.Dataset):
 def export(ds: xr.Dataset, directory: Path) -> list[Path]:
     """Write one VTU per snapshot and `series.pvd` into `directory`; return the paths (PVD last)."""
     _check(ds)
+    ds = _on_mechanics_time(ds)
     directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise ValueError(f"{directory} is a file, not a directory for the snapshots")
+    created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        return _write_series(ds, directory, written)
+    except BaseException:  # nothing half-written: this call's files go, and the directory if it made it
+        for path in written:
+            path.unlink(missing_ok=True)
+        if created and not any(directory.iterdir()):
+            directory.rmdir()
+        raise
+
+
+def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[Path]:
+    """The snapshots and the PVD, each written to a temporary and renamed; `written` lists them as they come."""
     grid = _grid(ds)
     cell_dims = tuple(reversed(grid.axes))
     points, cells, kind = _lattice(grid)
@@ -93,28 +118,87 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
         source = ds["nutrient_source"].transpose(*cell_dims).values.astype(np.int8)
         static["nutrient_source"] = source.ravel()[open_cells]
     fields = {n: ds[n].transpose("time", *cell_dims).values.reshape(ds.sizes["time"], -1)[:, open_cells]
-              for n in CELL_FIELDS if n in ds}
-    u = None
+              for n in CELL_FIELDS if n in ds and n != "p"}
+    times = ds["time"].values
+    shown = _mechanics_shown(ds)  # output index -> index into the mechanics' outputs (-1: none yet)
+    p = u = None
+    if "p" in ds:
+        p = ds["p"].transpose(MECHANICS_TIME, *cell_dims).values.reshape(-1, open_cells.size)[:, open_cells]
     if "u" in ds:
-        u = ds["u"].transpose("time", *(f"{d}_node" for d in cell_dims), "component").values
-        u = u.reshape(u.shape[0], -1, u.shape[-1])[:, used]
+        u = ds["u"].transpose(MECHANICS_TIME, *(f"{d}_node" for d in cell_dims), "component").values
+        u = np.pad(u.reshape(u.shape[0], -1, u.shape[-1])[:, used], ((0, 0), (0, 0), (0, 3 - u.shape[-1])))
 
-    written = []
     for t in range(ds.sizes["time"]):
         cell_data = {name: [values] for name, values in static.items()}
-        for name, values in ((n, f[t]) for n, f in fields.items()):
-            if name == "p" and not np.isfinite(values).any():
-                continue  # mechanics not solved at this output
-            cell_data[name] = [values.astype(float)]
-        point_data = {}
-        if u is not None and np.isfinite(u[t]).any():
-            point_data["u"] = np.pad(u[t].astype(float), ((0, 0), (0, 3 - u.shape[-1])))
+        for name, values in fields.items():
+            cell_data[name] = [values[t].astype(float)]
+        point_data, field_data = {}, {"TimeValue": float(times[t])}
+        if shown is not None:
+            m = shown[t]
+            if p is not None:
+                cell_data["p"] = [p[m].astype(float) if m >= 0 else np.full(len(cells), np.nan)]
+            if u is not None:
+                point_data["u"] = u[m].astype(float) if m >= 0 else np.zeros((len(points), 3))
+            field_data["mechanics_time"] = float(ds[MECHANICS_TIME].values[m]) if m >= 0 else float("nan")
         mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
-        path = directory / SNAPSHOT.format(t)
-        meshio.write(path, mesh, file_format="vtu")
-        written.append(path)
-    written.append(_write_collection(directory / COLLECTION, written, ds["time"].values))
+        vectors = "u" if point_data else None
+        written.append(_atomic(directory / SNAPSHOT.format(t),
+                               lambda path: _write_vtu(path, mesh, field_data, vectors)))  # noqa: B023 (called at once)
+    written.append(_atomic(directory / COLLECTION, lambda path: _write_collection(path, written, times)))
     return written
+
+
+def _mechanics_shown(ds: xr.Dataset) -> np.ndarray | None:
+    """For every output, the index (along `time_mechanics`) of the latest output at or before it where the
+    mechanics was solved; -1 before the first; None without mechanics."""
+    if MECHANICS_TIME not in ds.dims:
+        return None
+    return np.searchsorted(ds[MECHANICS_TIME].values, ds["time"].values, side="right") - 1
+
+
+def _on_mechanics_time(ds: xr.Dataset) -> xr.Dataset:
+    """A dataset written before `time_mechanics` existed (p and u on `time`, NaN where the mechanics was not
+    solved) in today's layout: p and u at the solved outputs only."""
+    if MECHANICS_TIME in ds.dims or "p" not in ds or "time" not in ds["p"].dims:
+        return ds
+    solved = ds["p"].notnull().any([d for d in ds["p"].dims if d != "time"]).values
+    moved = {n: ds[n].isel(time=solved).rename(time=MECHANICS_TIME) for n in ("p", "u") if n in ds}
+    return ds.drop_vars(list(moved)).assign(moved)
+
+
+def _write_vtu(path: Path, mesh: meshio.Mesh, field_data: dict, vectors: str | None) -> None:
+    meshio.write(path, mesh, file_format="vtu")
+    _annotate(path, field_data, scalars="phi", vectors=vectors)
+
+
+def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -> None:
+    """Add what meshio's VTU writer leaves out: field data (one value each, e.g. `TimeValue`) and the
+    active scalars and vectors."""
+    tree = ET.parse(path)
+    grid = tree.getroot().find("UnstructuredGrid")
+    if field_data:
+        block = ET.Element("FieldData")
+        for name, value in field_data.items():
+            array = ET.SubElement(block, "DataArray", type="Float64", Name=name, NumberOfTuples="1", format="ascii")
+            array.text = repr(float(value))
+        grid.insert(0, block)
+    piece = grid.find("Piece")
+    if piece.find("CellData") is not None:
+        piece.find("CellData").set("Scalars", scalars)
+    if vectors is not None:
+        piece.find("PointData").set("Vectors", vectors)
+    tree.write(path)
+
+
+def _atomic(path: Path, write) -> Path:
+    """write(temporary) beside `path`, then renamed to it: the file is complete or absent."""
+    temporary = temporary_name(path)
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return path
 
 
 def _write_collection(path: Path, files: list[Path], times: np.ndarray) -> Path:

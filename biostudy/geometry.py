@@ -19,6 +19,8 @@ It gives initial biofilm regions a smooth edge (`edge` in the scene).
 from __future__ import annotations
 
 import functools
+import math
+import os
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
@@ -26,9 +28,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from solver import Grid
+from solver.problem import FACES
 
 from . import structures
-from .errors import InvalidAt, show
+from .errors import InvalidAt
+from .formatting import value_text
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
 EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)
@@ -42,7 +46,7 @@ def um(description: str, **kw):
 class Shape(BaseModel):
     """A region of space; subclasses say which cells it covers."""
 
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
     def cells(self, grid: Grid) -> np.ndarray:
         """Boolean array of ``grid.cells_shape``: cells whose centre is inside."""
@@ -174,14 +178,19 @@ class Mask(Shape):
 
     shape: Literal["mask"] = Field(description="cells listed in a .npy file")
     path: str = Field(description="path to a .npy boolean array of shape [nx, ny(, nz)] (index [i, j, k] is the "
-                                  "cell at x_i, y_j, z_k); relative to the scene file")
+                                  "cell at x_i, y_j, z_k); a relative path is relative to the scene file and stays "
+                                  "inside its folder, an absolute one (or ~/...) is taken as given")
     _array: np.ndarray = PrivateAttr()
 
     @field_validator("path")
     @classmethod
     def _resolve(cls, value: str, info: ValidationInfo) -> str:
         base = Path((info.context or {}).get("base", "."))
-        path = (base / value).expanduser()
+        given = Path(value).expanduser()
+        if not given.is_absolute() and os.path.normpath(given).split(os.sep)[0] == os.pardir:
+            raise ValueError(f"mask file {value!r} lies outside the scene's folder {base}; a relative path must "
+                             "stay inside it (give an absolute path to read a file elsewhere)")
+        path = base / given
         if not path.is_file():
             raise ValueError(f"mask file {value!r} not found (looked for {path})")
         return str(path.resolve())
@@ -194,8 +203,8 @@ class Mask(Shape):
 
     def check(self, grid):
         if self._array.shape != grid.shape:
-            raise InvalidAt("path", f"array has shape {show(list(self._array.shape))}; the grid is "
-                                    f"{show(list(grid.shape))} [nx, ny(, nz)]")
+            raise InvalidAt("path", f"array has shape {value_text(list(self._array.shape))}; the grid is "
+                                    f"{value_text(list(grid.shape))} [nx, ny(, nz)]")
         super().check(grid)
 
     def cells(self, grid):
@@ -204,11 +213,29 @@ class Mask(Shape):
 
 @functools.lru_cache(maxsize=8)
 def _read_mask(path: str, mtime_ns: int, size: int) -> np.ndarray:
-    """A mask file as a read-only boolean array, read once however many study cases use it."""
+    """A mask file as a read-only boolean array, read once however many study cases use it.  The header is
+    checked against the file's size before the data are read (a crafted header cannot ask for memory)."""
+    try:
+        with open(path, "rb") as handle:
+            version = np.lib.format.read_magic(handle)
+            read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) \
+                else np.lib.format.read_array_header_2_0
+            shape, _, dtype = read_header(handle)
+            data_bytes = os.fstat(handle.fileno()).st_size - handle.tell()
+    except OSError as error:
+        raise InvalidAt("path", f"cannot read {path} ({error.strerror or error})") from None
+    except Exception as error:  # whatever a damaged or crafted header raises (ValueError, SyntaxError, ...)
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InvalidAt("path", f"cannot read {path} as a .npy array: not a .npy file ({reason})") from None
+    if dtype.hasobject:
+        raise InvalidAt("path", f"cannot read {path} as a .npy array: it holds Python objects, not booleans")
+    if math.prod(shape) * dtype.itemsize != data_bytes:
+        raise InvalidAt("path", f"cannot read {path} as a .npy array: its header announces {value_text(list(shape))} "
+                                f"{dtype} values, but the file holds {data_bytes} bytes of data")
     try:
         array = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as error:
-        raise InvalidAt("path", f"cannot read {path} as a .npy array ({error})") from None
+        raise InvalidAt("path", f"cannot read {path} as a .npy array ({str(error).splitlines()[0]})") from None
     if array.dtype != bool:
         if not (np.issubdtype(array.dtype, np.integer) and np.isin(array, (0, 1)).all()):
             raise InvalidAt("path", f"{path} holds {array.dtype} values; a mask is boolean (or 0/1)")
@@ -282,4 +309,19 @@ class Grate(Shape):
 
 
 AnyShape = Annotated[Union[Box, Sphere, Cylinder, Mask, Maze, Grate], Field(discriminator="shape")]
+class BoundaryFace(Shape):
+    """An outer face of the grid: for a nutrient source held on the face itself (the paper's nodes on the
+    bottom plane), a Dirichlet condition half a cell from the cells beside it, which stay free."""
+
+    shape: Literal["face"] = Field(description="an outer face of the grid (nutrient sources only)")
+    face: Literal[FACES] = Field(description="which face: x-, x+, y-, y+, z-, z+")
+
+    def check(self, grid):
+        if self.face[0] not in grid.axes:
+            raise InvalidAt("face", f"'{self.face}' is not a face of a {grid.ndim}-D grid")
+
+    def cells(self, grid):
+        return np.zeros(grid.cells_shape, bool)  # no cell is held: the face is
+
+
 SHAPES = (Box, Sphere, Cylinder, Mask)  # for regions of biofilm and nutrient; obstacles take any shape

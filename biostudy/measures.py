@@ -10,6 +10,14 @@
   centroid of the held-nutrient region, the last point where phi (linearly
   interpolated between cell centres) is still >= 0.5, in µm from the
   starting centroid.  Sub-cell accurate, so it converges under refinement.
+* Dense quantities, per output time (what "a dense colony grows tall" means):
+  `dense_volume` (phi >= 0.8, the paper's isosurface level, Figs. 3 and 10),
+  `top` (the highest point of phi >= 0.5 along an axis, sub-cell), `reach`
+  (the largest distance of a phi >= 0.5 cell centre from an axis through the
+  initial colony) and `nutrient_minimum` (where c is lowest, and phi there).
+* Run summaries, per output time: `field_mean` (over open cells), `front_advance`
+  (the front position's gain since the start) and `stress_extremes` (the
+  largest compression and tension of p).  `biostudy.observables` names them.
 * `observed_order`: the slope of log(error) against log(h or dt).
 """
 from __future__ import annotations
@@ -18,7 +26,10 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import map_coordinates
 
+from solver.output import on_output_times
+
 THRESHOLD = 0.5
+DENSE = 0.8
 
 
 def restrict(field: np.ndarray, factor: int) -> np.ndarray:
@@ -81,6 +92,100 @@ def front_position(ds: xr.Dataset, time_index: int = -1) -> float:
         return float(s[-1])
     a, b = values[last], values[last + 1]
     return float(s[last] + (a - THRESHOLD) / (a - b) * (s[last + 1] - s[last]))
+
+
+def _cell_dims(ds: xr.Dataset) -> list[str]:
+    return [d for d in ("z", "y", "x") if d in ds.dims]
+
+
+def spacing(ds: xr.Dataset) -> float:
+    """The cell size (µm): recorded, or from any axis with two cells or more (cells are cubes)."""
+    if "grid_spacing" in ds.attrs:
+        return float(ds.attrs["grid_spacing"])
+    centres = next(ds[d].values for d in _cell_dims(ds) if ds.sizes[d] > 1)
+    return float(centres[1] - centres[0])
+
+
+def dense_volume(ds: xr.Dataset, level: float = DENSE) -> np.ndarray:
+    """Volume (µm³; 2-D: µm² per µm of thickness) of cells with phi >= level, per output time."""
+    dims = _cell_dims(ds)
+    return (ds["phi"] >= level).sum(dims).values * spacing(ds) ** len(dims)
+
+
+def max_phi(ds: xr.Dataset) -> np.ndarray:
+    """Largest phi per output time."""
+    return ds["phi"].max(_cell_dims(ds)).values
+
+
+def top(ds: xr.Dataset, axis: str, level: float = THRESHOLD) -> np.ndarray:
+    """Highest point (µm) along `axis` where phi >= level, per output time; NaN where no cell reaches level.
+
+    In every column along the axis the crossing above the highest cell with phi >= level is placed by linear
+    interpolation between the two cell centres (at the cell's upper face when it is the last cell)."""
+    dims = _cell_dims(ds)
+    centres = ds[axis].values
+    h = spacing(ds)
+    phi = np.moveaxis(np.nan_to_num(ds["phi"].values, nan=0.0), dims.index(axis) + 1, -1)  # (time, ..., axis)
+    out = np.full(phi.shape[0], np.nan)
+    for t, field in enumerate(phi):
+        inside = field >= level
+        columns = inside.any(axis=-1)
+        if not columns.any():
+            continue
+        last = field.shape[-1] - 1 - np.argmax(inside[..., ::-1], axis=-1)  # highest index >= level per column
+        last = last[columns]
+        column = field[columns]
+        a = np.take_along_axis(column, last[:, None], axis=-1)[:, 0]
+        nxt = np.take_along_axis(column, np.minimum(last + 1, field.shape[-1] - 1)[:, None], axis=-1)[:, 0]
+        at_end = last == field.shape[-1] - 1
+        fraction = np.where(at_end, 0.5, (a - level) / np.where(at_end, 1.0, a - nxt))
+        out[t] = float(np.max(centres[last] + fraction * h))
+    return out
+
+
+def reach(ds: xr.Dataset, axis: str, level: float = THRESHOLD) -> np.ndarray:
+    """Largest distance (µm) of a cell centre with phi >= level from the line along `axis` through the centroid
+    of the initial phi >= level, per output time (the radius of a colony's footprint)."""
+    dims = _cell_dims(ds)
+    centres = [ds[d].values for d in dims]
+    start = centroid(ds["phi"].isel(time=0).values >= level, centres)
+    grids = np.meshgrid(*centres, indexing="ij")
+    across = sum((g - m) ** 2 for d, g, m in zip(dims, grids, start) if d != axis) ** 0.5
+    return np.array([np.max(across[phi >= level]) if (phi >= level).any() else np.nan for phi in ds["phi"].values])
+
+
+def nutrient_minimum(ds: xr.Dataset) -> dict[str, np.ndarray]:
+    """Where c is lowest per output time: its coordinates (µm, one array per axis), the value and phi there."""
+    dims = _cell_dims(ds)
+    out = {d: [] for d in dims} | {"c": [], "phi": []}
+    for c, phi in zip(ds["c"].values, ds["phi"].values):
+        index = np.unravel_index(np.nanargmin(c), c.shape)
+        for d, i in zip(dims, index):
+            out[d].append(float(ds[d].values[i]))
+        out["c"].append(float(c[index]))
+        out["phi"].append(float(phi[index]))
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def field_mean(ds: xr.Dataset, name: str) -> np.ndarray:
+    """Mean of a cell field over open cells (obstacle cells are NaN), per output time."""
+    return ds[name].mean(_cell_dims(ds), skipna=True).values
+
+
+def front_advance(ds: xr.Dataset) -> np.ndarray:
+    """How far (µm) the front has moved toward the nutrient source since the first output, per output time."""
+    positions = np.array([front_position(ds, i) for i in range(ds.sizes["time"])])
+    return positions - positions[0]
+
+
+def stress_extremes(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """(largest compression -min p, largest tension max p) in Pa per output time; NaN where p was not solved."""
+    dims = _cell_dims(ds)
+    p = on_output_times(ds)["p"]
+    solved = p.notnull().any(dims).values
+    low = p.min(dims, skipna=True).values
+    high = p.max(dims, skipna=True).values
+    return np.where(solved, -low, np.nan), np.where(solved, high, np.nan)
 
 
 def observed_order(sizes, errors) -> float:

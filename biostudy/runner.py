@@ -12,20 +12,24 @@ worker processes start with ``OMP_NUM_THREADS=1`` (one simulation per core;
 FiPy's suite ran 40x slower with unrestricted threads) and
 ``FIPY_SOLVERS=scipy``; Dask's nanny sets the thread variables for its
 workers itself.  What runs in a worker is in `biostudy.worker`.
+
+Local workers are `biostudy.pool`'s: a worker that dies takes only its own
+case with it.  A sweep's directory is claimed first (`ownership`): locked
+for this process, owned by one study.
 """
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
-import os
+import hashlib
+import importlib.metadata
 import uuid
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
-from . import store, worker
+import numpy as np
+
+from . import combine, ownership, pool, resources, store
 from .errors import BadInput
 from .scene import Scene, overrides_text
 from .study import Plan
@@ -35,8 +39,6 @@ if TYPE_CHECKING:
     import solver
 
 CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-              "FIPY_SOLVERS": "scipy"}
 
 
 class SweepError(RuntimeError):
@@ -57,96 +59,54 @@ def _serial(ids: list[str], compile_: Compile) -> Iterator[tuple[str, Outcome]]:
         yield case_id, solve(compile_(case_id))
 
 
-@contextlib.contextmanager
-def _environment(values: dict[str, str]):
-    """Set environment variables for processes started inside the block (the parent's own libraries
-    are already loaded, so this changes nothing for this process)."""
-    saved = {name: os.environ.get(name) for name in values}
-    os.environ.update(values)
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
+def _windowed(ids: list[str], compile_: Compile, window: int, submit: Callable, first_done: Callable,
+              result: Callable, running: dict) -> Iterator[tuple[str, Outcome]]:
+    """The submit loop every pool shares: at most `window` cases in flight, each compiled just before it
+    is handed out; yields (case id, Outcome) as cases finish.
 
+    submit(problem, case id) -> future; first_done(futures) -> the finished ones (at least one);
+    result(future) -> its Outcome.  `running` (future -> case id) is the caller's, so that it can end
+    what is still in flight when the loop is left early.
+    """
+    waiting = list(reversed(ids))
 
-def _context():
-    """Workers forked from a fork server that imported the solver once (start-up ~0.1 s instead of ~1.2 s of
-    imports per worker); fresh interpreters (spawn) where there is no fork server."""
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["biostudy.worker", "solver.output", "fipy"])
-        return context
-    return multiprocessing.get_context("spawn")
-
-
-def _local(ids: list[str], compile_: Compile, workers: int) -> Iterator[tuple[str, Outcome]]:
-    context = _context()
-    executor = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=worker.start)
-    waiting, running = list(reversed(ids)), {}
-    finished = False
-
-    def submit():
-        while waiting and len(running) < 2 * workers:
+    def fill():
+        while waiting and len(running) < window:
             case_id = waiting.pop()
-            with _environment(WORKER_ENV):  # worker processes are spawned on submit
-                running[executor.submit(solve, compile_(case_id))] = case_id
+            running[submit(compile_(case_id), case_id)] = case_id
 
-    try:
-        submit()
-        while running:
-            done, _ = wait(running, return_when=FIRST_COMPLETED)
-            for future in done:
-                case_id = running.pop(future)
-                try:
-                    outcome = future.result()
-                except BrokenProcessPool:
-                    raise SweepError("a worker process died (out of memory?); finished cases are kept, run "
-                                     "the sweep again to resume") from None
-                yield case_id, outcome
-            submit()
-        finished = True
-    finally:
-        if finished:
-            executor.shutdown(wait=True)
-        else:  # interrupted or failed: running simulations cannot be cancelled, only ended
-            processes = list((getattr(executor, "_processes", None) or {}).values())
-            executor.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                process.terminate()
+    fill()
+    while running:
+        for future in first_done(list(running)):
+            case_id = running.pop(future)
+            yield case_id, result(future)
+        fill()
 
 
 def _dask(ids: list[str], compile_: Compile, address: str) -> Iterator[tuple[str, Outcome]]:
     from distributed import Client
-    from distributed import as_completed as dask_completed
+    from distributed import wait as dask_wait
 
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as error:
         raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", "--scheduler") from None
     run = uuid.uuid4().hex[:8]
-    waiting, running = list(reversed(ids)), {}
-    window = max(4, 2 * sum(client.nthreads().values()))
+    running: dict = {}
 
-    def submit(case_id):
-        future = client.submit(solve, compile_(case_id), key=f"biostudy-{case_id}-{run}", pure=False)
-        running[future] = case_id
-        return future
+    def submit(problem, case_id):
+        return client.submit(solve, problem, key=f"biostudy-{case_id}-{run}", pure=False)
+
+    def result(future) -> Outcome:
+        try:
+            return future.result()
+        except Exception as error:  # e.g. KilledWorker: the case took its worker down
+            return Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
 
     try:
-        completed = dask_completed([submit(waiting.pop()) for _ in range(min(window, len(waiting)))])
-        for future in completed:
-            case_id = running.pop(future)
-            try:
-                outcome = future.result()
-            except Exception as error:  # e.g. KilledWorker: the case took its worker down
-                outcome = Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
-            if waiting:
-                completed.add(submit(waiting.pop()))
-            yield case_id, outcome
+        yield from _windowed(ids, compile_, max(4, 2 * sum(client.nthreads().values())), submit,
+                             lambda futures: dask_wait(futures, return_when="FIRST_COMPLETED").done, result,
+                             running)
     finally:
         if running:
             client.cancel(list(running))
@@ -165,10 +125,26 @@ class SweepReport:
     skipped: list[str] = field(default_factory=list)
     failed: dict[str, str] = field(default_factory=dict)
     removed: list[Path] = field(default_factory=list)
+    damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
+    outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
 
     @property
     def ok(self) -> bool:
         return not self.failed
+
+    def warnings(self) -> list[str]:
+        """What a user should know besides the counts: damaged files computed again, outdated cases kept."""
+        said = []
+        if self.damaged:
+            said.append(f"{len(self.damaged)} finished case files were damaged (their checksums or data did not "
+                        f"read back) and were computed again: {', '.join(self.damaged[:3])}"
+                        f"{', ...' if len(self.damaged) > 3 else ''}")
+        if self.outdated:
+            versions = sorted(set(self.outdated.values()))
+            said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
+                        f"({'; '.join(versions[:2])}{'; ...' if len(versions) > 2 else ''}) and were reused; "
+                        "--rerun-all computes every case again")
+        return said
 
 
 @dataclass(frozen=True)
@@ -180,17 +156,57 @@ class Job:
     scene_file: Path
     overrides: str  # the overrides as TOML text, for the record
     attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
+    layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
+
+
+def fingerprint(problem: "solver.Problem") -> str:
+    """sha256 of everything that determines a run's result (not its name).  The software's versions are not
+    in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
+    digest = hashlib.sha256()
+    for part in (problem.grid, problem.params, problem.numerics, problem.mechanics, problem.consumption,
+                 problem.t_end, problem.steps):
+        digest.update(repr(part).encode())
+    for array in (problem.phi0, problem.nutrient_fixed, problem.nutrient_value, problem.obstacle,
+                  problem.output_times):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()
+
+
+NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a result's numbers depend on
+
+
+def software_versions() -> dict[str, str]:
+    """The versions a case file records (`biostudy_version`, `version_<package>`) that its numbers depend on."""
+    versions = {"biostudy_version": store.version()}
+    for name in NUMERIC_PACKAGES:
+        try:
+            versions[f"version_{name.replace('-', '_')}"] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def _outdated(record: dict) -> str:
+    """'' if a case file was made by the software running now, else which versions differ, e.g.
+    'biostudy 0.0.1 (now 0.1.0), scipy 1.11.4 (now 1.12.0)'."""
+    now = software_versions()
+    return ", ".join(f"{k.removeprefix('version_').removesuffix('_version').replace('_', '-')} {record[k]} "
+                     f"(now {v})" for k, v in now.items() if k in record and str(record[k]) != v)
 
 
 def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
-             retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
+             retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None,
+             rerun_all: bool = False) -> SweepReport:
     """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
 
-    A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped
-    (a recorded failure too, unless `retry_failed`).  notify(event, id, message) is called with event
+    A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
+    recorded failure too, unless `retry_failed`) once its data read back with their checksums (a damaged
+    file is run again); `rerun_all` runs every job again.  notify(event, id, message) is called with event
     "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without `workers` or
-    `scheduler` jobs run here, one after another.
+    `scheduler` jobs run here, one after another.  The caller holds the directory (`owned`).
     """
+    if workers and not scheduler:
+        pool.warm_up()  # the workers' imports overlap the checks below
     out_dir = Path(out_dir)
     cases_dir = out_dir / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
@@ -199,19 +215,33 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     notify = notify or (lambda *args: None)
     by_id = {job.id: job for job in jobs}
 
-    ids, prints = [], {}
+    ids, prints, events = [], {}, []
     for job in jobs:
-        prints[job.id] = store.fingerprint(job.scene.problem())
-        record = store.recorded(store.case_file(out_dir, job.id))
+        prints[job.id] = fingerprint(job.scene.problem())
+        path = store.case_file(out_dir, job.id)
+        record = None if rerun_all else store.recorded(path)
         if record and record.get("fingerprint") == prints[job.id] and (
                 record.get("status") == "done" or (record.get("status") == "failed" and not retry_failed)):
-            report.skipped.append(job.id)
-            if record.get("status") == "failed":
-                report.failed[job.id] = str(record.get("message", ""))
-            notify("skip", job.id, str(record.get("status")))
-            continue
+            if store.intact(path):
+                report.skipped.append(job.id)
+                if record.get("status") == "failed":
+                    report.failed[job.id] = str(record.get("message", ""))
+                outdated = _outdated(record)
+                if outdated:
+                    report.outdated[job.id] = outdated
+                events.append(("skip", job.id, str(record.get("status"))))
+                continue
+            report.damaged.append(job.id)
         ids.append(job.id)
-        notify("start", job.id, "")
+        events.append(("start", job.id, ""))
+
+    estimates = {i: resources.estimate(by_id[i].scene) for i in ids}
+    too_big = resources.run_problem(estimates, 0 if scheduler else (workers or 1), out_dir,
+                                    2 * sum(e.disk for e in estimates.values()))
+    if too_big:  # before any case runs; on disk: the case files and the summary stacking them
+        raise BadInput(too_big, out_dir)
+    for event in events:
+        notify(*event)
 
     def compile_(job_id: str) -> "solver.Problem":
         return by_id[job_id].scene.problem()
@@ -221,7 +251,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     elif scheduler:
         results = _dask(ids, compile_, scheduler)
     elif workers:
-        results = _local(ids, compile_, workers)
+        results = pool.local(ids, compile_, workers)
     else:
         results = _serial(ids, compile_)
     with contextlib.closing(results):
@@ -234,25 +264,83 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, workers: int | None = None, s
     return report
 
 
-def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
-          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None) -> SweepReport:
-    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`)."""
-    study_file = str(plan.file.resolve())
-    jobs = [Job(case.id, plan.scenes[case.id], plan.scene_file,
-                overrides_text({**plan.fixed, **case.overrides()}), {"case_id": case.id, "study_file": study_file})
+@contextlib.contextmanager
+def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False) -> Iterator[Path]:
+    """Claim a sweep's directory for `owner` (`ownership.claimed`) and check, before anything runs, that its
+    summary file (study.nc, ...) may be replaced."""
+    with ownership.claimed(out_dir, owner, force) as directory:
+        store.replaceable(directory / summary)
+        yield directory
+
+
+def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False) -> str:
+    """Before one run computes anything: `BadInput` unless its dataset can be written to `target` and the
+    run fits in memory; returns what the final message adds when `target` is replaced.
+
+    `target` is never an input (the scene file, a mask) nor a file biostudy did not write; an earlier result
+    of the same scene is replaced, anything else biostudy wrote (another scene's result, a sweep's file)
+    only with `force`.
+    """
+    store.writable(target)
+    masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
+             if getattr(r, "shape", None) == "mask"]
+    previous = store.replaceable(target, [scene_file, *masks])
+    too_big = resources.run_problem({scene.name: resources.estimate(scene)}, 1, target)
+    if too_big:
+        raise BadInput(too_big, scene_file)
+    if previous is None:
+        return ""
+    if "case_id" in previous or "sweep_mode" in previous:
+        what = "a file of a sweep"
+    elif previous.get("scene_file") != str(Path(scene_file).resolve()):
+        what = f"the result of another scene ({previous.get('scene_file', 'unknown')})"
+    else:
+        return "; it replaces the earlier result of the same scene"
+    if not force:
+        raise BadInput(f"holds {what}; give --force to replace it, or choose another output", target)
+    return f"; it replaces {what} (--force)"
+
+
+def plan_jobs(plan: Plan, **attrs) -> list[Job]:
+    """One job per case of a study or catalogue; each case file records the case's id and its own
+    attributes, the overrides that made it and `attrs` (e.g. the study file)."""
+    return [Job(case.id, plan.scenes[case.id], plan.scene_file, overrides_text({**plan.fixed, **case.overrides()}),
+                {"case_id": case.id, **attrs, **case.attrs})
             for case in plan.cases]
-    report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify)
-    store.write_study(plan, Path(out_dir))
+
+
+def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
+    """Who a study's or catalogue's directory belongs to: its kind, name, base scene and swept keys."""
+    keys = tuple(plan.keys) if kind == "study" else ()
+    return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
+
+
+def sweep(plan: Plan, out_dir: str | Path, workers: int | None = None, scheduler: str | None = None,
+          retry_failed: bool = False, notify: Callable[[str, str, str], None] | None = None,
+          force: bool = False, rerun_all: bool = False) -> SweepReport:
+    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`);
+    the directory must be this study's (or new, or `force`) and not in use by another run."""
+    layouts = combine.case_layouts(plan)
+    jobs = [replace(job, layout=layouts[job.id]) for job in plan_jobs(plan, study_file=str(plan.file.resolve()))]
+    with owned(out_dir, plan_owner(plan, "study"), "study.nc", force):
+        report = run_jobs(jobs, out_dir, workers, scheduler, retry_failed, notify, rerun_all)
+        combine.write_study(plan, Path(out_dir))
     return report
 
 
 def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None:
-    """Write one case's file: its dataset, or the failure record."""
+    """Write one case's file: its dataset, or the failure record.  A file that cannot be written stops the
+    sweep (`SweepError`): the cases recorded so far are kept."""
     extra = {**job.attrs, "fingerprint": fingerprint}
     if outcome.status == "done":
-        ds = store.stamp(outcome.dataset, job.scene, job.scene_file, job.overrides, status="done", message="",
-                         **extra)
+        ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
+                         message="", **extra)
     else:
-        ds = store.failure_record(outcome.message, outcome.seconds, job.scene, job.scene_file, job.overrides,
-                                  error=outcome.error, **extra)
-    store.write_atomic(ds, store.case_file(out_dir, job.id))
+        ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
+                                  job.scene_file, job.overrides, error=outcome.error, **extra)
+    path = store.case_file(out_dir, job.id)
+    try:
+        store.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
+    except OSError as error:
+        raise SweepError(f"cannot write {path} ({error.strerror or error}); the cases recorded so far are kept, "
+                         "run again to resume") from None

@@ -1,20 +1,21 @@
-"""A scene file (SPEC 2): one simulation, validated, then compiled to a `solver.Problem`.
+"""A scene file (README, "Scene and study files"): one simulation, validated, then compiled to a `solver.Problem`.
 
 The pydantic models below are the schema: every key, its unit and meaning,
-its allowed range (SPEC 1 table for the parameters), and the cross-field
+its allowed range (the parameters' from `solver.Parameters`, docs/model.md), and the cross-field
 rules (shapes inside the grid, nutrient sources not inside obstacles, output
 times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
 ``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
 validates; `Scene.problem()` builds the solver's plain description.
 
-Keys beyond SPEC 2 that map onto the solver: ``[numerics]`` (advection,
-time_tolerance, gradient_floor, max_substeps), ``[mechanics]``
-residual_stiffness and every, ``[time] output_times`` (an explicit list
-instead of ``outputs = N``).
+Besides the model's keys, ``[numerics]`` (advection, time_tolerance,
+gradient_floor, max_substeps), ``[mechanics]`` residual_stiffness, every,
+linear_solver and pressure, and ``[time] output_times`` (an explicit list instead of
+``outputs = N``) map onto the solver's own settings.
 """
 from __future__ import annotations
 
 import copy
+import re
 import tomllib
 import typing
 from pathlib import Path
@@ -24,15 +25,15 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
 
 import solver
-from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES
+from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
 
-from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
-from .geometry import SHAPES, AnyShape, Shape
+from .errors import BadInput, InvalidAt, from_validation_error, read_toml
+from .formatting import units_text, value_text
+from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
 from .tomltext import dumps as toml_dumps
 
-CONFIG = ConfigDict(extra="forbid", strict=True)
+CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
 DEFAULT_OUTPUTS = 11
-_PARAMS = solver.Parameters()
 _NUMERICS = solver.Numerics()
 _MECHANICS = solver.MechanicsSetup()
 
@@ -53,20 +54,19 @@ class GridSpec(BaseModel):
         return solver.Grid(tuple(self.shape), self.spacing)
 
 
-class Params(BaseModel):
-    """Model parameters (SPEC 1, paper Table 2); unspecified keys take the paper's values."""
-
-    model_config = CONFIG
-    mu: float = _field(_PARAMS.mu, "shear modulus mu, Pa", "Pa", gt=0)
-    nu: float = _field(_PARAMS.nu, "Poisson ratio nu", "1", ge=0, lt=0.5)
-    d: float = _field(_PARAMS.d, "nutrient diffusivity d, µm²/T*", "um2/T*", gt=0)
-    beta: float = _field(_PARAMS.beta, "phase-field regularisation beta, µm²/T*", "um2/T*", ge=0)
-    k_alpha: float = _field(_PARAMS.k_alpha, "growth factor k_alpha, 1/T*", "1/T*", ge=0)
-    k: float = _field(_PARAMS.k, "half-velocity constant k (Monod)", "1", gt=0)
-    g: float = _field(_PARAMS.g, "consumption g, 1/T*; 0 switches consumption off", "1/T*", ge=0)
-    r: float = _field(_PARAMS.r, "growth parameter r, µm/T*; 0 switches directed growth off", "um/T*", ge=0)
+def _parameters_model() -> type[BaseModel]:
+    """The [params] table, derived from the declarations of `solver.Parameters`: each parameter's
+    default, units, meaning and allowed range (`solver.problem.parameter`)."""
+    fields = {}
+    for info in parameter_infos():
+        shown = units_text(info.units)
+        fields[info.name] = (float, _field(info.default, f"{info.long_name}{', ' + shown if shown else ''}",
+                                           info.units, **info.bounds))
+    return create_model("Params", __config__=CONFIG, __doc__="Model parameters (paper Table 2 by default; "
+                        "docs/model.md); unspecified keys take their defaults.", **fields)
 
 
+Params = _parameters_model()
 PARAMETER_NAMES = tuple(Params.model_fields)
 
 
@@ -123,10 +123,19 @@ class NumericsSpec(BaseModel):
                                    "1", gt=0, lt=1)
     max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
                                                        "a run needing less stops with a diagnosis", "1", ge=1)
+    growth_velocity: Literal["front", "pointwise"] = Field(
+        _NUMERICS.growth_velocity, description="pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
+                                               "written; keeps dense biofilm dense only on cells of ~1/8 µm); "
+                                               "front: the growth speed taken at the phi = 1/2 front and carried "
+                                               "along its normals: the sharp-interface limit, dense biofilm stays "
+                                               "dense on 1 µm cells (docs/paper.md)")
+    front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
+                                                     "the front take the front's speed", "1", ge=1, le=10)
 
     def solver_numerics(self) -> solver.Numerics:
         return solver.Numerics(advection=self.advection, gradient_floor=self.gradient_floor,
-                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance)
+                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance,
+                               growth_velocity=self.growth_velocity, front_band=self.front_band)
 
 
 Face = Literal[FACES]
@@ -150,17 +159,18 @@ class MechanicsSpec(BaseModel):
     pressure: Literal[tuple(PRESSURES)] = Field(
         _MECHANICS.pressure,
         description="the p in the dataset: recovered (Q1/P0's element pressure with its checkerboard modes "
-                    "filtered out at interior nodes) or element (the paper's Q1/P0 element pressure); docs/mechanics.md")
+                    "filtered out at interior nodes) or element (the paper's Q1/P0 element pressure); "
+                    "docs/mechanics.md")
 
     @model_validator(mode="after")
     def _faces(self):
         for name in ("clamp", "slide"):
             faces = getattr(self, name)
             if len(set(faces)) != len(faces):
-                raise InvalidAt(name, f"lists a face twice ({show(faces)})")
+                raise InvalidAt(name, f"lists a face twice ({value_text(faces)})")
         both = sorted(set(self.clamp) & set(self.slide))
         if both:
-            raise InvalidAt("slide", f"{show(both)} already clamped")
+            raise InvalidAt("slide", f"{value_text(both)} already clamped")
         return self
 
     def solver_setup(self) -> solver.MechanicsSetup | None:
@@ -171,11 +181,11 @@ class MechanicsSpec(BaseModel):
                                      linear_solver=self.linear_solver, pressure=self.pressure)
 
 
-def _valued(role: str, description: str, **extra):
+def _valued(role: str, description: str, shapes=SHAPES, **extra):
     """The shape union with a `value` key (0..1, default 1) for one kind of region."""
     members = tuple(create_model(f"{role}{shape.__name__}", __base__=shape,
                                  value=(float, Field(1.0, ge=0, le=1, description=description)), **extra)
-                    for shape in SHAPES)
+                    for shape in shapes)
     return Annotated[Union[members], Field(discriminator="shape")]
 
 
@@ -183,7 +193,8 @@ BiofilmRegion = _valued("Biofilm", "initial phi inside the shape, 0..1", edge=(f
     0.0, ge=0, description="width of a smooth edge, µm: phi = value (1 - tanh(distance / edge)) / 2 across the "
                            "surface instead of a step (0: a step); smooth data show the schemes' asymptotic "
                            "convergence orders", json_schema_extra={"units": "um"})))
-NutrientRegion = _valued("Nutrient", "nutrient c held inside the shape at all times, 0..1")
+NutrientRegion = _valued("Nutrient", "nutrient c held inside the shape (or on the face) at all times, 0..1",
+                         shapes=(*SHAPES, BoundaryFace))
 
 
 def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
@@ -199,7 +210,7 @@ def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
 
 
 class Scene(BaseModel):
-    """One simulation (SPEC 2)."""
+    """One simulation: grid, parameters, laws, clocks, regions, numerics, mechanics."""
 
     model_config = CONFIG
     name: str = Field("", description="short name (default: the file's name without .toml)")
@@ -216,6 +227,11 @@ class Scene(BaseModel):
 
     @model_validator(mode="after")
     def _fits_the_grid(self):
+        from .resources import validation_problem
+
+        too_big = validation_problem(self)  # before any array of the grid's size is made
+        if too_big:
+            raise InvalidAt("grid.shape", too_big)
         grid = self.grid.solver_grid()
         for kind in ("biofilm", "nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):
@@ -254,6 +270,7 @@ class Scene(BaseModel):
         phi0 = initial_biofilm(self.biofilm, grid)
         held = np.zeros(grid.cells_shape, bool)
         value = np.ones(grid.cells_shape)
+        faces = tuple((region.face, region.value) for region in self.nutrient if isinstance(region, BoundaryFace))
         for region in self.nutrient:
             cells = region.cells(grid)
             held |= cells
@@ -262,7 +279,7 @@ class Scene(BaseModel):
         phi0[blocked] = 0.0  # biofilm does not live inside a solid
         mechanics = self.mechanics.solver_setup() if self.mechanics is not None else None
         return solver.Problem(
-            grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, obstacle=blocked,
+            grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
             params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
             numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)
@@ -366,8 +383,38 @@ def key_info(key: str) -> tuple[str, str]:
             str(extra.get("units", "1")))
 
 
-def scene_from_data(data: dict, file: str | Path) -> Scene:
-    """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths."""
+# Where overridden keys came from: dotted key -> (where it was given: "--set" or a study file, the key's prefix
+# there, e.g. "set."), so that an error in an overridden value names the place that gave it, not the scene file.
+Origins = dict[str, tuple[str, str]]
+
+
+def given_by(keys, where: str | Path, prefix: str = "") -> Origins:
+    """Origins of `keys` (dotted keys, or (key, value) pairs), all given at `where`."""
+    return {(key if isinstance(key, str) else key[0]): (str(where), prefix) for key in keys}
+
+
+def blame(error: BadInput, origins: Origins | None) -> BadInput:
+    """`error` attributed to where the value at its key was given, if an override gave it (the last one wins);
+    each of its other problems (`BadInput.more`) likewise."""
+    if not origins:
+        return error
+    more = tuple(blame(other, origins) for other in error.more)
+    if error.key:
+        parts = [p for p in re.split(r"[.\[\]]+", error.key) if p]
+        for key, (where, prefix) in reversed(list(origins.items())):
+            try:
+                given = key_parts(key)
+            except BadInput:
+                continue
+            n = min(len(given), len(parts))
+            if given[:n] == parts[:n]:
+                return BadInput(error.problem, where, prefix + error.key, more)
+    return BadInput(error.problem, error.file, error.key, more)
+
+
+def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None) -> Scene:
+    """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
+    value that an override gave names that override instead (`origins`)."""
     file = Path(file)
     data = copy.deepcopy(data)
     if isinstance(data.get("name", ""), str) and not data.get("name"):
@@ -375,7 +422,7 @@ def scene_from_data(data: dict, file: str | Path) -> Scene:
     try:
         return Scene.model_validate(data, context={"base": file.parent})
     except ValidationError as error:
-        raise from_validation_error(error, file, known_keys=SCENE_KEYS) from None
+        raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS), origins) from None
 
 
 def read_scene_data(path: str | Path) -> dict:
@@ -402,8 +449,7 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...], file: st
 def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
     """Read, override and validate a scene file: the only way a scene file becomes a `Scene`."""
     data = read_scene_data(path)
-    apply_overrides(data, overrides)
-    return scene_from_data(data, path)
+    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"))
 
 
 def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:

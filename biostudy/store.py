@@ -1,42 +1,50 @@
-"""Datasets on disk: atomic netCDF writes, case records for resuming, the combined study.nc.
+"""Datasets on disk: atomic netCDF writes, reading them back, provenance, case records.
 
-A file is complete or absent (SPEC 5): every dataset is written to a hidden
+Plain dataset I/O: nothing here knows what a scene or a study is.
+
+A file is complete or absent: every dataset is written to a hidden
 temporary file in the target directory, flushed to disk (fsync), then
 renamed over the final name (`os.replace` is atomic within a filesystem).
-A run killed mid-write leaves only a ``.NAME.PID.XXXX.tmp`` file, which the
-next sweep in that directory removes.
+A run killed mid-write leaves only a ``.NAME.PID.XXXXXXXX.tmp`` file (the
+writer's process id and a random token: unique per writer), which the next
+sweep in that directory removes once that process is gone; other files,
+and the temporaries of processes still running, are never touched.
+
+Every numeric variable of more than one value carries a fletcher32 checksum
+per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), so
+`intact` tells a damaged file from a good one even when the damage keeps its
+size.  `writable` and `replaceable` check a
+target before anything is computed: a result is never lost to an unwritable
+path afterwards, and never overwrites an input or a file biostudy did not
+write.
 
 A sweep keeps one file per case, ``DIR/cases/<case id>.nc``: the dataset of
 a finished run (``status = "done"``) or, for a run that failed, a record
 with no variables (``status = "failed"``, ``message`` says why).  Each
-carries a fingerprint of the compiled problem, so re-running a study skips
-exactly the cases whose inputs have not changed.
+carries a fingerprint of the compiled problem (`runner.fingerprint`), so
+re-running a study skips exactly the cases whose inputs have not changed.
 """
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import hashlib
 import importlib.metadata
+import math
 import os
+import re
 import secrets
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Iterable
 
 import numpy as np
 import xarray as xr
 
+from . import netcdf
 from .errors import BadInput
-from .scene import Scene, key_info, overrides_text
-from .study import Plan, dimension, label
-
-if TYPE_CHECKING:
-    import solver
 
 TMP_GLOB = ".*.tmp"
-# Per-case attributes that are not shared by a study (they stay in cases/*.nc).
-PER_CASE = {"case_id", "status", "message", "error", "created", "scene", "overrides", "fingerprint", "title",
-            "wall_time", "steps_taken", "steps_bisected", "steps_rejected"}
+TEMPORARY = re.compile(r"^\..+\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")  # .NAME.PID.TOKEN.tmp, see `temporary_name`
+CASE_NAME_BYTES = 150  # a case file's name stays well within the 255 bytes of a file name, temporary suffix included
 
 
 def version() -> str:
@@ -48,6 +56,12 @@ def version() -> str:
 
 def now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def with_provenance(attrs: dict) -> dict:
+    """`attrs` as netCDF can store them, with the biostudy version and the time of writing: every file
+    biostudy writes says which version made it and when."""
+    return legal_attrs({**attrs, "biostudy_version": version(), "created": now(), "history": netcdf.history()})
 
 
 def legal_attrs(attrs: dict) -> dict:
@@ -69,34 +83,27 @@ def legal_attrs(attrs: dict) -> dict:
     return legal
 
 
-def fingerprint(problem: "solver.Problem") -> str:
-    """sha256 of everything that determines a run's result (not its name)."""
-    digest = hashlib.sha256()
-    for part in (problem.grid, problem.params, problem.numerics, problem.mechanics, problem.consumption,
-                 problem.t_end, problem.steps):
-        digest.update(repr(part).encode())
-    for array in (problem.phi0, problem.nutrient_fixed, problem.nutrient_value, problem.obstacle,
-                  problem.output_times):
-        digest.update(np.ascontiguousarray(array).tobytes())
-    return digest.hexdigest()
-
-
-def stamp(ds: xr.Dataset, scene: Scene, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
+def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
     """The run's dataset with what produced it: the scene as TOML text, its file, the overrides."""
     ds = ds.copy()
-    ds.attrs.update({"scene": scene.to_toml(), "scene_file": str(Path(scene_file).resolve()),
-                     "overrides": overrides, "biostudy_version": version(), "created": now(), **extra})
-    ds.attrs = legal_attrs(ds.attrs)
+    ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve()),
+                                "overrides": overrides, **extra})
     return ds
 
 
+def temporary_name(path: Path) -> Path:
+    """Where `path` is written before it is renamed: hidden, beside it, unique to this process and call."""
+    return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+
+
 def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write `ds` to `path` as netCDF4: temporary file beside it, fsync, rename; nothing else on failure."""
+    """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
+    beside it, fsync, rename; nothing else on failure."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+    temporary = temporary_name(path)
     try:
-        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4")
+        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4", encoding=netcdf.encoding(ds))
         with open(temporary, "rb+") as handle:
             os.fsync(handle.fileno())
         os.replace(temporary, path)
@@ -114,200 +121,189 @@ def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
     return path
 
 
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process
+    return True
+
+
 def remove_temporaries(directory: str | Path) -> list[Path]:
-    """Delete temporary files a killed run left behind (never a file under a final name)."""
+    """Delete the temporary files (`temporary_name`) that writers no longer running left behind: never a
+    file under a final name, nor one of another name pattern (a user's .draft.tmp), nor the temporary of a
+    process still running (another sweep's file in flight)."""
     removed = []
     for leftover in Path(directory).glob(TMP_GLOB):
+        match = TEMPORARY.match(leftover.name)
+        if not match or int(match["pid"]) == os.getpid() or _alive(int(match["pid"])):
+            continue
         leftover.unlink(missing_ok=True)
         removed.append(leftover)
     return removed
 
 
+def writable(path: str | Path) -> None:
+    """`BadInput` unless a dataset can be written to `path` (checked before anything is computed): not a
+    directory, under a directory (or where one can be made), whose file system takes the file's temporary."""
+    path = Path(path)
+    try:
+        if path.is_dir():
+            raise BadInput("is a directory; give a file name for the dataset", path)
+        existing = path.parent
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if not existing.is_dir():
+            raise BadInput(f"cannot write here: {existing} is a file, not a directory", path)
+        probe = temporary_name(existing / path.name)
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        probe.unlink()
+    except OSError as error:
+        raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
+
+
+def _attributes(path: Path) -> dict | None:
+    """The global attributes of a netCDF file, or None if it is not one (or cannot be read)."""
+    import netCDF4
+
+    try:
+        with netCDF4.Dataset(path) as nc:
+            return {name: nc.getncattr(name) for name in nc.ncattrs()}
+    except (OSError, RuntimeError, ValueError):
+        return None
+
+
+def replaceable(path: str | Path, inputs: Iterable[str | Path] = ()) -> dict | None:
+    """Whether a new dataset may replace `path`: None if there is nothing there, the old file's attributes if
+    it is a dataset biostudy wrote; `BadInput` if it is one of `inputs` or any other file."""
+    path = Path(path)
+    if not path.exists():
+        return None
+    for given in inputs:
+        if Path(given).exists() and os.path.samefile(path, given):
+            raise BadInput(f"is an input of this run ({given}); choose another output", path)
+    attrs = _attributes(path) if path.is_file() else None
+    if attrs is None and path.is_file():
+        with open(path, "rb") as handle:
+            if handle.read(8) == b"\x89HDF\r\n\x1a\n":
+                return {}  # a netCDF4 file too damaged to read: nothing in it is left to keep
+    if attrs is None or "biostudy_version" not in attrs:
+        raise BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it (choose another "
+                       "output, or remove the file first)", path)
+    return attrs
+
+
+def _bounded(name: str) -> str:
+    """A case id as a file name: as it is if short enough, else its beginning and a hash of the whole."""
+    if len(name.encode()) <= CASE_NAME_BYTES:
+        return name
+    digest = hashlib.sha256(name.encode()).hexdigest()[:16]
+    head = name.encode()[:CASE_NAME_BYTES - 17].decode(errors="ignore")
+    return f"{head}-{digest}"
+
+
 def open_dataset(path: str | Path) -> xr.Dataset:
-    """A result file, loaded into memory and closed; an unreadable file is `BadInput`."""
+    """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
+    an unreadable or damaged file is `BadInput`."""
     path = Path(path)
     if not path.is_file():
         raise BadInput("no such file", path)
     try:
         with xr.open_dataset(path, engine="netcdf4") as ds:
-            return ds.load()
+            return netcdf.as_run(ds.load())
     except (OSError, ValueError) as error:
         raise BadInput(f"not a netCDF dataset ({str(error).splitlines()[0]})", path) from None
+    except RuntimeError as error:  # netCDF4/HDF5 while reading data: a checksum that does not match
+        raise BadInput(f"damaged: its data cannot be read ({str(error).splitlines()[0]})", path) from None
+
+
+def kind(ds: xr.Dataset) -> str:
+    """What a dataset is: "study" (a sweep's study.nc), "run" (a run or a finished case), "failed" (a failed
+    case's record), "empty" (no variables), "summary" (convergence.nc, stability.nc), or "" (not written by
+    biostudy)."""
+    if "biostudy_version" not in ds.attrs:
+        return ""
+    if "sweep_mode" in ds.attrs:
+        return "study"
+    if ds.attrs.get("status") == "failed":
+        return "failed"
+    if not ds.data_vars:
+        return "empty"
+    return "run" if "phi" in ds and "time" in ds.dims else "summary"
+
+
+def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "failed"), doing: str = "") -> xr.Dataset:
+    """`open_dataset` for a command that reads results (show, plot, export): `BadInput` in one line for a
+    file that is not of the kinds it takes (`kind`), e.g. a netCDF file biostudy did not write."""
+    ds = open_dataset(path)
+    found = kind(ds)
+    if found in wanted:
+        return ds
+    reason = {
+        "": "not a dataset biostudy wrote (it lacks biostudy's attributes)",
+        "failed": f"a failed case's record ({str(ds.attrs.get('message', ''))[:200]}): it holds no fields",
+        "empty": "a dataset with no variables",
+        "study": "a sweep's study.nc, not one run (use a case file from its cases/ directory)",
+        "summary": f"a summary ({ds.attrs.get('title', 'convergence or stability')}), not a run",
+        "run": "one run, not a sweep",
+    }[found]
+    raise BadInput(f"{reason}; {doing or 'nothing to do with it'}", path)
+
+
+def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
+    """Whether every numeric variable of a netCDF file reads back (checksums verified where it has them),
+    read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
+
+    Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
+    checksum and are not read: read through a second handle of a file that is open elsewhere in this
+    process, they leave HDF5 in a state that crashes a later open (HDFGroup/hdf5#5359)."""
+    import netCDF4
+
+    try:
+        with netCDF4.Dataset(path) as nc:
+            nc.set_auto_mask(False)
+            for var in nc.variables.values():
+                if not isinstance(var.dtype, np.dtype):
+                    continue  # a variable-length string: no checksum to verify
+                if not var.ndim or not var.shape[0]:
+                    var[...]  # a scalar or an empty variable
+                    continue
+                row = math.prod(var.shape[1:]) * var.dtype.itemsize
+                step = max(1, slab_bytes // max(row, 1))
+                for start in range(0, var.shape[0], step):
+                    var[start:start + step]
+    except (OSError, RuntimeError, ValueError, IndexError):
+        return False
+    return True
 
 
 # ---------------------------------------------------------------------------------------------
-# Sweep records
+# Case records of a sweep
 
 
 def case_file(out_dir: str | Path, case_id: str) -> Path:
-    return Path(out_dir) / "cases" / f"{case_id}.nc"
+    """DIR/cases/<case id>.nc; a case id too long for a file name is shortened with a hash of it (the full id
+    is the file's `case_id` attribute)."""
+    return Path(out_dir) / "cases" / f"{_bounded(case_id)}.nc"
 
 
 def recorded(path: str | Path) -> dict | None:
-    """The status attributes of a case file, or None if there is none or it cannot be read."""
-    import netCDF4
-
+    """The status attributes of a case file (and the software versions that made it), or None if there is
+    none or it cannot be read."""
     if not Path(path).is_file():
         return None
-    try:
-        with netCDF4.Dataset(path) as nc:
-            return {name: nc.getncattr(name) for name in ("status", "message", "error", "fingerprint", "wall_time")
-                    if name in nc.ncattrs()}
-    except OSError:
+    attrs = _attributes(Path(path))
+    if attrs is None:
         return None
+    return {name: value for name, value in attrs.items()
+            if name in ("status", "message", "error", "fingerprint", "wall_time", "biostudy_version")
+            or name.startswith("version_")}
 
 
-def failure_record(message: str, seconds: float, scene: Scene, scene_file: Path, overrides: str,
+def failure_record(message: str, seconds: float, name: str, scene: str, scene_file: Path, overrides: str,
                    **extra: Any) -> xr.Dataset:
-    """A failed case on disk: no variables, the reason in the attributes."""
-    ds = xr.Dataset(attrs={"Conventions": "CF-1.10", "title": f"failed run: {scene.name}", "wall_time": seconds})
+    """A failed case on disk: no variables, the reason in the attributes (`scene`: its TOML text)."""
+    ds = xr.Dataset(attrs={"Conventions": "CF-1.10", "title": f"failed run: {name}", "wall_time": seconds})
     return stamp(ds, scene, scene_file, overrides, status="failed", message=message, **extra)
-
-
-def _coordinate(key: str, values: list) -> tuple[np.ndarray, dict]:
-    """Values of a swept key as a netCDF coordinate (numbers stay numbers; lists become labels)."""
-    long_name, units = key_info(key)
-    attrs = {"long_name": f"{long_name} (swept: {key})", "units": units}
-    if all(isinstance(v, bool) for v in values):
-        return np.array(values, dtype=np.int8), {**attrs, "units": "1", "flag_values": np.int8([0, 1]),
-                                                  "flag_meanings": "false true"}
-    if all(isinstance(v, int) and not isinstance(v, bool) for v in values):
-        return np.array(values, dtype=np.int64), attrs
-    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-        return np.array(values, dtype=float), attrs
-    return np.array([v if isinstance(v, str) else label(v) for v in values], dtype=object), attrs
-
-
-def _shared_variables(datasets: list[xr.Dataset]) -> list[str]:
-    """Variables every finished case has on identical coordinates (so they stack into study.nc)."""
-    first = datasets[0]
-    shared = []
-    for name in first.data_vars:
-        var = first[name]
-        if all(name in ds.data_vars and ds[name].dims == var.dims and ds[name].shape == var.shape
-               and all(np.array_equal(ds[d].values, first[d].values) for d in var.dims if d in first.coords)
-               for ds in datasets[1:]):
-            shared.append(name)
-    return shared
-
-
-def _floats(ds: xr.Dataset) -> xr.Dataset:
-    """Integer variables as float, so a case that did not finish can be NaN."""
-    return ds.assign({n: ds[n].astype(float) for n in ds.data_vars if not np.issubdtype(ds[n].dtype, np.floating)})
-
-
-def _nest(items: list, sizes: list[int]) -> list:
-    """Flat list (last index fastest) -> nested lists of the given sizes."""
-    if len(sizes) == 1:
-        return items
-    step = len(items) // sizes[0]
-    return [_nest(items[i * step:(i + 1) * step], sizes[1:]) for i in range(sizes[0])]
-
-
-def _scalars(status: str, message: str, attrs: dict) -> dict:
-    def number(key):
-        return float(attrs.get(key, np.nan))
-
-    return {
-        "status": ((), np.array(status, dtype=object), {"long_name": "outcome of the case: done, failed "
-                                                                    "or missing (not run)", "units": "1"}),
-        "message": ((), np.array(message, dtype=object), {"long_name": "why the case failed", "units": "1"}),
-        "wall_time": ((), number("wall_time"), {"long_name": "wall time of the simulation", "units": "s"}),
-        "steps": ((), number("steps_taken"), {"long_name": "accepted time steps", "units": "1"}),
-        "bisections": ((), number("steps_bisected"), {"long_name": "bisected (failed) time steps", "units": "1"}),
-    }
-
-
-def write_study(plan: Plan, out_dir: str | Path) -> Path:
-    """Combine the case files under DIR/cases/ into DIR/study.nc (atomically), case by case in memory."""
-    with contextlib.ExitStack() as opened:
-        return write_atomic(combine(plan, out_dir, opened), Path(out_dir) / "study.nc")
-
-
-def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr.Dataset:
-    """study.nc: the cases stacked along one dimension per swept key (grid) or along `case` (zip).
-
-    Case files are opened lazily (dask-backed) and registered with `opened`, which closes them: a
-    sweep of many large cases is streamed into study.nc, not held in memory at once.
-    """
-    records, datasets = {}, {}
-    for case in plan.cases:
-        path = case_file(out_dir, case.id)
-        record = recorded(path) or {}
-        status = str(record.get("status", "missing"))
-        if status == "done":
-            datasets[case.id] = opened.enter_context(xr.open_dataset(path, engine="netcdf4", chunks={}))
-        records[case.id] = (status, str(record.get("message", "")), record)
-    done = list(datasets.values())
-    shared = _shared_variables(done) if done else []
-    template = None
-    if done:
-        template = _floats(done[0][shared])
-    parts = []
-    for case in plan.cases:
-        status, message, record = records[case.id]
-        if case.id in datasets:
-            part = _floats(datasets[case.id][shared])
-            attrs = datasets[case.id].attrs
-        else:
-            part = xr.full_like(template, np.nan) if template is not None else xr.Dataset()
-            attrs = record  # a failure record has the wall time until it failed
-        part.attrs = {}
-        part = part.assign(_scalars(status, message, attrs))
-        part["case_id"] = ((), np.array(case.id, dtype=object), {"long_name": "case id (file under cases/)",
-                                                                 "units": "1"})
-        parts.append(part)
-
-    keys = plan.keys
-    if plan.mode == "grid":
-        dims = [dimension(k) for k in keys]
-        sizes = [len(plan.study.sweep.values[k]) for k in keys]
-        combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
-        combined = combined.assign_coords({d: (d, *_coordinate(k, plan.study.sweep.values[k]))
-                                           for d, k in zip(dims, keys)})
-        combined = combined.transpose(*dims, ...)
-    else:
-        combined = xr.concat(parts, dim="case", combine_attrs="override")
-        combined = combined.assign_coords(case=("case", np.array([c.id for c in plan.cases], dtype=object),
-                                                {"long_name": "case id (file under cases/)", "units": "1"}))
-        combined = combined.assign_coords({dimension(k): ("case", *_coordinate(k, plan.study.sweep.values[k]))
-                                           for k in keys})
-    swept = {dimension(k) for k in keys} | {k.split(".")[-1] for k in keys}  # e.g. g, advection, grid_shape
-    common = {k: v for k, v in _common_attrs([ds.attrs for ds in done]).items() if k not in swept}
-    omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared))
-    statuses = [records[c.id][0] for c in plan.cases]
-    combined.attrs = legal_attrs({
-        **common,
-        "title": f"biofilm growth study: {plan.study.name}",
-        "study": plan.file.read_text(encoding="utf-8"),
-        "study_file": str(plan.file.resolve()),
-        "scene": plan.base.to_toml(),
-        "scene_file": str(plan.scene_file.resolve()),
-        "overrides": overrides_text(plan.fixed),
-        "sweep_mode": plan.mode,
-        "sweep_keys": ", ".join(keys),
-        "sweep_dimensions": ", ".join(dimension(k) for k in keys) if plan.mode == "grid" else "case",
-        "cases": len(plan.cases),
-        "cases_done": statuses.count("done"),
-        "cases_failed": statuses.count("failed"),
-        "cases_missing": statuses.count("missing"),
-        "omitted_variables": ", ".join(omitted) + " (coordinates differ between cases: see cases/)"
-        if omitted else "",
-        "biostudy_version": version(),
-        "created": now(),
-    })
-    return combined
-
-
-def _common_attrs(attrs: list[dict]) -> dict:
-    """Attributes equal in every finished case (swept parameters and per-case counters drop out)."""
-    if not attrs:
-        return {}
-    common = {}
-    for name, value in attrs[0].items():
-        if name in PER_CASE or name.startswith("wall_time_"):
-            continue
-        if all(name in a and np.array_equal(np.asarray(a[name], dtype=object), np.asarray(value, dtype=object))
-               for a in attrs[1:]):
-            common[name] = value
-    return common

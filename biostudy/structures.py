@@ -126,11 +126,6 @@ class CircularMaze:
         assert route[-1] == start
         return route[::-1]
 
-    def dead_ends(self) -> list[tuple[int, int]]:
-        """Sectors off the entrance-to-centre path with a single opening (the ends of side branches)."""
-        on_path = set(self.path())
-        return [s for s, links in self.tree.items() if len(links) == 1 and s not in on_path]
-
     def _polar(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         dx, dy = x - self.center[0], y - self.center[1]
         return np.hypot(dx, dy), np.mod(np.arctan2(dy, dx) - self.rotation, 2 * np.pi)

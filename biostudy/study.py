@@ -1,4 +1,4 @@
-"""A study file (SPEC 3): a base scene and a sweep over dotted scene keys, expanded into cases.
+"""A study file (README, "Scene and study files"): a base scene and a sweep over dotted scene keys, expanded into cases.
 
 ::
 
@@ -9,6 +9,10 @@
     mode = "grid"                   # grid: every combination; zip: element-wise
     g = [1e8, 1e10]                 # a bare parameter name means params.<name>
     r = [50, 100]
+
+Instead of ``[sweep]``, a ``[sample]`` table draws the cases from a design
+(Sobol', Morris, Latin hypercube, Halton; `biostudy.designs`); their ids are
+``s0001``, ``s0002``, ...
 
 Every case is validated as a scene before anything runs, so a bad value in
 the fourth case stops the study at once (exit 2) instead of after hours.
@@ -22,15 +26,18 @@ import hashlib
 import itertools
 import json
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Callable, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 
-from .errors import BadInput, InvalidAt, from_validation_error, read_toml, show
-from .scene import Scene, apply_overrides, key_parts, read_scene_data, scene_from_data, set_key
-from .tomltext import number
+from . import designs
+from .errors import BadInput, InvalidAt, from_validation_error, read_toml
+from .formatting import value_text
+from .scene import (Origins, Scene, apply_overrides, given_by, key_parts, parse_override, read_scene_data,
+                    scene_from_data, set_key)
+from .tomltext import float_literal
 
 RESERVED_DIMS = frozenset({"time", "x", "y", "z", "x_node", "y_node", "z_node", "component", "case"})
 
@@ -54,16 +61,16 @@ def dimension(key: str) -> str:
     return f"sweep_{name}" if name in RESERVED_DIMS else name
 
 
-def label(value: Any) -> str:
+def id_text(value: Any) -> str:
     """A swept value in a case id: 1e8 -> '1e+08', 50 -> '50', [20, 20, 20] -> '20x20x20'."""
     if isinstance(value, bool):
         text = "true" if value else "false"
     elif isinstance(value, float):
-        text = f"{value:g}" if float(f"{value:g}") == value else number(value)
+        text = f"{value:g}" if float(f"{value:g}") == value else float_literal(value)
     elif isinstance(value, int):
         text = str(value)
     elif isinstance(value, (list, tuple)):
-        text = "x".join(label(v) for v in value)
+        text = "x".join(id_text(v) for v in value)
     elif isinstance(value, str):
         text = value
     else:
@@ -90,7 +97,7 @@ class Sweep(BaseModel):
             raise InvalidAt("", "sweeps no key: add e.g. g = [1e8, 1e10]")
         for key, options in values.items():
             if not isinstance(options, list) or not options:
-                raise InvalidAt(key, f"must be a non-empty list of values (got {show(options)})")
+                raise InvalidAt(key, f"must be a non-empty list of values (got {value_text(options)})")
         return {"mode": mode, "values": values}
 
     @model_validator(mode="after")
@@ -101,10 +108,10 @@ class Sweep(BaseModel):
             if self.mode == "zip" and lengths[key] != lengths[first]:
                 raise InvalidAt(key, f"has {lengths[key]} values but {first} has {lengths[first]} "
                                      f"(zip mode pairs them element-wise)")
-            labels = [label(v) for v in options]
+            labels = [id_text(v) for v in options]
             repeated = next((v for v, n in zip(options, labels) if labels.count(n) > 1), None)
             if repeated is not None and self.mode == "grid":
-                raise InvalidAt(key, f"lists {show(repeated)} twice")
+                raise InvalidAt(key, f"lists {value_text(repeated)} twice")
         seen: dict[str, str] = {}
         for key in self.values:
             try:
@@ -128,27 +135,63 @@ class FlatSet(BaseModel):
         return data
 
 
-class Study(FlatSet):
-    """Many cases of one base scene (SPEC 3)."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-    name: str = Field("", description="short name (default: the file's name without .toml)")
-    description: str = Field("", description="one line shown by `biostudy scenes`")
-    scene: str = Field(description="base scene file, relative to this study file")
-    set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
-    sweep: Sweep
-
-
 @dataclass(frozen=True)
 class Case:
-    """One simulation of a study: its id, the swept values, its position in the sweep."""
+    """One simulation of a study or catalogue: its id, its overrides of the base scene, its position.
+
+    attrs: what its case file records about it besides the id (a catalogue case: its name and why).
+    """
 
     id: str
     values: dict[str, Any]
     index: tuple[int, ...]
+    attrs: dict[str, Any] = field(default_factory=dict)
 
     def overrides(self) -> dict[str, Any]:
         return dict(self.values)
+
+
+class ManyCases(FlatSet):
+    """What study files and stability catalogues share: many cases of one base scene."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field("", description="short name (default: the file's name without .toml)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    scene: str = Field(description="base scene file, relative to this file")
+    set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
+
+    def cases(self) -> list[Case]:
+        """Every case, in the order they run and are recorded."""
+        raise NotImplementedError
+
+    def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
+        """Checks against the base scene before the cases are made (bad input: `BadInput`)."""
+
+
+class Study(ManyCases):
+    """Many cases of one base scene: a sweep over scene keys, or a sampling design."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    sweep: Sweep | None = None
+    sample: designs.Sample | None = None
+    _integral: dict[str, bool] = PrivateAttr(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _one_design(self):
+        if (self.sweep is None) == (self.sample is None):
+            raise InvalidAt("sample" if self.sample else "sweep",
+                            "give either [sweep] or [sample], not both" if self.sample
+                            else "a study needs a [sweep] or a [sample] table")
+        return self
+
+    def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
+        if self.sample is not None:
+            self._integral = designs.check_ranges(self.sample, base_data, scene_file, path)
+
+    def cases(self) -> list[Case]:
+        if self.sample is None:
+            return expand(self.sweep)
+        return [Case(designs.case_id(i), values, (i,)) for i, values in enumerate(self.sample.points(self._integral))]
 
 
 def expand(sweep: Sweep) -> list[Case]:
@@ -163,17 +206,17 @@ def expand(sweep: Sweep) -> list[Case]:
         combos = [((i,), values) for i, values in enumerate(zip(*lists))]
     cases = []
     for index, values in combos:
-        case_id = "_".join(f"{n}={label(v)}" for n, v in zip(names, values))
+        case_id = "_".join(f"{n}={id_text(v)}" for n, v in zip(names, values))
         cases.append(Case(case_id, dict(zip(keys, values)), index))
     return cases
 
 
 @dataclass
 class Plan:
-    """A validated study: every case compiled to a `Scene`, nothing run yet."""
+    """A validated study or catalogue: every case compiled to a `Scene`, nothing run yet."""
 
     file: Path
-    study: Study
+    spec: ManyCases  # the Study or Catalogue as read
     scene_file: Path
     base: Scene
     cases: list[Case]
@@ -182,11 +225,13 @@ class Plan:
 
     @property
     def keys(self) -> list[str]:
-        return list(self.study.sweep.values)
+        """The swept or sampled keys (a study)."""
+        return list(self.spec.sweep.values) if self.spec.sweep else self.spec.sample.keys
 
     @property
     def mode(self) -> str:
-        return self.study.sweep.mode
+        """grid, zip or sample (a study)."""
+        return self.spec.sweep.mode if self.spec.sweep else "sample"
 
 
 def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
@@ -204,34 +249,51 @@ def base_scene(path: Path, scene: str, fixed_set: dict[str, Any], overrides=()) 
     return scene_file, data, {**fixed_set, **dict(apply_overrides(data, overrides))}
 
 
-def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, label: str) -> Scene:
-    """One case's validated scene: the base data with the case's values; errors name the case."""
+def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
+               origins: Origins | None = None) -> Scene:
+    """One case's validated scene: the base data with the case's values; errors name the case, and the
+    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault."""
     data = copy.deepcopy(base_data)
     try:
         for key, value in values.items():
             set_key(data, key, value)
-        return scene_from_data(data, scene_file)
+        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)})
     except BadInput as error:
-        raise BadInput(error.problem, path, ": ".join(filter(None, (f"case {label}", error.key)))) from None
+        raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
+                              lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
+
+
+def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
+              wrong_kind: Callable[[dict], str] = lambda data: "") -> Plan:
+    """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
+
+    wrong_kind(data) says why the file is not of this kind ("" if it is), before it is validated.
+    """
+    path = Path(path)
+    data = read_toml(path)
+    problem = wrong_kind(data)
+    if problem:
+        raise BadInput(problem, path)
+    data.setdefault("name", path.stem)
+    try:
+        spec = model.model_validate(data)
+    except ValidationError as error:
+        raise from_validation_error(error, path, known_keys=model.model_fields) from None
+    scene_file, base_data, fixed = base_scene(path, spec.scene, spec.set, overrides)
+    origins = {**given_by(spec.set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
+    base = scene_from_data(base_data, scene_file, origins)
+    spec.check(base_data, scene_file, path)
+    cases = spec.cases()
+    ids = [case.id for case in cases]
+    repeated = next((i for i in ids if ids.count(i) > 1), None)
+    if repeated:
+        raise BadInput(f"case {repeated} comes twice", path, "sweep" if isinstance(spec, Study) else "case")
+    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.attrs.get("case_id", case.id),
+                                  origins) for case in cases}
+    return Plan(path, spec, scene_file, base, cases, scenes, fixed)
 
 
 def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
     """Read a study file, its base scene and every case; any bad input is a `BadInput`."""
-    path = Path(path)
-    data = read_toml(path)
-    if "grid" in data and "scene" not in data:
-        raise BadInput("this is a scene file (it has [grid]); run it with `biostudy run`", path)
-    data.setdefault("name", path.stem)
-    try:
-        study = Study.model_validate(data)
-    except ValidationError as error:
-        raise from_validation_error(error, path, known_keys=Study.model_fields) from None
-    scene_file, base_data, fixed = base_scene(path, study.scene, study.set, overrides)
-    base = scene_from_data(base_data, scene_file)
-    cases = expand(study.sweep)
-    ids = [case.id for case in cases]
-    repeated = next((i for i in ids if ids.count(i) > 1), None)
-    if repeated:
-        raise BadInput(f"case {repeated} comes twice", path, "sweep")
-    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.id) for case in cases}
-    return Plan(path, study, scene_file, base, cases, scenes, fixed)
+    return load_plan(path, Study, overrides, lambda data: "this is a scene file (it has [grid]); run it with "
+                     "`biostudy run`" if "grid" in data and "scene" not in data else "")

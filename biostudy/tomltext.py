@@ -14,7 +14,7 @@ import re
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
 
 
-def number(value: float) -> str:
+def float_literal(value: float) -> str:
     """Shortest TOML float that reads back to `value` exactly."""
     if math.isnan(value):
         return "nan"
@@ -37,7 +37,7 @@ def literal(value) -> str:
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        return number(value)
+        return float_literal(value)
     if isinstance(value, str):
         return json.dumps(value, ensure_ascii=False)  # a JSON string is a TOML basic string
     if isinstance(value, (list, tuple)):

@@ -1,23 +1,32 @@
-"""Run the bundled paper scenes at paper size and draw them: docs/gallery/*.png and the table of run times.
+"""Run the bundled paper scenes at paper size, draw them and measure the paper's statements on them.
 
     python docs/gallery.py                       # every scene of paper section 4 (~10 min on 2 cores)
     python docs/gallery.py maze grate            # some of them
 
 Each scene runs exactly as a user would run it, one after another (so each
 run time is its own): `biostudy run studies/NAME.toml -o docs/gallery/NAME.nc`,
-then `biostudy plot docs/gallery/NAME.nc -o docs/gallery/NAME.png`.  The
-datasets are deleted afterwards (they are large and reproducible); the table
-`docs/gallery/runs.md` records each run's wall time, steps, bisections and
-where the time went, read from the dataset's attributes.
+then `biostudy plot docs/gallery/NAME.nc -o docs/gallery/NAME.png --warp 500`.
+The datasets are deleted afterwards (they are large and reproducible); the
+table `docs/gallery/runs.md` records each run's wall time, steps, bisections
+and where the time went, read from the dataset's attributes, and
+`docs/gallery/findings.md` the paper's statements measured on it
+(`docs/findings.py`), which docs/paper.md sets beside the paper.
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import xarray as xr
+
+os.environ.setdefault("FIPY_SOLVERS", "scipy")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from findings import FINDINGS  # noqa: E402
+
+from solver.output import on_output_times  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "gallery"
@@ -28,31 +37,48 @@ def biostudy(*args: str) -> None:
     subprocess.run([sys.executable, "-m", "biostudy", *args], check=True, cwd=ROOT)
 
 
-def main(names: list[str]) -> None:
-    OUT.mkdir(parents=True, exist_ok=True)
+def kept_rows(table: Path) -> dict[str, str]:
+    """The rows of a markdown table (first column = scene) from an earlier call: scenes not rerun keep theirs."""
     rows = {}
-    table = OUT / "runs.md"
-    if table.exists():  # keep the rows of scenes not rerun this time
+    if table.exists():
         for line in table.read_text().splitlines()[2:]:
             if line.startswith("| "):
-                rows[line.split("|")[1].strip()] = line
+                rows.setdefault(line.split("|")[1].strip(), []).append(line)
+    return {name: "\n".join(lines) for name, lines in rows.items()}
+
+
+def main(names: list[str]) -> None:
+    from biostudy.scene import load_scene
+
+    OUT.mkdir(parents=True, exist_ok=True)
+    table, findings = OUT / "runs.md", OUT / "findings.md"
+    rows, found = kept_rows(table), kept_rows(findings)
     for name in names:
         data = OUT / f"{name}.nc"
         biostudy("run", f"studies/{name}.toml", "-o", str(data), "-q")
         began = time.perf_counter()
-        biostudy("plot", str(data), "-o", str(OUT / f"{name}.png"))
+        biostudy("plot", str(data), "-o", str(OUT / f"{name}.png"), "--warp", "500")
         drawn = time.perf_counter() - began
         with xr.open_dataset(data) as ds:
+            measured = FINDINGS[name](on_output_times(ds), load_scene(ROOT / "studies" / f"{name}.toml"))
+            found[name] = "\n".join(f"| {name} | {statement} | {quantity} | {value} |"
+                                     for statement, quantity, value in measured)
             a = ds.attrs
             cells = "×".join(str(ds.sizes[d]) for d in ("x", "y", "z") if d in ds.sizes)
             rows[name] = (f"| {name} | {cells} | {a['steps_taken']} | {a['steps_bisected']} | {a['mechanics']} | "
                           f"{a['wall_time']:.1f} | {a.get('wall_time_mechanics', 0.0):.1f} | {drawn:.1f} |")
         data.unlink()
         print(rows[name], flush=True)
+        write_tables(table, rows, findings, found)  # after every scene: a later failure keeps what was measured
+
+
+def write_tables(table: Path, rows: dict[str, str], findings: Path, found: dict[str, str]) -> None:
     header = ("| scene | cells | steps | bisected | mechanics | run s | of which mechanics s | plot s |\n"
               "|---|---|---|---|---|---|---|---|")
     ordered = [rows[n] for n in SCENES if n in rows] + [r for n, r in rows.items() if n not in SCENES]
     table.write_text(header + "\n" + "\n".join(ordered) + "\n")
+    ordered = [found[n] for n in SCENES if n in found]
+    findings.write_text("| scene | the paper says | measured | value |\n|---|---|---|---|\n" + "\n".join(ordered) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,17 +1,16 @@
 """biostudy's numerical core: Hamilton-principle biofilm growth (paper Eqs. 34-36).
 
 A plain numerical library: numpy arrays and frozen dataclasses in, an
-xarray.Dataset out.  FiPy builds the finite-volume operators of the
-transport (phi, c, alpha); scikit-fem the growth mechanics (u, p).
+xarray.Dataset out.  FiPy builds the finite-volume Laplacian of the
+transport once per run; scikit-fem supplies the Q1 reference element of the
+growth mechanics; the rest (advection, assembly, time loop, every linear
+solver) is written here, for speed (docs/transport.md, docs/mechanics.md).
+The equations and where they depart from the paper: docs/model.md.
 Nothing here knows about files, schemas or command lines.
 """
-import os
-
-os.environ.setdefault("FIPY_SOLVERS", "scipy")
-
-from .errors import MechanicsError, SimulationError, StepFailure  # noqa: E402
-from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem  # noqa: E402
-from .timeloop import Progress, Run, Snapshot, evolve, simulate  # noqa: E402
+from .errors import MechanicsError, SimulationError, StepFailure
+from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
+from .timeloop import Progress, Run, Snapshot, evolve, simulate
 
 __all__ = [
     "Grid", "Parameters", "Numerics", "MechanicsSetup", "Problem",

@@ -1,7 +1,7 @@
 """Biofilm density phi: one implicit step of paper Eq. 34.
 
     dphi/dt + v . grad(phi) = beta lap(phi) + k_alpha alpha,
-    v = r c/(k+c) grad(c)/|grad(c)|                  (SPEC 1; Eq. 34 with Eqs. 22-23)
+    v = r c/(k+c) grad(c)/|grad(c)|                  (docs/model.md; Eq. 34 with Eqs. 22-23)
 
 The growth term is advection in *non-conservative* form: the interface moves
 toward the nutrient, mass is created, not carried.  On a face f between a
@@ -33,33 +33,51 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .bounds import ROUNDOFF, Projection
 from .errors import StepFailure
 from .finite_volume import FiniteVolumeGrid
+from .front import FrontVelocity
 from .linear import jacobi_bicgstab
 from .problem import Numerics, Parameters
-
-ROUNDOFF = 1e-9
 
 
 class Velocity:
     """Face-normal growth velocity w (µm/T*) per axis from the nutrient field."""
 
-    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, gradient_floor: float):
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, gradient_floor: float,
+                 held_faces: list[tuple[str, np.ndarray, float]] = ()):
         self.fv = fv
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
         self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
+        self.held_faces = list(held_faces)  # (face, cells beside it, value): Dirichlet faces of the nutrient
+
+    def central_differences(self, q: np.ndarray) -> list[np.ndarray]:
+        """Cell gradient of q per axis; a missing neighbour takes the cell's own value (zero flux)."""
+        h2 = 2.0 * self.fv.grid.spacing
+        return [(q[above] - q[below]) / h2 for below, above in self.neighbours]
 
     def cell_gradient(self, c: np.ndarray) -> list[np.ndarray]:
-        """Central differences per axis; a missing neighbour takes the cell's own value (zero flux)."""
+        """Cell gradient of the nutrient: central differences, and beside a held nutrient face the ghost value
+        2 c_face - c (the held value on the face)."""
         h2 = 2.0 * self.fv.grid.spacing
-        return [(c[above] - c[below]) / h2 for below, above in self.neighbours]
+        gradient = self.central_differences(c)
+        for face, cells, value in self.held_faces:
+            axis = "xyz".index(face[0])
+            below, above = self.neighbours[axis]
+            ghost = 2.0 * value - c[cells]
+            inner = c[above[cells]] if face[1] == "-" else c[below[cells]]
+            gradient[axis][cells] = (inner - ghost) / h2 if face[1] == "-" else (ghost - inner) / h2
+        return gradient
 
-    def __call__(self, c: np.ndarray) -> list[np.ndarray]:
+    def __call__(self, c: np.ndarray, phi: np.ndarray | None = None) -> list[np.ndarray]:
+        """Face velocities per axis; `phi` is not needed (the front velocity's signature).  The cell gradient of
+        c and the floor of |grad c| stay readable as `gradient` and `floor_value` (the front velocity uses them)."""
         fv, h = self.fv, self.fv.grid.spacing
+        self.gradient, self.floor_value = None, 0.0
         if self.r == 0.0:
             return [np.zeros(f.lower.size) for f in fv.faces]
-        cell_grad = self.cell_gradient(c)
+        cell_grad = self.gradient = self.cell_gradient(c)
         normal, magnitude = [], []
         for f in fv.faces:
             dn = (c[f.upper] - c[f.lower]) / h
@@ -73,7 +91,7 @@ class Velocity:
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest == 0.0:
             return [np.zeros_like(dn) for dn in normal]
-        floor = self.floor * largest
+        floor = self.floor_value = self.floor * largest
         velocities = []
         for f, dn, m in zip(fv.faces, normal, magnitude):
             cf = 0.5 * (c[f.lower] + c[f.upper])
@@ -113,12 +131,14 @@ class _Pattern:
 class Biofilm:
     """Implicit Euler step of Eq. 34 on the active cells, matrix filled in place."""
 
-    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics):
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics, held_faces=()):
         self.fv = fv
         self.params = params
         self.tvd = numerics.advection == "tvd"
         self.tolerance = numerics.biofilm_tolerance
-        self.velocity = Velocity(fv, params, numerics.gradient_floor)
+        self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces)
+        if numerics.growth_velocity == "front":
+            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band)
         self.pattern = _Pattern(fv, fv.laplacian, self.tvd)
         p = self.pattern
         self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
@@ -135,6 +155,7 @@ class Biofilm:
                 upper_out=p.position(f.upper, out_upper) if self.tvd else None,
             ))
         self.iterations = 0
+        self.projection = Projection()  # what _checked projected onto [0, upper]
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
         """CSR data of the advection operator (per unit volume) for face velocities w."""
@@ -191,7 +212,7 @@ class Biofilm:
             where = int(np.argmax(outside))
             raise StepFailure(f"biofilm phi = {phi[where]:.6g} outside [0, {upper:.6g}]",
                               self.fv.describe(where))
-        return np.clip(phi, 0.0, upper)
+        return self.projection.onto(phi, 0.0, upper)
 
     def numerical_diffusion(self, w: list[np.ndarray]) -> float:
         """Upwind's artificial diffusivity max |w| h / 2 (µm²/T*), to set beside beta."""

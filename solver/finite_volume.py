@@ -14,10 +14,7 @@ It is the one matrix both the nutrient and the biofilm equations reuse.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-
-os.environ.setdefault("FIPY_SOLVERS", "scipy")
 
 import numpy as np
 import scipy.sparse as sp
@@ -39,6 +36,11 @@ class Faces:
 def fipy_mesh(grid: Grid):
     """FiPy Grid2D/Grid3D with the scene's cells (x fastest, as our arrays)."""
     import fipy
+
+    if fipy.solvers.solver_suite != "scipy":  # FiPy picks its suite once, when it is first imported
+        raise RuntimeError(f"FiPy uses its {fipy.solvers.solver_suite} solver suite; the solver reads FiPy's "
+                           "matrices as scipy ones: set FIPY_SOLVERS=scipy before FiPy is imported (the "
+                           "biostudy command and its workers do)")
 
     h = grid.spacing
     if grid.ndim == 2:
@@ -123,6 +125,14 @@ class FiniteVolumeGrid:
     def to_active(self, values: np.ndarray) -> np.ndarray:
         """Array of ``grid.cells_shape`` -> active-cell values."""
         return np.asarray(values, dtype=float).ravel()[self.cells]
+
+    def boundary_cells(self, face: str) -> np.ndarray:
+        """Active cells next to an outer face of the grid ("x-", ..., "z+"), in active indices."""
+        axis = "xyz".index(face[0])
+        array_axis = self.grid.ndim - 1 - axis
+        index = self.full_to_active.reshape(self.grid.cells_shape)
+        layer = np.take(index, 0 if face[1] == "-" else index.shape[array_axis] - 1, axis=array_axis).ravel()
+        return layer[layer >= 0]
 
     def neighbours(self, axis: int) -> tuple[np.ndarray, np.ndarray]:
         """(below, above) active neighbour of every active cell along `axis`; the cell itself at walls."""

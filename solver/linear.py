@@ -4,8 +4,9 @@
   hierarchy (pyamg, Ruge-Stueben) that is kept across time steps.  The
   nutrient matrix changes only on its diagonal, and only where the biofilm
   moves, so a stale hierarchy stays a good preconditioner; it is rebuilt when
-  the iteration count grows (NUMERICS.md: rebuilt every 10-50 steps with a
-  warm start, 7-10 CG iterations at 20^3-60^3).
+  the iteration count exceeds both 12 and 1.6 times its count right after the last
+  rebuild (measured: once per run, 6-8 CG iterations per solve at
+  20^3-60^3; docs/transport.md).
 * `jacobi_bicgstab`: the biofilm matrix is dominated by 1/dt, so a diagonal
   preconditioner is enough (2-5 iterations at the nominal step).
 
@@ -69,7 +70,8 @@ class ReusedAMG:
                 x, info, its = self._cg(matrix, rhs, x if info == 0 else x0)
                 self.fresh_iterations = max(its, 1)
         if not converged(matrix, x, rhs, self.tolerance):
-            raise StepFailure(f"nutrient CG did not converge in {self.max_iterations} iterations (info {info})")
+            raise StepFailure(not_converged("nutrient CG", matrix, x, rhs, self.tolerance, info, its,
+                                            self.max_iterations))
         return x
 
 
@@ -78,6 +80,23 @@ def converged(matrix, x, rhs, tolerance: float) -> bool:
     with np.errstate(over="ignore", invalid="ignore"):
         residual = np.linalg.norm(rhs - matrix @ x)
         return bool(np.isfinite(residual) and residual <= tolerance * np.linalg.norm(rhs))
+
+
+def not_converged(method: str, matrix, x, rhs, tolerance: float, info: int, iterations: int,
+                  max_iterations: int) -> str:
+    """Why a solve failed the true-residual check, in words: scipy's `info` is 0 when the method met its own
+    (recursive) residual, > 0 when it ran out of iterations, < 0 on a breakdown."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        relative = np.linalg.norm(rhs - matrix @ x) / np.linalg.norm(rhs)
+    if not np.isfinite(relative):
+        return f"{method} did not converge: the solution overflowed after {iterations} iterations"
+    residual = f"the true residual |b - A x| = {relative:.2g} |b| is above the tolerance {tolerance:.2g}"
+    if info == 0:
+        return (f"{method} did not converge: it stopped after {iterations} iterations on its own recursive "
+                f"residual, but {residual}")
+    if info > 0:
+        return f"{method} did not converge in {max_iterations} iterations: {residual}"
+    return f"{method} did not converge: it broke down after {iterations} iterations (scipy info {info}); {residual}"
 
 
 def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tolerance: float,
@@ -98,5 +117,6 @@ def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tole
         x, info = spla.bicgstab(matrix, rhs, x0=x0, rtol=tolerance, atol=0.0, maxiter=max_iterations,
                                 M=precondition, callback=tick)
     if not converged(matrix, x, rhs, tolerance):
-        raise StepFailure(f"biofilm BiCGSTAB did not converge in {max_iterations} iterations (info {info})")
+        raise StepFailure(not_converged("biofilm BiCGSTAB", matrix, x, rhs, tolerance, info, count[0],
+                                        max_iterations))
     return x, count[0]

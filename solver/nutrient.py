@@ -3,10 +3,12 @@
 The nutrient diffuses orders of magnitude faster than the biofilm grows
 (eta_c << eta_phi), so at every step c solves the steady problem
 
-    first-order:  d lap(c) = g phi c                     (SPEC 1, default)
+    first-order:  d lap(c) = g phi c                     (default; docs/model.md)
     zero-order:   d lap(c) = g phi  where c > 0,  c >= 0  (paper Eq. 35)
 
-with zero flux on walls and obstacles and c held in the source cells.
+with zero flux on walls and obstacles and c held in the source cells and on
+held boundary faces (a Dirichlet value half a cell from the cells beside the
+face: a coefficient 2/h^2 on their diagonal).
 Divided by d, with K = -lap restricted to the free cells and gamma = g/d:
 
     first-order:  (K + gamma diag(phi)) c = b                 an SPD M-matrix:
@@ -28,12 +30,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .bounds import ROUNDOFF, Projection
 from .errors import StepFailure
 from .finite_volume import FiniteVolumeGrid
 from .linear import ReusedAMG
 from .problem import Consumption, Parameters
 
-ROUNDOFF = 1e-8
 MAX_ACTIVE_SET_ITERATIONS = 100
 
 
@@ -41,24 +43,30 @@ class Nutrient:
     """Solves for c on the active cells given phi; keeps its AMG hierarchy between calls."""
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, consumption: Consumption,
-                 fixed: np.ndarray, value: np.ndarray, tolerance: float = 1e-10):
+                 fixed: np.ndarray, value: np.ndarray, tolerance: float = 1e-10,
+                 faces: tuple[tuple[str, float], ...] = ()):
         self.fv = fv
         self.consumption = consumption
         self.gamma = params.g / params.d
         laplacian = fv.laplacian
         fixed = fv.to_active(fixed).astype(bool)
         held_value = np.where(fixed, fv.to_active(value), 0.0)
-        held = fixed | self._unreachable(laplacian, fixed)
+        self.faces = [(face, fv.boundary_cells(face), float(v)) for face, v in faces]
+        face_coefficient, face_inflow = np.zeros(fv.n), np.zeros(fv.n)
+        for _, cells, v in self.faces:
+            face_coefficient[cells] += 2.0 / fv.grid.spacing**2
+            face_inflow[cells] += 2.0 * v / fv.grid.spacing**2
+        held = fixed | self._unreachable(laplacian, fixed | (face_coefficient > 0))
         self.free = np.flatnonzero(~held)
-        self.upper = float(held_value[fixed].max()) if fixed.any() else 0.0
+        self.upper = max([0.0, *held_value[fixed], *(v for _, _, v in self.faces)])
         self.c_held = held_value
         lap_free = laplacian[self.free]
-        self.stiffness = sp.csr_matrix(-lap_free[:, self.free])  # K, SPD on the free cells
-        self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held]  # b: inflow from held cells
+        self.stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
+        self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held] + face_inflow[self.free]  # b: inflow
         self.amg = ReusedAMG(tolerance)
         self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
         self.active_set_iterations = 0
-        self._diag = self.stiffness.diagonal()
+        self.projection = Projection()  # what _checked projected onto [0, upper]
 
     @staticmethod
     def _unreachable(laplacian: sp.csr_matrix, fixed: np.ndarray) -> np.ndarray:
@@ -111,4 +119,4 @@ class Nutrient:
         if low.any() or high.any():
             where = int(np.argmax(low | high))
             raise StepFailure(f"nutrient c = {c[where]:.6g} outside [0, {self.upper:g}]", self.fv.describe(where))
-        return np.clip(c, 0.0, self.upper)
+        return self.projection.onto(c, 0.0, self.upper)

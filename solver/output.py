@@ -1,11 +1,13 @@
-"""Snapshots -> xarray.Dataset in the layout of SPEC 5.
+"""Snapshots -> xarray.Dataset (layout: docs/model.md, "The dataset").
 
-Dimensions time, [z,] y, x (cell centres, µm) and [z_node,] y_node, x_node,
-component for the displacement.  Units and long names travel with every
-variable and coordinate; the attributes carry every parameter, the numerics,
-the counters and where the wall time went, so a result says what it cost and
-how it was computed.  Variables a scene does not ask for (u, p without
-mechanics) are absent, not filled.
+Dimensions time, [z,] y, x (cell centres, µm, with their cell bounds) and, with
+the mechanics, time_mechanics (the outputs where it was solved), [z_node,]
+y_node, x_node and component for the displacement.  Units (udunits spellings,
+`cf_units`) and long names travel with every variable and coordinate; the
+parameters are scalar variables with their units and also attributes, which
+carry the numerics, the counters and where the wall time went, so a result
+says what it cost and how it was computed.  Variables a scene does not ask for
+(u, p without mechanics) are absent, not filled.
 """
 from __future__ import annotations
 
@@ -15,7 +17,8 @@ import platform
 import numpy as np
 import xarray as xr
 
-from .problem import AXES, PRESSURES, Problem
+from .bounds import ROUNDOFF
+from .problem import AXES, PRESSURES, Problem, parameter_infos
 
 BIOFILM_THRESHOLD = 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
@@ -27,6 +30,30 @@ FIELDS = {
     "p": ("Pa", "hydrostatic Cauchy stress tr(sigma)/3 (negative = compression)"),
 }
 PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem", "xarray")
+NORMALISED_TIME = "T*"  # t / t_ref: dimensionless
+
+
+def cf_units(units: str) -> str:
+    """The udunits spelling of a model unit.  T* = t / t_ref is dimensionless, so a rate per T* has the
+    units of its numerator: 'um2/T*' -> 'um2', 'um/T*' -> 'um', '1/T*' -> '1'; other units are udunits
+    spellings already ('um', 'um3', 'Pa', 's', '1')."""
+    head, per, rest = units.partition("/" + NORMALISED_TIME)
+    if NORMALISED_TIME in rest or NORMALISED_TIME in head:
+        raise ValueError(f"T* may only divide a unit: {units!r}")
+    return (head or "1") if per else units
+
+
+def cf_attrs(units: str, long_name: str, **extra) -> dict:
+    """units and long_name of a variable: udunits units, and the model's own units (per T*) kept
+    readable in the long name ('consumption g [1/T*]')."""
+    shown = cf_units(units)
+    return {"units": shown, "long_name": long_name if shown == units else f"{long_name} [{units}]", **extra}
+
+
+NO_FILL = {"_FillValue": None}  # coordinates never have missing values (CF 2.5.1)
+# T* is dimensionless: not a CF time (no unit of time, no epoch), so no axis = "T" and no standard_name
+# (docs/model.md, "The dataset").
+TIME_ATTRS = {"units": "1", "long_name": "normalised time T* = t / t_ref (dimensionless)"}
 
 
 def _versions() -> dict:
@@ -40,14 +67,27 @@ def _versions() -> dict:
 
 
 def _coordinates(problem: Problem) -> dict:
+    """Cell centres with their bounds (the cell faces; z points up) and grid nodes, µm."""
     grid = problem.grid
     coords = {}
     for axis in grid.axes:
-        coords[axis] = (axis, grid.centres(axis), {"units": "um", "long_name": f"{axis} of cell centre",
-                                                   "axis": axis.upper()})
-        coords[f"{axis}_node"] = (f"{axis}_node", grid.nodes(axis), {"units": "um",
-                                                                   "long_name": f"{axis} of grid node"})
+        attrs = {"units": "um", "long_name": f"{axis} of cell centre", "axis": axis.upper(),
+                 "bounds": f"{axis}_bounds", **({"positive": "up"} if axis == "z" else {})}
+        coords[axis] = (axis, grid.centres(axis), attrs, NO_FILL)
+        nodes = grid.nodes(axis)
+        coords[f"{axis}_bounds"] = ((axis, "bounds"), np.stack([nodes[:-1], nodes[1:]], axis=1), {},
+                                    NO_FILL)  # units and long name are its cell centre's (CF 7.1)
+        coords[f"{axis}_node"] = (f"{axis}_node", nodes, {"units": "um", "long_name": f"{axis} of grid node"},
+                                  NO_FILL)
     return coords
+
+
+def parameter_variables(problem: Problem) -> dict:
+    """The model parameters as scalar variables with units (kappa, derived from mu and nu, stays an
+    attribute: a variable would not follow a sweep of mu)."""
+    p = problem.params
+    return {info.name: ((), float(getattr(p, info.name)), cf_attrs(info.units, info.long_name))
+            for info in parameter_infos(p)}
 
 
 def _attributes(problem: Problem, report: dict, snapshots) -> dict:
@@ -55,14 +95,18 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
     attrs = {
         "Conventions": "CF-1.10",
         "title": f"biofilm growth: {problem.name}",
-        "source": "biostudy solver (FiPy transport, scikit-fem growth mechanics)",
-        "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, SPEC 1)",
+        "source": "biostudy solver (finite-volume transport on a FiPy-built Laplacian, Q1/P0 growth mechanics)",
+        "model": "Hamilton-principle biofilm growth (paper Eqs. 34-36, as in docs/model.md)",
         "grid_shape": np.array(problem.grid.shape, dtype=np.int32),
         "grid_spacing": problem.grid.spacing,
-        **{name: float(getattr(p, name)) for name in ("mu", "nu", "d", "beta", "k_alpha", "k", "g", "r")},
+        **{info.name: float(getattr(p, info.name)) for info in parameter_infos(p)},
         "kappa": p.kappa,
         "consumption": problem.consumption,
         "advection": n.advection,
+        "growth_velocity": n.growth_velocity,
+        **({"front_band": n.front_band} if n.growth_velocity == "front" else {}),
+        **({"nutrient_faces": ", ".join(f"{face} = {value:g}" for face, value in problem.nutrient_faces)}
+           if problem.nutrient_faces else {}),
         "gradient_floor": n.gradient_floor,
         "nutrient_tolerance": n.nutrient_tolerance,
         "biofilm_tolerance": n.biofilm_tolerance,
@@ -80,8 +124,13 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         "steps_rejected": report["steps_rejected"],
         "nutrient_cg_iterations": report["nutrient_cg_iterations"],
         "nutrient_amg_rebuilds": report["nutrient_amg_rebuilds"],
+        "nutrient_active_set_iterations": report["nutrient_active_set_iterations"],
         "biofilm_iterations": report["biofilm_iterations"],
-        "numerical_diffusion_max": report["numerical_diffusion_max"],
+        **{key: report[key] for key in ("projected_c_count", "projected_c_largest", "projected_phi_count",
+                                        "projected_phi_largest")},
+        "bounds_roundoff": ROUNDOFF,
+        **({} if report["numerical_diffusion_max"] is None else
+           {"numerical_diffusion_max": report["numerical_diffusion_max"]}),  # upwind only: |v| h / 2
         "largest_step_error": report["largest_step_error"],
         **{f"wall_time_{stage}": seconds for stage, seconds in report["timings"].items()},
         **_versions(),
@@ -104,7 +153,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
 
 
 def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
-    """The run as a Dataset (SPEC 5): fields, time series, static masks, attributes."""
+    """The run as a Dataset: fields, time series, static masks, attributes."""
     grid = problem.grid
     cell_dims = tuple(reversed(grid.axes))
     node_dims = tuple(f"{a}_node" for a in cell_dims)
@@ -117,20 +166,17 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
         units, long_name = FIELDS[name]
         data[name] = (("time", *cell_dims), np.stack([getattr(s, name) for s in snapshots]),
                       {"units": units, "long_name": long_name})
+    solved = [s for s in snapshots if s.p is not None]
     if problem.mechanics is not None:
-        nan_cells = np.full(grid.cells_shape, np.nan)
-        nan_nodes = np.full((*grid.nodes_shape, grid.ndim), np.nan)
         units, long_name = FIELDS["p"]
-        data["p"] = (("time", *cell_dims), np.stack([nan_cells if s.p is None else s.p for s in snapshots]),
+        data["p"] = (("time_mechanics", *cell_dims), np.stack([s.p for s in solved]),
                      {"units": units, "long_name": long_name, "pressure": problem.mechanics.pressure,
                       "comment": PRESSURES[problem.mechanics.pressure]})
-        data["u"] = (("time", *node_dims, "component"),
-                     np.stack([nan_nodes if s.u is None else s.u for s in snapshots]),
+        data["u"] = (("time_mechanics", *node_dims, "component"), np.stack([s.u for s in solved]),
                      {"units": "um", "long_name": "displacement of grid node"})
-        data["newton_iterations"] = ("time", np.array([s.mechanics.get("newton_iterations", -1)
-                                                       for s in snapshots], dtype=np.int32),
-                                     {"units": "1", "long_name": "Newton iterations of the mechanics "
-                                                                 "(-1: not solved at this output)"})
+        data["newton_iterations"] = ("time_mechanics", np.array([s.mechanics.get("newton_iterations", -1)
+                                                                 for s in solved], dtype=np.int32),
+                                     {"units": "1", "long_name": "Newton iterations of the mechanics"})
     phi = data["phi"][1]
     data["phi_mean"] = ("time", np.array([f[active].mean() for f in phi]),
                         {"units": "1", "long_name": "mean biofilm density over non-obstacle cells"})
@@ -140,11 +186,11 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
                                                 for f in phi]),
                               {"units": "um3", "long_name": "volume of cells with phi >= 0.5"
                                + (" (2-D: per um of thickness)" if grid.ndim == 2 else "")})
-    for name, long_name in (("steps", "accepted steps so far"), ("bisections", "bisected (failed) steps so far"),
-                            ("rejected", "steps rejected by the error control so far")):
-        data[f"steps_{'taken' if name == 'steps' else name}"] = (
-            "time", np.array([getattr(s, name) for s in snapshots], dtype=np.int64),
-            {"units": "1", "long_name": long_name})
+    for name, counter, long_name in (("steps_taken", "steps", "accepted steps so far"),
+                                     ("steps_bisected", "bisections", "bisected (failed) steps so far"),
+                                     ("steps_rejected", "rejected", "steps rejected by the error control so far")):
+        data[name] = ("time", np.array([getattr(s, counter) for s in snapshots], dtype=np.int64),
+                      {"units": "1", "long_name": long_name})
     data["elapsed"] = ("time", np.array([s.elapsed for s in snapshots]),
                        {"units": "s", "long_name": "wall time since the start of the run"})
     data["obstacle"] = (cell_dims, problem.obstacle.astype(np.int8),
@@ -153,11 +199,27 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     data["nutrient_source"] = (cell_dims, problem.nutrient_fixed.astype(np.int8),
                                {"units": "1", "long_name": "cell where c is held (nutrient source)",
                                 "flag_values": np.int8([0, 1]), "flag_meanings": "free held"})
+    data.update(parameter_variables(problem))
     coords = _coordinates(problem)
-    coords["time"] = ("time", times, {"units": "1", "long_name": "normalised time T* = t / t_ref"})
+    coords["time"] = ("time", times, TIME_ATTRS, NO_FILL)
     if problem.mechanics is not None:
+        coords["time_mechanics"] = ("time_mechanics", np.array([s.time for s in solved]),
+                                    {"units": "1", "long_name": "normalised time T* of the outputs where the "
+                                                                "mechanics was solved"}, NO_FILL)
         coords["component"] = ("component", list(AXES[: grid.ndim]),
                                {"long_name": "displacement component", "units": "1"})
     else:
         coords = {k: v for k, v in coords.items() if not k.endswith("_node")}
     return xr.Dataset(data, coords=coords, attrs=_attributes(problem, report, snapshots))
+
+
+
+def on_output_times(ds: xr.Dataset) -> xr.Dataset:
+    """The dataset with u, p and newton_iterations on `time`, NaN at the outputs where the mechanics was
+    not solved, instead of on `time_mechanics`: for code that walks the outputs by index.  A dataset without
+    `time_mechanics` (no mechanics, or written before it existed) is returned as it is."""
+    if "time_mechanics" not in ds.dims:
+        return ds
+    moved = {name: ds[name].rename(time_mechanics="time").reindex(time=ds["time"].values)
+             for name in ds.data_vars if "time_mechanics" in ds[name].dims}
+    return ds.drop_vars([*moved, "time_mechanics"]).assign(moved)

@@ -12,7 +12,7 @@ flattening is FiPy's cell order (x fastest).  Per-node arrays have shape
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Literal
 
 import numpy as np
@@ -21,6 +21,7 @@ AXES = ("x", "y", "z")
 FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 Consumption = Literal["first-order", "zero-order"]
 Advection = Literal["upwind", "tvd"]
+GrowthVelocity = Literal["front", "pointwise"]
 LINEAR_SOLVERS = ("auto", "multigrid", "direct", "amg")
 PRESSURES = {  # which pressure a dataset holds (solver/mechanics/pressure.py, docs/mechanics.md)
     "recovered": "Q1/P0 element pressure without its spurious (checkerboard) modes: p = w kappa (Theta - 1) "
@@ -96,23 +97,52 @@ class Grid:
         return tuple(reversed(grids))
 
 
+def parameter(default: float, units: str, long_name: str, **bounds: float):
+    """A field of `Parameters`: default, units (the model's, e.g. um2/T*; datasets write their udunits form,
+    `solver.output.cf_units`), meaning and allowed range
+    (bounds: gt, ge, lt, le).  The scene schema, the dataset's attributes and the tables of `show` and
+    `stability` are all derived from these declarations, so a new parameter is declared here once."""
+    unknown = set(bounds) - {"gt", "ge", "lt", "le"}
+    if unknown:
+        raise TypeError(f"unknown bounds {sorted(unknown)}; use gt, ge, lt, le")
+    return field(default=default, metadata={"units": units, "long_name": long_name, "bounds": bounds})
+
+
 @dataclass(frozen=True)
 class Parameters:
-    """Model parameters, paper Table 2 (defaults) in µm and normalised time T*."""
+    """Model parameters, paper Table 2 (defaults) in µm and normalised time T*; see `parameter`."""
 
-    mu: float = 3.3557  # shear modulus, Pa
-    nu: float = 0.49  # Poisson ratio
-    d: float = 1e10  # nutrient diffusivity, µm²/T*
-    beta: float = 2.0  # phase-field regularisation, µm²/T*
-    k_alpha: float = 1e-3  # growth factor, 1/T*
-    k: float = 1.0  # half-velocity constant
-    g: float = 1e8  # consumption, 1/T*
-    r: float = 100.0  # growth parameter, µm/T*
+    mu: float = parameter(3.3557, "Pa", "shear modulus mu", gt=0)
+    nu: float = parameter(0.49, "1", "Poisson ratio nu", ge=0, lt=0.5)
+    d: float = parameter(1e10, "um2/T*", "nutrient diffusivity d", gt=0)
+    beta: float = parameter(2.0, "um2/T*", "phase-field regularisation beta", ge=0)
+    k_alpha: float = parameter(1e-3, "1/T*", "growth factor k_alpha", ge=0)
+    k: float = parameter(1.0, "1", "half-velocity constant k (Monod)", gt=0)
+    g: float = parameter(1e8, "1/T*", "consumption g (0: no consumption)", ge=0)
+    r: float = parameter(100.0, "um/T*", "growth parameter r (0: no directed growth)", ge=0)
 
     @property
     def kappa(self) -> float:
         """Bulk modulus kappa = 2 mu (1 + nu) / (3 (1 - 2 nu)), Pa."""
         return 2.0 * self.mu * (1.0 + self.nu) / (3.0 * (1.0 - 2.0 * self.nu))
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """One declared model parameter (see `parameter`)."""
+
+    name: str
+    default: float
+    units: str
+    long_name: str
+    bounds: dict
+
+
+def parameter_infos(parameters=None) -> tuple[ParameterInfo, ...]:
+    """The declared parameters of a `Parameters` class or instance (default: `Parameters`), in order."""
+    return tuple(ParameterInfo(f.name, f.default, f.metadata["units"], f.metadata["long_name"],
+                               dict(f.metadata["bounds"]))
+                 for f in fields(Parameters if parameters is None else parameters) if "units" in f.metadata)
 
 
 @dataclass(frozen=True)
@@ -129,6 +159,12 @@ class Numerics:
     time_tolerance: None = fixed nominal steps (bisected on failure); a number =
         error-controlled steps by step doubling, local error in phi (max norm)
         per step kept below it.
+    growth_velocity: "pointwise" (r c/(k+c) n_c in every cell: Eq. 34 as
+        written; keeps dense biofilm dense only on cells of ~1/8 µm) or "front"
+        (the growth speed taken at the phi = 1/2 front and carried along its
+        normals over the dense side and `front_band` cells into the void, see
+        `front.py`: the sharp-interface limit, dense biofilm stays dense).
+    front_band: reach of the extension into the void ahead of the front, in cells.
     """
 
     advection: Advection = "upwind"
@@ -137,6 +173,8 @@ class Numerics:
     biofilm_tolerance: float = 1e-12
     max_substeps: int = 1_000_000
     time_tolerance: float | None = None
+    growth_velocity: GrowthVelocity = "pointwise"
+    front_band: float = 3.0
 
 
 @dataclass(frozen=True)
@@ -182,11 +220,15 @@ class MechanicsSetup:
 
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """One simulation (SPEC 1): initial state, sources, obstacles, clocks.
+    """One simulation (docs/model.md): initial state, sources, obstacles, clocks.
 
     phi0: initial biofilm density per cell (0 in obstacles).
     nutrient_fixed: cells where c is held at ``nutrient_value`` at all times.
     nutrient_value: held concentration per cell (read where nutrient_fixed).
+    nutrient_faces: boundary faces where c is held, as (face, value) pairs, e.g.
+        (("z-", 1.0),): a Dirichlet condition on the grid's outer face (the
+        paper's "nodes on the bottom plane"); the cells next to it stay free
+        and may hold biofilm.  phi keeps zero flux there.
     obstacle: rigid solid cells: no phi, no c, no flux across their faces.
     output_times: the output clock, increasing, within [0, t_end].
     steps: nominal number of steps over [0, t_end] (the model clock).
@@ -202,6 +244,7 @@ class Problem:
     params: Parameters = field(default_factory=Parameters)
     consumption: Consumption = "first-order"
     nutrient_value: np.ndarray | None = None
+    nutrient_faces: tuple[tuple[str, float], ...] = ()
     obstacle: np.ndarray | None = None
     numerics: Numerics = field(default_factory=Numerics)
     mechanics: MechanicsSetup | None = None
@@ -217,6 +260,7 @@ class Problem:
         obstacle = np.zeros(shape, bool) if self.obstacle is None else self.obstacle
         fix(self, "obstacle", np.asarray(obstacle, dtype=bool).reshape(shape))
         fix(self, "output_times", np.asarray(self.output_times, dtype=float).ravel())
+        fix(self, "nutrient_faces", tuple((str(face), float(value)) for face, value in self.nutrient_faces))
         self._check()
 
     def _check(self):
@@ -230,6 +274,11 @@ class Problem:
         values = self.nutrient_value[self.nutrient_fixed]
         if np.any((values < 0) | (values > 1)):
             raise ValueError("held nutrient values must lie in [0, 1]")
+        for face, value in self.nutrient_faces:
+            if face not in FACES or face[0] not in self.grid.axes:
+                raise ValueError(f"nutrient face {face!r} is not a face of this {self.grid.ndim}-D grid")
+            if not 0 <= value <= 1:
+                raise ValueError("held nutrient values must lie in [0, 1]")
         if np.any(self.nutrient_fixed & self.obstacle):
             raise ValueError("nutrient sources must not lie inside obstacles")
         if np.any((self.phi0 < 0) | (self.phi0 > 1)):

@@ -41,8 +41,8 @@ class Transport:
         self.problem = problem
         self.fv = FiniteVolumeGrid(problem.grid, problem.obstacle)
         self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_fixed,
-                                 problem.nutrient_value, problem.numerics.nutrient_tolerance)
-        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics)
+                                 problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces)
+        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces)
         self.timings = defaultdict(float)
         self.largest_numerical_diffusion = 0.0
 
@@ -60,9 +60,10 @@ class Transport:
         """State after dt; c at the end only if `with_nutrient` (step doubling skips it)."""
         clock = time.perf_counter
         start = clock()
-        w = self.biofilm.velocity(state.c)
-        self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
-                                               self.biofilm.numerical_diffusion(w))
+        w = self.biofilm.velocity(state.c, state.phi)
+        if not self.biofilm.tvd:  # upwind's own estimate; TVD's is smaller and has no such formula
+            self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
+                                                   self.biofilm.numerical_diffusion(w))
         after_velocity = clock()
         phi = self.biofilm.step(state.phi, state.alpha, w, dt)
         after_biofilm = clock()

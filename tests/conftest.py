@@ -1,6 +1,13 @@
 """Shared fixtures: tiny scene and study files, and tiny runs for the picture and export tests."""
 from __future__ import annotations
 
+import os
+
+# Where the test process starts, as the biostudy command does (biostudy.cli): FiPy's scipy solver suite
+# before FiPy is first imported, and pictures drawn to files only.
+os.environ.setdefault("FIPY_SOLVERS", "scipy")
+os.environ["MPLBACKEND"] = "Agg"
+
 import textwrap
 from pathlib import Path
 
@@ -40,6 +47,31 @@ lower = [0.0, 12.0]
 upper = [3.0, 16.0]
 """
 
+# A 3-D 10 x 9 x 8 scene of 2 µm cells, 10 steps, with a cylindrical obstacle along z.
+CUBE_SCENE = """\
+name = "cube"
+[grid]
+shape = [10, 9, 8]
+spacing = 2.0
+[time]
+t_end = 0.1
+steps = 10
+outputs = 3
+[[biofilm]]
+shape = "sphere"
+center = [10.0, 9.0, 8.0]
+radius = 4.0
+[[nutrient]]
+shape = "box"
+lower = [16.0, 14.0, 12.0]
+upper = [20.0, 18.0, 16.0]
+[[obstacle]]
+shape = "cylinder"
+center = [4.0, 4.0, 8.0]
+radius = 2.0
+axis = "z"
+"""
+
 
 @pytest.fixture
 def write_toml(tmp_path):
@@ -71,6 +103,24 @@ def tiny_study(write_toml, tiny_scene) -> Path:
         """)
 
 
+@pytest.fixture
+def slow_study(write_toml, tiny_scene):
+    """slow_study(steps, values) -> a study of the tiny scene over r whose cases take seconds each (to be
+    interrupted or killed while they run)."""
+
+    def write(steps: int, values=(50.0, 60.0, 70.0, 80.0)) -> Path:
+        return write_toml("slow.toml", f"""\
+            scene = "tiny.toml"
+            [set]
+            "time.t_end" = 1.0
+            "time.steps" = {steps}
+            [sweep]
+            r = {list(values)}
+            """)
+
+    return write
+
+
 @pytest.fixture(scope="session")
 def tiny_run():
     """tiny_run(shape, spacing=1.0) -> the dataset of a few steps of a blob growing toward a source in the
@@ -93,19 +143,41 @@ def tiny_run():
 @pytest.fixture(scope="session")
 def with_mechanics():
     """with_mechanics(ds, unsolved=None) -> a run's dataset with p (Pa, cells) and u (µm, nodes) added in the
-    layout of SPEC 5, distinct in every entry; both NaN at output index `unsolved` (mechanics not solved)."""
+    layout of a run's dataset (on `time_mechanics`), distinct in every entry; output index `unsolved` left out of
+    `time_mechanics` (mechanics not solved there)."""
 
     def add(ds, unsolved=None):
         ds = ds.copy()
         cell_dims = [d for d in ("z", "y", "x") if d in ds.dims]
-        ds["p"] = (-10.0 * ds["phi"] + ds["x"] * 0.1).assign_attrs(units="Pa", long_name="hydrostatic stress")
+        solved = [i for i in range(ds.sizes["time"]) if i != unsolved]
+        p = (-10.0 * ds["phi"] + ds["x"] * 0.1).isel(time=solved).rename(time="time_mechanics")
+        ds["p"] = p.assign_attrs(units="Pa", long_name="hydrostatic stress")
         nodes = {f"{d}_node": np.arange(ds.sizes[d] + 1) * ds.attrs["grid_spacing"] for d in cell_dims}
-        shape = (ds.sizes["time"], *(v.size for v in nodes.values()), len(cell_dims))
+        shape = (len(solved), *(v.size for v in nodes.values()), len(cell_dims))
         u = np.random.default_rng(1).normal(size=shape)
-        if unsolved is not None:
-            ds["p"][dict(time=unsolved)] = np.nan
-            u[unsolved] = np.nan
-        ds["u"] = (("time", *nodes, "component"), u, {"units": "um", "long_name": "displacement"})
+        ds["u"] = (("time_mechanics", *nodes, "component"), u, {"units": "um", "long_name": "displacement"})
         return ds.assign_coords(nodes).assign_coords(component=list("xyz"[: len(cell_dims)]))
 
     return add
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures `biostudy.plots.plot` draws, by file name, kept open so a test can read what is on them
+    (images, lines, colour scales, titles); each is still written to its file.  Closed afterwards."""
+    import matplotlib.pyplot as plt
+
+    import biostudy.plots as plots
+
+    figures = {}
+
+    def keep(fig, path):
+        figures[Path(path).name] = fig
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=20)
+        return Path(path)
+
+    monkeypatch.setattr(plots, "save", keep)
+    yield figures
+    for fig in figures.values():
+        plt.close(fig)

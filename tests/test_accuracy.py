@@ -2,9 +2,11 @@
 from pathlib import Path
 
 import numpy as np
+import pytest
 import xarray as xr
 
 from biostudy import stability
+from solver.bounds import ROUNDOFF
 from test_cli import invoke
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
@@ -38,15 +40,19 @@ def test_convergence_of_the_front_scene(tmp_path):
     assert again.exit_code == 0 and "0 runs, " in again.stderr  # every level was finished before
 
 
+@pytest.mark.slow
 def test_space_convergence_on_a_smooth_front_shows_each_schemes_order(tmp_path):
     """Front scene with a smooth edge (tanh, 2 µm), 5 levels h = 1 ... 1/16 µm at a fixed dt (the
     reference shares it, so the time error cancels): upwind at least first order in phi, TVD clearly
-    higher (measured 1.39 and 2.68 in L1; docs/accuracy.md); no p without mechanics."""
+    higher (measured 1.39 and 2.68 in L1; docs/accuracy.md); no p without mechanics.  The pointwise growth
+    velocity: the front velocity gives the cells near the front one speed, a first-order change of the profile's
+    shape where the speed varies across it (measured 1.16 and 1.61; docs/transport.md)."""
     orders = {}
     for scheme in ("upwind", "tvd"):
         out = tmp_path / scheme
         result = invoke("convergence", STUDIES / "front.toml", "-o", out, "--levels", "5", "--series", "space", "-q",
-                        "--set", "biofilm.0.edge=2.0", "--set", f'numerics.advection="{scheme}"')
+                        "--set", "biofilm.0.edge=2.0", "--set", f'numerics.advection="{scheme}"',
+                        "--set", 'numerics.growth_velocity="pointwise"')
         assert result.exit_code == 0, result.output
         attrs = xr.open_dataset(out / "convergence.nc").attrs
         orders[scheme] = attrs["order_space_phi_L1"]
@@ -60,11 +66,12 @@ def test_convergence_rejects_bad_options(tmp_path):
     assert result.exit_code == 2 and result.stderr.startswith("error: --series: unknown series sideways")
 
 
+@pytest.mark.slow
 def test_stability_catalogue_at_reduced_size(tmp_path):
     """Every case completes within bounds, or (mechanics only) stops with its diagnosis; exit 0."""
     out = tmp_path / "stab"
-    result = invoke("stability", STUDIES / "stability.toml", "-o", out, "-q", "--set", "grid.shape=[8,8,8]",
-                    "--set", "grid.spacing=2.5", "--set", "time.steps=10")
+    result = invoke("stability", STUDIES / "stability.toml", "-o", out, "-q", "--set", "grid.shape=[10,10,10]",
+                    "--set", "grid.spacing=2.0", "--set", "time.steps=10")
     assert result.exit_code in (0, 1), result.output
     ds = xr.open_dataset(out / "stability.nc")
     assert ds.sizes["case"] >= 20 and (out / "stability.md").is_file()
@@ -74,6 +81,10 @@ def test_stability_catalogue_at_reduced_size(tmp_path):
     completed = ds.verdict.values == "completed"
     assert (ds.c_min.values[completed] >= 0).all() and (ds.c_max.values[completed] <= 1).all()
     assert (ds.phi_max.values[completed] <= ds.phi_bound.values[completed] + 1e-9).all()
+    for name in ("c", "phi"):  # how much the solver projected onto the bounds: round-off, never more
+        assert (ds[f"projected_{name}_count"].values[completed] >= 0).all()
+        assert (ds[f"projected_{name}_largest"].values[completed] <= ROUNDOFF).all()
+    assert ds.projected_c_count.sel(case="d=1") > 0 and "projected c" in (out / "stability.md").read_text()
     assert ds.phi_max.sel(case="k_alpha=1") > 1.0  # the expansion source does push phi above 1
     assert result.exit_code == 0 and ds.ok.all()
     refused = ds.verdict.values == "refused"
@@ -105,3 +116,31 @@ def test_stability_bad_catalogue_is_one_line(write_toml):
         """)
     result = invoke("stability", path)
     assert result.exit_code == 2 and result.stderr.count("\\n") <= 1 and "scene file 'nowhere.toml' not found" in result.stderr
+
+
+def test_convergence_against_a_given_reference_run(tmp_path):
+    """--reference: every level is measured against a given run (here the pointwise velocity on 4x finer cells),
+    not against the finest level; its quantities are those of the reference file at the compared time."""
+    from biostudy.convergence import summary
+
+    common = ["--set", "time.t_end=0.1", "--set", "time.outputs=3"]
+    reference = tmp_path / "fine.nc"
+    made = invoke("run", STUDIES / "agar2d.toml", "-o", reference, "-q", *common, "--set", "grid.shape=[40,40]",
+                  "--set", "grid.spacing=0.5", "--set", "time.steps=200", "--set", 'numerics.growth_velocity="pointwise"')
+    assert made.exit_code == 0, made.output
+    out = tmp_path / "conv"
+    result = invoke("convergence", STUDIES / "agar2d.toml", "-o", out, "--levels", "2", "--series", "space", "-q",
+                    *common, "--set", "time.steps=100", "--reference", reference, "--time", "0.05")
+    assert result.exit_code == 0, result.output
+    ds = xr.open_dataset(out / "convergence.nc")
+    assert str(reference) in ds.attrs["reference"]
+    fine = summary(xr.open_dataset(reference), 0.05)
+    for level, case in enumerate(sorted((out / "cases").glob("*.nc"))):  # refine=1 before refine=2
+        mine = summary(xr.open_dataset(case), 0.05)
+        assert np.isclose(float(ds.error_top.sel(series="space", level=level)), abs(mine["top"] - fine["top"]))
+        assert np.isclose(float(ds.error_max_phi.sel(series="space", level=level)), abs(mine["max_phi"] - fine["max_phi"]))
+    assert np.isfinite(ds.error_phi_L1.values).all()  # level 1 (h = 1/2) is on the reference's own grid
+
+    other = invoke("convergence", STUDIES / "agar2d.toml", "-o", tmp_path / "bad", "--levels", "2", "--series",
+                   "space", "-q", "--set", "grid.shape=[30,20]", "--reference", reference)  # a wider domain
+    assert other.exit_code == 2 and "--reference" in other.stderr and "covers" in other.stderr

@@ -6,6 +6,8 @@ from scipy.integrate import solve_ivp
 
 from solver import Grid, Numerics, Parameters, Problem, evolve, simulate
 from solver.finite_volume import fipy_mesh
+from solver.errors import StepFailure
+from solver.timeloop import Clock
 from solver.transport import Transport
 
 
@@ -180,20 +182,54 @@ def test_diffusion_alone_conserves_biofilm_mass_with_obstacles():
     assert np.isnan(ds.phi.values[:, obstacle]).all() and np.isnan(ds.c.values[:, obstacle]).all()
 
 
+class MoreThanOneStep(AssertionError):
+    """The giant step was bisected (the bounds may still hold)."""
+
+
+# Measured: at dt = 1 the nutrient's CG (d = 1, g = 1e10) or the biofilm's Jacobi-preconditioned BiCGSTAB
+# (r = 1e4: advection outweighs 1/dt) does not converge, so the clock bisects the step (1 and 3 times).
+# The bounds hold all the same; strict, so that a solver that manages the step makes the test say so.
+LINEAR_SOLVER_GIVES_UP = pytest.mark.xfail(raises=MoreThanOneStep, strict=True,
+                                           reason="a linear solver does not converge at dt = 1: bisected")
+
+
 @pytest.mark.parametrize("advection", ["upwind", "tvd"])
-@pytest.mark.parametrize("params", [dict(d=1e13, g=1e10), dict(d=1.0, g=1e10), dict(d=1e10, g=1e8, r=1e4),
+@pytest.mark.parametrize("params", [dict(d=1e13, g=1e10),
+                                    pytest.param(dict(d=1.0, g=1e10), marks=LINEAR_SOLVER_GIVES_UP),
+                                    pytest.param(dict(d=1e10, g=1e8, r=1e4), marks=LINEAR_SOLVER_GIVES_UP),
                                     dict(d=1e10, g=0.0, r=1e4, beta=0.0)])
-def test_bounds_hold_on_stiff_cases_with_one_giant_step(advection, params):
-    """Stiff consumption, fast fronts, no diffusion, a single step over [0, 1]: 0 <= c <= 1, 0 <= phi <= 1."""
+def test_bounds_hold_on_stiff_cases_with_one_giant_step(advection, params, monkeypatch):
+    """Stiff consumption, fast fronts, no diffusion, a single step over [0, 1]: 0 <= c <= 1, 0 <= phi <= 1.
+
+    The written fields are projected onto their bounds, so they alone prove little: every step attempted
+    (the giant one, and any bisection of it) must have kept its raw solutions within the bounds up to
+    round-off (what the run projected; a bound broken beyond it would have failed the step), and the
+    step must have been taken in one go."""
+    failures = []
+    attempt = Clock._attempt
+
+    def recording(clock, state, dt):
+        try:
+            return attempt(clock, state, dt)
+        except StepFailure as failure:
+            failures.append(failure.cause)
+            raise
+
+    monkeypatch.setattr(Clock, "_attempt", recording)
     grid = Grid((10, 10, 10), 2.0)
     x, y, z = grid.cell_coordinates()
     phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
     held = (x > 16) & (y > 16) & (z > 16)
     ds = simulate(problem_on(grid, phi0, held, t_end=1.0, steps=1, params=Parameters(k_alpha=0.0, **params),
                              numerics=Numerics(advection=advection)))
+    assert not [cause for cause in failures if "outside" in cause], failures  # no bound broken, at any dt
+    assert ds.attrs["projected_phi_largest"] < 1e-10 and ds.attrs["projected_c_largest"] < 1e-10
     for name in ("phi", "c"):
         values = ds[name].values
         assert np.isfinite(values).all() and values.min() >= 0.0 and values.max() <= 1.0, name
+    assert ds.attrs["steps_bisected"] == len(failures)
+    if ds.attrs["steps_taken"] != 1 or failures:
+        raise MoreThanOneStep(f"{ds.attrs['steps_taken']} steps: {failures}")
 
 
 def test_directional_growth_moves_toward_the_nutrient_corner():
@@ -240,7 +276,9 @@ def characteristic_solution(x, t, phi_initial, r, k, c_slope, c_offset):
 @pytest.mark.parametrize("advection, least_order", [("upwind", 0.8), ("tvd", 1.5)])
 def test_smooth_front_converges_to_the_characteristic_solution(advection, least_order):
     """A tanh front (width 2 µm) in a linear nutrient field, beta = 0: exact solution by characteristics.
-    Small steps (Courant 0.05) so that the spatial error shows: upwind ~ h, TVD ~ h^2 where smooth."""
+    Small steps (Courant 0.05) so that the spatial error shows: upwind ~ h, TVD ~ h^2 where smooth.
+    The pointwise growth velocity: the front velocity gives every cell near the front one speed, which
+    keeps the profile's shape (test_front.py)."""
     length, r, k, t_end = 40.0, 100.0, 1.0, 0.15
     initial = lambda X: 0.5 * (1 - np.tanh((X - 10.0) / 2.0))
     sizes, errors = [], []
@@ -255,7 +293,7 @@ def test_smooth_front_converges_to_the_characteristic_solution(advection, least_
         steps = int(np.ceil(t_end / (0.05 * h / 50.0)))
         ds = simulate(problem_on(grid, initial(x)[None, :], held, value, t_end=t_end, steps=steps,
                                  params=Parameters(g=0.0, r=r, k=k, beta=0.0, k_alpha=0.0),
-                                 numerics=Numerics(advection=advection)))
+                                 numerics=Numerics(advection=advection, growth_velocity="pointwise")))
         slope = 1.0 / (x[-1] - x[0])
         exact = characteristic_solution(x, t_end, initial, r, k, slope, -x[0] * slope)
         inner = (x > 2) & (x < length - 2)

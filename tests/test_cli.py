@@ -1,5 +1,8 @@
 """The `biostudy` command line: run, show, scenes; exit statuses; the catalogue of bad input."""
 import os
+import pty
+import re
+import select
 import signal
 import subprocess
 import sys
@@ -26,7 +29,7 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
     assert result.exit_code == 0, result.output
     assert "wrote" in result.stderr and "20 steps" in result.stderr
     ds = xr.open_dataset(out)
-    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18}
+    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
 
@@ -44,7 +47,7 @@ def test_show_summarises_a_run(tiny_scene, tmp_path):
     result = invoke("show", out)
     assert result.exit_code == 0, result.output
     text = result.stdout
-    for expected in ("tiny", "tiny test scene", "16 × 16 cells", "g = 1e+08", "wall time", "20 taken",
+    for expected in ("tiny", "tiny test scene", "16 × 16 cells", "g = 1e8 1/T*", "wall time", "20 taken",
                      "phi_mean", "c_mean", "biofilm_volume", "T* = 0.2", "fipy"):
         assert expected in text, expected
     ds = xr.open_dataset(out)
@@ -79,18 +82,18 @@ def _write_mask(tmp_path, shape):
 
 # Each entry: id, command line (with {scene}, {study}, {dir} placeholders), what the one line must contain.
 BAD_INPUT = [
-    ("unknown key", ["run", "{scene}", "--set", "params.gamma=1"], ["{scene}", "params.gamma", "unknown key"]),
-    ("wrong type", ["run", "{scene}", "--set", "grid.spacing='one'"], ["{scene}", "grid.spacing", "valid number"]),
-    ("negative diffusivity", ["run", "{scene}", "--set", "params.d=-1"], ["{scene}", "params.d: must be > 0 (got -1)"]),
+    ("unknown key", ["run", "{scene}", "--set", "params.gamma=1"], ["--set: params.gamma", "unknown key"]),
+    ("wrong type", ["run", "{scene}", "--set", "grid.spacing='one'"], ["--set: grid.spacing", "valid number"]),
+    ("negative diffusivity", ["run", "{scene}", "--set", "params.d=-1"], ["--set: params.d: must be > 0 (got -1)"]),
     ("Poisson ratio 0.5", ["run", "{scene}", "--set", "params.nu=0.5"], ["params.nu: must be < 0.5"]),
     ("shape outside the grid", ["run", "{scene}", "--set", "biofilm.0.center=[30.0, 8.0]"],
-     ["{scene}", "biofilm[0].center", "outside the grid"]),
+     ["--set: biofilm[0].center", "outside the grid"]),
     ("source inside an obstacle", ["run", "{scene}", "--set", "obstacle.0.upper=[16.0, 16.0]"],
      ["{scene}", "nutrient[0]", "inside obstacle[0]"]),
     ("missing mask file", ["run", "{scene}", "--set", "obstacle.0={shape='mask', path='gone.npy'}"],
-     ["{scene}", "obstacle[0].path", "not found"]),
+     ["--set: obstacle[0].path", "not found"]),
     ("mask of the wrong shape", ["run", "{scene}", "--set", "obstacle.0={shape='mask', path='mask.npy'}"],
-     ["{scene}", "obstacle[0].path", "array has shape [4, 4]"]),
+     ["--set: obstacle[0].path", "array has shape [4, 4]"]),
     ("output time after t_end", ["run", "{scene}", "--set", "time.output_times=[0.0, 5.0]"],
      ["time.output_times[1]", "outside [0, t_end = 0.2]"]),
     ("zero steps", ["run", "{scene}", "--set", "time.steps=0"], ["time.steps: must be >= 1 (got 0)"]),
@@ -107,7 +110,12 @@ BAD_INPUT = [
      ["negative.toml: case r=-5: params.r: must be >= 0 (got -5)"]),
     ("both --workers and --scheduler", ["sweep", "{study}", "--workers", "2", "--scheduler", "tcp://x:1"],
      ["--workers", "not both"]),
-    ("show a file that is not netCDF", ["show", "{scene}"], ["{scene}", "not a netCDF dataset"]),
+    ("tls:// without a TLS configuration", ["sweep", "{study}", "--scheduler", "tls://127.0.0.1:9"],
+     ["--scheduler: tls://127.0.0.1:9 needs a TLS configuration", "distributed.comm.tls.ca-file", "README"]),
+    ("misspelled bundled scene", ["run", "directonal"],
+     ["directonal: no such file", "did you mean 'directional'?", "`biostudy scenes`"]),
+    ("misspelled bundled study", ["sweep", "directional-swep"], ["did you mean 'directional-sweep'?"]),
+    ("show a file that is not netCDF", ["show", "{dir}/mask.npy"], ["mask.npy", "not a netCDF dataset"]),
 ]
 
 
@@ -137,14 +145,127 @@ def test_bad_input_is_one_line_exit_2_no_traceback(tiny_scene, tiny_study, write
 
 
 def test_sigterm_during_a_run_leaves_no_file(tmp_path):
-    """SIGTERM mid-run: exit 130, no dataset and no temporary left (a file is complete or absent)."""
+    """SIGTERM mid-run: exit 130, no dataset and no temporary left (a file is complete or absent).
+
+    The run's progress bar goes to a terminal (a pseudo-terminal here), so the signal is sent as soon as
+    it shows steps being taken: mid-run on a fast machine or a slow one, instead of after a guessed delay."""
     out = tmp_path / "directional.nc"
-    process = subprocess.Popen([sys.executable, "-m", "biostudy", "run", "directional", "-o", str(out), "-q",
-                                "--set", "time.steps=3000"], cwd=tmp_path, stderr=subprocess.PIPE, text=True)
-    time.sleep(6)
-    assert process.poll() is None, process.stderr.read()
+    terminal, its_end = pty.openpty()
+    process = subprocess.Popen([sys.executable, "-m", "biostudy", "run", "directional", "-o", str(out),
+                                "--set", "time.steps=3000"], cwd=tmp_path, stdin=subprocess.DEVNULL,
+                               stdout=subprocess.DEVNULL, stderr=its_end)
+    os.close(its_end)
+    shown = _read_until(terminal, rb"steps [1-9]", process, timeout=120)
+    assert process.poll() is None, shown
     process.send_signal(signal.SIGTERM)
-    _, stderr = process.communicate(timeout=30)
-    assert process.returncode == 130, stderr
-    assert "interrupted" in stderr and "Traceback" not in stderr
+    process.wait(timeout=30)
+    shown += _read_until(terminal, None, process, timeout=5)
+    os.close(terminal)
+    text = shown.decode(errors="replace")
+    assert process.returncode == 130, text[-300:]
+    assert "interrupted" in text and "Traceback" not in text, text[-300:]
     assert os.listdir(tmp_path) == []
+
+
+def _read_until(terminal: int, pattern: bytes | None, process, timeout: float) -> bytes:
+    """What a process writes to the terminal, until `pattern` shows (None: until it has gone quiet)."""
+    seen, deadline = b"", time.monotonic() + timeout
+    while time.monotonic() < deadline and not (pattern and re.search(pattern, seen)):
+        ready, _, _ = select.select([terminal], [], [], 0.2)
+        if not ready:
+            if pattern is None and process.poll() is not None:
+                break
+            continue
+        try:
+            seen += os.read(terminal, 65536)
+        except OSError:  # the process closed the terminal: nothing more to read
+            break
+    if pattern and not re.search(pattern, seen):
+        raise AssertionError(f"no {pattern!r} within {timeout} s: {seen[-500:]!r}")
+    return seen
+
+
+def test_importing_sets_nothing_and_the_command_pins_the_solver_suite(tiny_scene, tmp_path):
+    """No side effects on import: FiPy's solver suite and the picture backend are set where a biostudy
+    process starts (the command, a worker), not by importing solver or biostudy."""
+    env = {k: v for k, v in os.environ.items() if k not in ("FIPY_SOLVERS", "MPLBACKEND")}
+    imported = subprocess.run([sys.executable, "-c", "import os, solver, biostudy.cli, biostudy.runner, "
+                               "biostudy.plots; print(sorted({'FIPY_SOLVERS', 'MPLBACKEND'} & set(os.environ)))"],
+                              env=env, capture_output=True, text=True, check=True)
+    assert imported.stdout.strip() == "[]"
+    out = tmp_path / "run.nc"
+    subprocess.run([sys.executable, "-m", "biostudy", "run", str(tiny_scene), "-o", str(out), "-q"], env=env,
+                   check=True, capture_output=True)
+    assert xr.open_dataset(out).attrs["fipy_solvers"] == "scipy"
+
+
+def test_version_short_help_completion_and_metavars():
+    from importlib.metadata import version
+
+    shown = invoke("--version")
+    assert shown.exit_code == 0 and shown.stdout == f"biostudy {version('biostudy')}\n"
+    wide = {"COLUMNS": "160"}
+    top = invoke("-h", env=wide)
+    assert top.exit_code == 0 and "--install-completion" in top.stdout and "--version" in top.stdout
+    takes = {"run": {"--set": "KEY=VALUE", "--output": "OUT.nc"},
+             "sweep": {"--set": "KEY=VALUE", "--workers": "N", "--scheduler": "ADDRESS", "--output": "DIR"},
+             "convergence": {"--levels": "N", "--set": "KEY=VALUE"}, "plot": {"--time": "T"}}
+    for command, options in takes.items():
+        result = invoke(command, "-h", env=wide)
+        assert result.exit_code == 0 and "Usage: biostudy " + command in result.stdout
+        rows = {line.split()[1]: line for line in result.stdout.splitlines() if line.startswith("│ --")}
+        for option, metavar in options.items():
+            assert f" {metavar} " in rows[option], rows[option]
+        flags = [o for o in ("--quiet", "--retry-failed") if o in rows]
+        assert all("<bool>" not in rows[o] for o in flags), flags  # a flag takes no value
+        assert bool(flags) == (command != "plot")
+
+
+def test_an_incomplete_scene_tells_every_problem_one_line_each(write_toml, tmp_path):
+    scene = write_toml("incomplete.toml", """\
+        name = "incomplete"
+        [params]
+        d = -1
+        g = -2
+        [time]
+        steps = 0
+        """)
+    result = invoke("run", scene, "-o", tmp_path / "out.nc")
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert result.stderr.splitlines() == [f"error: {scene}: grid: required key is missing",
+                                          f"error: {scene}: params.d: must be > 0 (got -1)",
+                                          f"error: {scene}: params.g: must be >= 0 (got -2)",
+                                          f"error: {scene}: time.steps: must be >= 1 (got 0)"]
+
+
+PROGRESS = re.compile(r"tiny: T\* = [\d.e-]+ / 0\.2 \((\d+)%\), steps \d+, bisections \d+, elapsed [\d.]+ s"
+                      r"(, left ~[\d.]+ s)?")
+
+
+def test_progress_without_a_terminal_is_plain_lines(tiny_scene, tiny_study, tmp_path):
+    """A batch job or `| tee`: stderr is a pipe, so progress comes as plain lines (no escape codes), every tenth
+    of the run; a sweep says how many cases are done; a sweep with nothing left to run says so."""
+    out = tmp_path / "run.nc"
+    ran = subprocess.run([sys.executable, "-m", "biostudy", "run", str(tiny_scene), "-o", str(out)],
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    assert "\x1b" not in ran.stderr
+    lines = ran.stderr.splitlines()
+    percents = [int(PROGRESS.fullmatch(line).group(1)) for line in lines[:-1]]
+    assert percents == list(range(10, 101, 10)), lines
+    assert lines[-1].startswith(f"wrote {out}")
+    # the file's CF history is the command line that made it
+    history = xr.open_dataset(out).attrs["history"]
+    assert history.endswith(f": biostudy run {tiny_scene} -o {out}"), history
+
+    command = [sys.executable, "-m", "biostudy", "sweep", str(tiny_study), "-o", str(tmp_path / "sweep"),
+               "--set", "time.steps=4"]
+    swept = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert swept.returncode == 0, swept.stderr
+    assert "\x1b" not in swept.stderr
+    done = [line for line in swept.stderr.splitlines() if line.startswith("tiny-sweep: ")]
+    assert [line.split(" cases ")[0] for line in done] == [f"tiny-sweep: {k}/4" for k in range(1, 5)], done
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert again.returncode == 0 and "\x1b" not in again.stderr
+    assert again.stderr.splitlines()[0] == "nothing to run: all 4 cases finished before", again.stderr
+    assert "0/0" not in again.stderr

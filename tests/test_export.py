@@ -7,6 +7,7 @@ import pytest
 import xarray as xr
 
 from biostudy.export import export
+from solver.output import on_output_times
 
 H = 1.5  # µm: a spacing other than 1 so that index and coordinate mix-ups show
 
@@ -79,12 +80,63 @@ def test_collection_lists_every_snapshot_with_its_time(run3d, tmp_path):
     assert all((tmp_path / e.get("file")).is_file() for e in entries)
 
 
-def test_without_mechanics_no_u_or_p_and_unsolved_times_are_left_out(run3d, with_mechanics, tmp_path):
-    mesh = read_series(export(run3d, tmp_path / "plain"))[0]
-    assert "u" not in mesh.point_data and "p" not in mesh.cell_data and "phi" in mesh.cell_data
-    meshes = read_series(export(with_mechanics(run3d, unsolved=1), tmp_path / "partial"))
-    assert ["p" in m.cell_data for m in meshes] == [True, False, True]
-    assert ["u" in m.point_data for m in meshes] == [True, False, True]
+def vtk_arrays(path):
+    """What VTK's own reader (as ParaView's) finds in a VTU: cell, point and field arrays, the active ones."""
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+
+    def names(data):
+        return sorted(data.GetArrayName(i) for i in range(data.GetNumberOfArrays()))
+
+    active = (grid.GetCellData().GetScalars(), grid.GetPointData().GetVectors())
+    return {"cells": names(grid.GetCellData()), "points": names(grid.GetPointData()),
+            "field": {n: grid.GetFieldData().GetArray(n).GetValue(0) for n in names(grid.GetFieldData())},
+            "active": tuple(a.GetName() if a is not None else None for a in active),
+            "n_cells": grid.GetNumberOfCells()}
+
+
+def test_every_file_has_the_same_arrays_its_time_and_u_as_active_vectors(run3d, with_mechanics, tmp_path):
+    """A warped animation in ParaView: p and u in every file (where the mechanics was not solved, those of the
+    latest output where it was: `mechanics_time` says which), each file's T* as `TimeValue`, u the active
+    vectors, phi the active scalars; read with meshio and with VTK's reader."""
+    ds = with_mechanics(run3d, unsolved=1)  # solved at outputs 0 and 2
+    paths = export(ds, tmp_path)
+    meshes = read_series(paths)
+    times = ds.time.values.tolist()
+    for mesh in meshes:
+        assert sorted(mesh.cell_data) == ["alpha", "c", "nutrient_source", "p", "phi"] and list(mesh.point_data) == ["u"]
+    assert [float(m.field_data["TimeValue"][0]) for m in meshes] == times
+    assert [float(m.field_data["mechanics_time"][0]) for m in meshes] == [times[0], times[0], times[2]]
+    np.testing.assert_array_equal(meshes[1].point_data["u"], meshes[0].point_data["u"])  # held, not undeformed
+    np.testing.assert_array_equal(meshes[1].cell_data["p"][0], meshes[0].cell_data["p"][0])
+    assert not np.array_equal(meshes[2].point_data["u"], meshes[0].point_data["u"])
+    seen = [vtk_arrays(p) for p in paths[:-1]]
+    open_cells = np.count_nonzero(ds.obstacle.values == 0)
+    for found, when in zip(seen, times):
+        assert found["cells"] == ["alpha", "c", "nutrient_source", "p", "phi"] and found["points"] == ["u"]
+        assert found["field"] == {"TimeValue": when, "mechanics_time": found["field"]["mechanics_time"]}
+        assert found["active"] == ("phi", "u") and found["n_cells"] == open_cells
+
+    plain = [vtk_arrays(p) for p in export(run3d, tmp_path / "plain")[:-1]]  # no mechanics: no p, u
+    assert {(tuple(f["cells"]), tuple(f["points"]), f["active"]) for f in plain} == {
+        (("alpha", "c", "nutrient_source", "phi"), (), ("phi", None))}
+    assert [f["field"] for f in plain] == [{"TimeValue": t} for t in times]
+
+
+def test_a_dataset_written_before_time_mechanics_is_exported_the_same(run3d, with_mechanics, tmp_path):
+    """p and u on `time`, NaN where not solved (datasets written before `time_mechanics`): same files."""
+    ds = with_mechanics(run3d, unsolved=1)
+    old = on_output_times(ds)
+    assert "time_mechanics" not in old.dims and np.isnan(old.p.values[1]).all()
+    new, before = read_series(export(ds, tmp_path / "new")), read_series(export(old, tmp_path / "old"))
+    for a, b in zip(new, before):
+        np.testing.assert_array_equal(a.point_data["u"], b.point_data["u"])
+        np.testing.assert_array_equal(a.cell_data["p"][0], b.cell_data["p"][0])
+        assert a.field_data["mechanics_time"] == b.field_data["mechanics_time"]
 
 
 def test_a_sweep_is_refused(tmp_path):

@@ -2,7 +2,7 @@
 import numpy as np
 import scipy.sparse as sp
 
-from solver import Grid, Parameters, Problem
+from solver import Grid, Numerics, Parameters, Problem
 from solver.finite_volume import FiniteVolumeGrid
 from solver.fipy_reference import FipyTransport
 from solver.transport import Transport
@@ -46,7 +46,8 @@ def directional(n, steps, t_end):
     x, y, z = grid.cell_coordinates()
     phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
     return Problem(grid=grid, phi0=phi0, nutrient_fixed=(x > 16) & (y > 16) & (z > 16),
-                   t_end=t_end, steps=steps, output_times=[0, t_end], params=Parameters(k_alpha=0.5))
+                   t_end=t_end, steps=steps, output_times=[0, t_end], params=Parameters(k_alpha=0.5),
+                   numerics=Numerics(growth_velocity="pointwise"))  # the FiPy reference has the pointwise velocity
 
 
 def run_both(steps, t_end=0.02, n=8):

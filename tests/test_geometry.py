@@ -72,5 +72,5 @@ def test_mask_values_must_be_boolean_or_0_1(tmp_path):
     with pytest.raises(ValueError, match="holds float64 values; a mask is boolean"):
         Mask.model_validate({"shape": "mask", "path": "floats.npy"}, context={"base": tmp_path})
     (tmp_path / "text.npy").write_text("not an array")
-    with pytest.raises(ValueError, match="cannot read .* as a .npy array"):
+    with pytest.raises(ValueError, match="cannot read .* as a .npy array: not a .npy file"):
         Mask.model_validate({"shape": "mask", "path": "text.npy"}, context={"base": tmp_path})

@@ -187,3 +187,13 @@ def test_tangent_is_the_derivative_of_the_residual_and_residual_of_the_energy(sh
         plus, minus = assembler.evaluate(u + e, w, Jg, MU, KAPPA, False), assembler.evaluate(u - e, w, Jg, MU, KAPPA, False)
         np.testing.assert_allclose((plus.residual - minus.residual) / (2 * h), K[:, j], atol=1e-6 * np.abs(K).max())
         assert (plus.energy - minus.energy) / (2 * h) == pytest.approx(ev.residual[j], abs=1e-6 * np.abs(ev.residual).max())
+
+
+def test_the_memory_estimate_knows_every_preconditioner_and_the_solvers_auto_limit():
+    """biostudy.resources keeps its own copy of the limit (it must not import the solver): the same
+    preconditioner for "auto", and a per-node figure for every choice a scene can make."""
+    from biostudy import resources
+    from solver.problem import LINEAR_SOLVERS
+
+    assert resources.DIRECT_LIMIT == Settings().direct_limit
+    assert {(m, d) for m in LINEAR_SOLVERS if m != "auto" for d in (2, 3)} == set(resources.MECHANICS_PER_NODE)

@@ -1,6 +1,7 @@
-"""Quasi-steady nutrient against exact steady profiles (paper Eq. 35, SPEC 1)."""
+"""Quasi-steady nutrient against exact steady profiles (paper Eq. 35; docs/model.md)."""
 import numpy as np
 import pytest
+import scipy.sparse.linalg as spla
 
 from solver.finite_volume import FiniteVolumeGrid
 from solver.nutrient import Nutrient
@@ -67,15 +68,22 @@ def test_zero_order_exhausted_region_converges_and_stays_zero():
 
 
 def test_literal_zero_order_would_go_negative_but_constrained_does_not():
-    """Eq. 35 taken literally (no constraint) drives c far below 0; the constrained law keeps c >= 0."""
+    """Eq. 35 taken literally (the same discrete operator, no constraint) drives c far below 0; the
+    constrained law is the complementarity problem c >= 0, unmet demand lambda = K c - b + g/d phi >= 0,
+    c lambda = 0: where nutrient is left it is all consumed as the law says, where it is exhausted c = 0."""
     gamma = 1.0
-    x, c, _ = strip(64, gamma, "zero-order")
-    h = LENGTH / 64
-    # unconstrained: c = 1 + gamma/2 ((x-L)^2 - (x0-L)^2) reaches about 1 - gamma L^2 / 2 < -100
-    unconstrained = 1 + 0.5 * gamma * ((x - LENGTH) ** 2 - (x[0] - LENGTH) ** 2)
-    assert unconstrained.min() < -100
-    assert c.min() == 0.0 and c.max() == pytest.approx(1.0)
-    assert h > 0
+    x, c_full, nutrient = strip(64, gamma, "zero-order")
+    free = nutrient.free
+    demand = nutrient.gamma * np.ones(free.size)
+    literal = spla.spsolve(nutrient.stiffness.tocsc(), nutrient.rhs - demand)
+    assert literal.min() < -100  # about 1 - gamma L^2 / 2 at the far end
+    c = nutrient.solve(np.ones(nutrient.fv.n))[free]
+    unmet = nutrient.stiffness @ c - nutrient.rhs + demand
+    scale = np.abs(nutrient.rhs).max() + demand.max()
+    assert c.min() == 0.0 and np.count_nonzero(c == 0.0) > free.size // 2  # most of the strip is exhausted
+    assert unmet.min() > -1e-8 * scale  # never more consumed than demanded
+    assert np.abs(unmet[c > 0]).max() < 1e-8 * scale  # where c > 0 the law holds exactly
+    assert c_full.max() == pytest.approx(1.0)
 
 
 def test_walled_off_pocket_receives_no_nutrient():
@@ -109,3 +117,32 @@ def test_bounds_hold_on_stiff_nutrient(consumption, d, g):
     assert c.min() >= 0.0 and c.max() <= 1.0
     if g == 0.0:
         assert np.allclose(c, 1.0, atol=1e-8)
+
+
+@pytest.mark.parametrize("face", ["x-", "x+"])
+def test_held_face_cosh_profile_converges_at_second_order(face):
+    """c = 1 held on the boundary face itself (no source cells): c = cosh(m (L - s)) / cosh(m L), s the distance
+    from the face; the cells beside the face stay free.  The velocity's cell gradient there uses the face value."""
+    from solver.biofilm import Velocity
+
+    gamma, m = 0.25, 0.5
+    errors, slopes, sizes = [], [], []
+    for n in (16, 32, 64, 128):
+        grid = Grid((n, 2), LENGTH / n)
+        fv = FiniteVolumeGrid(grid)
+        nutrient = Nutrient(fv, Parameters(d=1.0, g=gamma), "first-order", np.zeros(grid.cells_shape, bool),
+                            np.ones(grid.cells_shape), faces=((face, 1.0),))
+        c_active = nutrient.solve(np.ones(fv.n))
+        c = fv.to_full(c_active)[0]
+        x = grid.centres("x")
+        s = x if face == "x-" else LENGTH - x
+        exact = np.cosh(m * (LENGTH - s)) / np.cosh(m * LENGTH)
+        errors.append(np.abs(c - exact).max())
+        exact_slope = (-np.sinh(m * (LENGTH - x)) if face == "x-" else np.sinh(m * x)) * m / np.cosh(m * LENGTH)
+        beside = fv.boundary_cells(face)
+        slope = Velocity(fv, Parameters(), 1e-3, nutrient.faces).cell_gradient(c_active)[0][beside]
+        slopes.append(np.abs(slope - exact_slope[0 if face == "x-" else -1]).max())
+        sizes.append(LENGTH / n)
+        assert not np.isin(beside, nutrient.free, invert=True).any(), "cells beside a held face stay free"
+    assert 1.8 < observed_order(sizes, errors) < 2.3, errors
+    assert observed_order(sizes, slopes) > 0.9, slopes

@@ -1,14 +1,17 @@
 """Pictures (`biostudy.plots`): the files a call makes, the cut sampler and the isosurface, exactly."""
+import matplotlib.colors
 import matplotlib.image
 import numpy as np
 import pytest
 import xarray as xr
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from biostudy.plots import plot
 from biostudy.plots.cuts import axis_plane, cell_axes, diagonal_plane, plane_for, sample
-from biostudy.plots.isosurface import isosurface, surface_area
-from biostudy.plots.style import colour_scale, on_scale
+from biostudy.plots.isosurface import isosurface
+from biostudy.plots.style import axis_label, colour_scale, on_scale
 from biostudy.plots.sweep import cases, roles
+from solver.output import on_output_times
 
 
 @pytest.fixture(scope="module")
@@ -22,31 +25,140 @@ def run2d(tiny_run):
 
 
 def assert_pictures(paths, tags):
+    """The files: one PNG per figure, named by its tag, readable."""
     assert [p.stem.rsplit("_", 1)[1] for p in paths] == tags
     for path in paths:
-        image = matplotlib.image.imread(path)
-        assert path.suffix == ".png" and image.shape[0] > 200 and image.shape[1] > 200
-        assert image[..., :3].std() > 0.05, f"{path.name} is blank"
+        assert path.suffix == ".png" and matplotlib.image.imread(path).ndim == 3
+
+
+def coloured(collection, colour) -> bool:
+    """Every face of a shaded surface has `colour`, darkened or not by the light."""
+    faces = np.asarray(collection.get_facecolor())[:, :3]
+    base = np.array(matplotlib.colors.to_rgb(colour))
+    return faces.size > 0 and np.allclose(faces / faces.max(axis=1, keepdims=True), base / base.max(), atol=0.02)
+
+
+def title_times(axes) -> list[str]:
+    return [ax.get_title() for ax in axes]
+
+
+def check_series(fig, ds, marks=()):
+    """Mean phi and mean c over time (top), the biofilm volume (bottom), the chosen time marked."""
+    top, bottom = fig.axes[:2]
+    lines = {line.get_label(): line for line in top.lines}
+    for name in ("phi_mean", "c_mean"):
+        line = lines[ds[name].attrs["long_name"]]
+        np.testing.assert_array_equal(line.get_xdata(), ds.time.values)
+        np.testing.assert_array_equal(line.get_ydata(), ds[name].values)
+    np.testing.assert_array_equal(bottom.lines[0].get_ydata(), ds.biofilm_volume.values)
+    assert [line.get_xdata()[0] for line in bottom.lines[1:]] == list(marks)
+
+
+def rows(fig, names, indices, ds):
+    """The image panels by field: one row per field, one column per time, titled with the times."""
+    panels = [ax for ax in fig.axes if ax.images]
+    assert len(panels) == len(names) * len(indices)
+    assert title_times(panels[: len(indices)]) == [f"T* = {ds.time.values[i]:.3g}" for i in indices]
+    return {name: panels[r * len(indices):(r + 1) * len(indices)] for r, name in enumerate(names)}
+
+
+def check_scales(by_field):
+    """One colour scale per row: phi on [0, 1]; p centred on 0 and reaching the largest |p| shown."""
+    for name, panels in by_field.items():
+        norms = [ax.images[0].norm for ax in panels]
+        assert len({(n.vmin, n.vmax) for n in norms}) == 1, name
+        if name == "phi":
+            assert (norms[0].vmin, norms[0].vmax) == (0.0, 1.0)
+        if name == "p":
+            shown = np.concatenate([np.ma.compressed(ax.images[0].get_array()) for ax in panels])
+            assert norms[0].vcenter == 0 and norms[0].vmax == -norms[0].vmin == np.abs(shown).max()
 
 
 @pytest.mark.parametrize("mechanics", [False, True])
-def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, with_mechanics, tmp_path, mechanics):
+def test_three_dimensional_run_gives_series_cut_and_isosurface(run3d, with_mechanics, tmp_path, mechanics, drawn,
+                                                                monkeypatch):
+    import biostudy.plots.isosurface as iso
+
+    surfaces = []
+
+    def recorded(field, level, centres):
+        surfaces.append((field, level, iso_real(field, level, centres)))
+        return surfaces[-1][2]
+
+    iso_real = iso.isosurface
+    monkeypatch.setattr(iso, "isosurface", recorded)
     ds = with_mechanics(run3d, unsolved=1) if mechanics else run3d
     paths = plot(ds, tmp_path / "run.png")
     assert_pictures(paths, ["series", "cut", "isosurface"])
+    check_series(drawn["run_series.png"], ds)
+    indices = [0, 1, 2]
+    names = ["phi", "c", "p"] if mechanics else ["phi", "c"]
+    by_field = rows(drawn["run_cut.png"], names, indices, ds)
+    check_scales(by_field)
+    if mechanics:  # p was not solved at output 1: the panel says so instead of looking like an obstacle
+        notes = [[t.get_text() for t in ax.texts] for ax in by_field["p"]]
+        assert notes == [[], ["mechanics not\nsolved at this time"], []]
+
+    # the isosurface panels: phi >= 0.8 at each shown time, closed around every cell that reaches it
+    views = [ax for ax in drawn["run_isosurface.png"].axes if ax.name == "3d"]
+    assert title_times(views) == [f"T* = {ds.time.values[i]:.3g}" for i in indices]
+    biofilm = [(field, mesh) for field, level, mesh in surfaces if level == iso.LEVEL]
+    assert len(biofilm) == len(indices)
+    h = float(ds.attrs["grid_spacing"])
+    for view, index, (field, mesh) in zip(views, indices, biofilm):
+        phi = ds.phi.transpose("time", "z", "y", "x").values[index]
+        np.testing.assert_array_equal(field, phi)
+        dense = np.argwhere(phi >= iso.LEVEL)[:, ::-1] * h + 0.5 * h  # (x, y, z) of the cell centres
+        orange = [c for c in view.collections if isinstance(c, Poly3DCollection) and c.get_alpha() in (None, 1)
+                  and coloured(c, iso.BIOFILM_COLOUR)]
+        texts = [t.get_text() for t in view.texts]
+        if dense.size:
+            verts, faces = mesh
+            assert len(orange) == 1 and len(orange[0].get_paths()) == len(faces)
+            low, high = verts.min(axis=0), verts.max(axis=0)  # around every dense cell, within a cell of them
+            assert (low <= dense.min(axis=0)).all() and (high >= dense.max(axis=0)).all()
+            assert (low >= dense.min(axis=0) - h).all() and (high <= dense.max(axis=0) + h).all()
+        else:
+            assert mesh is None and not orange and texts == [f"nowhere φ ≥ {iso.LEVEL}"]
 
 
 @pytest.mark.parametrize("mechanics", [False, True])
-def test_two_dimensional_run_gives_series_and_maps(run2d, with_mechanics, tmp_path, mechanics):
+def test_two_dimensional_run_gives_series_and_maps(run2d, with_mechanics, tmp_path, mechanics, drawn):
+    """A 2-D run's maps are its cells as they are: every pixel is a cell's value, obstacles masked grey."""
     ds = with_mechanics(run2d, unsolved=1) if mechanics else run2d
     assert_pictures(plot(ds, tmp_path / "run"), ["series", "maps"])
+    check_series(drawn["run_series.png"], ds)
+    indices = [0, 1, 2]
+    names = ["phi", "c", "p"] if mechanics else ["phi", "c"]
+    by_field = rows(drawn["run_maps.png"], names, indices, ds)
+    check_scales(by_field)
+    for name, panels in by_field.items():
+        for ax, index in zip(panels, indices):
+            shown = ax.images[0].get_array()
+            field = on_output_times(ds)[name].transpose("time", "y", "x").values[index]
+            assert (shown.mask == np.isnan(field)).all() and ds.obstacle.values.any()
+            expected = np.maximum(field, ax.images[0].norm.vmin) if name == "c" else field  # c: log scale floor
+            np.testing.assert_array_equal(shown.compressed(), expected[~np.isnan(field)])
+            assert ax.images[0].get_extent() == [0.0, 16.0, 0.0, 12.0]
 
 
-def test_options_choose_variable_time_and_cut(run3d, with_mechanics, tmp_path):
+def test_options_choose_variable_time_and_cut(run3d, with_mechanics, tmp_path, drawn):
+    """--variable p --time 0.02 --cut z=5.5: one panel of p at T* = 0.02 on the plane through the centres of
+    the sixth cell layer, so the pixels at cell centres are those cells' values exactly."""
     ds = with_mechanics(run3d, unsolved=1)
     assert_pictures(plot(ds, tmp_path / "p.png", variable="p", time=0.02, cut="z=5.5"), ["series", "cut"])
+    check_series(drawn["p_series.png"], ds, marks=[0.02])
+    (panel,) = rows(drawn["p_cut.png"], ["p"], [2], ds)["p"]
+    shown = panel.images[0].get_array()  # 33 x 33 samples, 4 per cell: a cell centre every 4th from the 2nd
+    p = on_output_times(ds).p.transpose("time", "z", "y", "x").values[2, 5]
+    centres = shown[2::4, 2::4]
+    assert centres.shape == p.shape and (centres.mask == np.isnan(p)).all()
+    np.testing.assert_allclose(centres.compressed(), p[~np.isnan(p)], rtol=0, atol=1e-12)
     assert_pictures(plot(ds, tmp_path / "phi.png", variable="phi", time=0.004, cut="x=1"),
                     ["series", "cut", "isosurface"])
+    check_series(drawn["phi_series.png"], ds, marks=[0.0])  # the output nearest 0.004
+    (panel,) = rows(drawn["phi_cut.png"], ["phi"], [0], ds)["phi"]
+    assert panel.get_xlabel() == "y (µm)"
 
 
 @pytest.mark.parametrize("options, message", [
@@ -102,11 +214,30 @@ def sweep_dataset(zip_mode=False):
 
 
 @pytest.mark.parametrize("zip_mode", [False, True])
-def test_sweep_gives_outputs_against_parameters_and_every_series(tmp_path, zip_mode):
+def test_sweep_gives_outputs_against_parameters_and_every_series(tmp_path, zip_mode, drawn):
+    """Outputs at one time against g, one line per r, the failed case crossed on the axis; and every
+    case's time series."""
+    grid = sweep_dataset()
     paths = plot(sweep_dataset(zip_mode), tmp_path / "study.png")
     assert_pictures(paths, ["sweep", "series"])
     one = plot(sweep_dataset(zip_mode), tmp_path / "volume.png", variable="biofilm_volume", time=0.4)
     assert_pictures(one, ["sweep", "series"])
+    for figure, names, index in (("study", ["phi_mean", "c_mean", "biofilm_volume"], -1),
+                                 ("volume", ["biofilm_volume"], 2)):
+        panels = drawn[f"{figure}_sweep.png"].axes
+        assert [ax.get_ylabel() for ax in panels] == [axis_label(grid[n]) for n in names]
+        for ax, name in zip(panels, names):
+            lines = {line.get_label(): line for line in ax.lines}
+            assert ax.get_xscale() == "log" and set(lines) == {"r = 50", "r = 100", "failed"}
+            for k, r in enumerate((50, 100)):
+                np.testing.assert_array_equal(lines[f"r = {r}"].get_xdata(), [1e8, 1e9, 1e10])
+                np.testing.assert_array_equal(lines[f"r = {r}"].get_ydata(), grid[name].values[:, k, index])
+            assert list(lines["failed"].get_xdata()) == [1e10]
+        series = drawn[f"{figure}_series.png"].axes
+        for ax, name in zip(series, names):
+            drawn_series = sorted(tuple(line.get_ydata()) for line in ax.lines)
+            cases_series = sorted(tuple(grid[name].values[i, k]) for i in range(3) for k in range(2))
+            np.testing.assert_array_equal(drawn_series, cases_series)
     with pytest.raises(ValueError, match="unknown variable"):
         plot(sweep_dataset(zip_mode), tmp_path / "bad.png", variable="phi")
     with pytest.raises(ValueError, match="no fields"):
@@ -187,6 +318,12 @@ def test_axis_cut_is_exact_and_obstacles_are_not_interpolated():
     assert np.allclose(values[far & inner], exact(points[far & inner]), atol=1e-12)
 
 
+def surface_area(verts: np.ndarray, faces: np.ndarray) -> float:
+    """Sum of the triangle areas (µm²)."""
+    a, b, c = (verts[faces[:, i]] for i in range(3))
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+
 def test_isosurface_of_a_sphere_has_its_radius_area_and_centre():
     h, shape, centre, radius = 0.5, (30, 26, 22), np.array([7.3, 6.4, 5.6]), 4.0
     x, y, z = ((np.arange(n) + 0.5) * h for n in shape)
@@ -212,3 +349,48 @@ def test_isosurface_of_a_body_on_a_wall_is_closed_on_the_wall():
     assert verts[:, 0].min() == pytest.approx(0, **on) and verts[:, 0].max() == pytest.approx(2.7, **on)
     assert verts[:, 1].max() == pytest.approx(5, **on) and verts[:, 2].min() == pytest.approx(0, **on)
     assert isosurface(np.full((4, 5, 6), 0.5), 0.8, (x, y, z)) is None
+
+
+def test_warped_two_dimensional_mesh_is_the_grid_moved_by_factor_u(run2d, with_mechanics):
+    """Fig. 13: every cell corner drawn at node + factor * u (u known exactly here), phi as the cell colour."""
+    from matplotlib.collections import QuadMesh
+
+    from biostudy.plots import warped
+
+    ds = on_output_times(with_mechanics(run2d, unsolved=1))  # as plot() hands it on: p and u per output
+    assert warped.solved_indices(ds, [1]) in ([0], [2])  # not solved at 1: the nearest solved output
+    fig = warped.figure(ds, [2], 500.0)
+    mesh = next(c for c in fig.axes[0].collections if isinstance(c, QuadMesh))
+    corners = mesh.get_coordinates()  # (ny+1, nx+1, 2)
+    u = ds.u.isel(time=2).transpose("y_node", "x_node", "component").values
+    x, y = np.meshgrid(ds.x_node.values, ds.y_node.values)
+    assert np.allclose(corners[..., 0], x + 500.0 * u[..., 0]) and np.allclose(corners[..., 1], y + 500.0 * u[..., 1])
+    assert np.allclose(np.ma.filled(mesh.get_array(), np.nan).ravel(), ds.phi.isel(time=2).values.ravel(),
+                       equal_nan=True)
+
+
+def test_warped_refuses_runs_without_solved_mechanics(run2d, with_mechanics, tmp_path):
+    from biostudy.plots import warped
+
+    with pytest.raises(ValueError, match="with mechanics"):
+        plot(run2d, tmp_path / "w.png", warp=500)
+    every = on_output_times(with_mechanics(run2d))
+    every["u"][:, :2, :2] = np.nan  # nodes inside a rigid obstacle have no u: still solved
+    assert list(warped.solved_indices(every, [0, 1, 2])) == [0, 1, 2]
+    every["u"][:] = np.nan
+    with pytest.raises(ValueError, match="not solved at any output"):
+        plot(every, tmp_path / "w.png", warp=500)
+    with pytest.raises(ValueError, match="positive"):
+        plot(with_mechanics(run2d), tmp_path / "w.png", warp=-1)
+
+
+def test_warped_three_dimensional_surface_moves_with_u(run3d, with_mechanics, tmp_path):
+    """u = 0.01 X (linear, so trilinear interpolation is exact) moves every surface vertex to X + factor u(X)."""
+    from biostudy.plots import warped
+
+    ds = with_mechanics(run3d)
+    nodes = np.stack(np.meshgrid(ds.z_node, ds.y_node, ds.x_node, indexing="ij")[::-1], axis=-1)  # (z, y, x, 3): x, y, z
+    ds["u"][:] = 0.01 * nodes
+    vertices = np.array([[0.3, 1.7, 2.2], [5.9, 4.1, 0.0], [8.0, 8.0, 8.0]])
+    assert np.allclose(warped.displaced_vertices(on_output_times(ds), 0, vertices, 500.0), vertices * (1 + 500 * 0.01))
+    assert [p.name for p in plot(ds, tmp_path / "w.png", warp=500)][-1] == "w_warped.png"

@@ -39,16 +39,21 @@ def test_maze_is_a_perfect_maze_from_the_entrance_to_the_core(seed):
     assert edges == len(maze.sectors()) - 1
     way = maze.path()
     assert way[0] == (5, 0) and way[-1][0] == 0
-    assert all(len(maze.tree[s]) == 1 for s in maze.dead_ends())
 
 
 def test_maze_walls_and_corridors_have_the_asked_sizes():
-    """Wall thickness 10 µm (5 cells at 2 µm) across a ring wall; corridors as wide as promised."""
+    """Along the ray from the centre through the entrance (+x): every wall crossed is 10 µm thick (5 cells
+    of 2 µm) and centred on a ring's wall radius, and the outer wall is open (the entrance)."""
     maze, x, y, wall = maze_cells()
     assert maze.corridor == pytest.approx((275 - 45) / 6 - 10)  # wall centre lines at 45 ... 275 µm
-    row = wall[140, 140:]  # from the centre along +x
-    blocks = np.diff(np.flatnonzero(np.diff(np.r_[0, row.astype(int), 0])))[::2]
-    assert blocks.size > 0 and np.all((blocks >= 4) & (blocks <= 6)), blocks  # the row crosses walls
+    row, radius = wall[140, 140:], x[140, 140:] - 280.0
+    edges = np.flatnonzero(np.diff(np.r_[0, row.astype(int), 0]))
+    blocks = [(radius[a], radius[b - 1]) for a, b in zip(edges[::2], edges[1::2])]
+    assert len(blocks) >= 2, blocks
+    for first, last in blocks:
+        assert last - first == pytest.approx(8.0), blocks  # centres of the outer cells: 5 cells, 10 µm of wall
+        assert np.abs(maze.radii - 0.5 * (first + last)).min() <= 1.0, blocks
+    assert not row[np.abs(radius - maze.radii[-1]) <= 5.0].any()  # the entrance
 
 
 def test_sectors_label_every_corridor_cell():
@@ -106,14 +111,26 @@ def test_maze_scene_in_3d_is_extruded_along_z():
     np.testing.assert_array_equal(blocked3[1], blocked2)
 
 
-def test_smooth_edge_follows_the_exact_distance():
-    """edge = w: phi = (1 - tanh(d / w)) / 2 with d the exact distance to the sphere's surface."""
+def test_smooth_edge_is_half_the_value_on_the_surface_and_one_edge_width_wide():
+    """edge = w: phi is value/2 on the sphere's surface, symmetric across it (phi(R - s) + phi(R + s) =
+    value), (1 + tanh 1)/2 = 0.8808 of the value one width inside and 0.1192 one width outside, and falls
+    monotonically outward.  A later step region sets its cells; a later smooth one raises phi to its profile."""
     s = Scene.model_validate({"grid": {"shape": [40, 40], "spacing": 0.5},
-                              "biofilm": [{"shape": "sphere", "center": [10.0, 10.0], "radius": 5.0, "edge": 1.0}]})
+                              "biofilm": [{"shape": "sphere", "center": [10.25, 10.25], "radius": 5.0, "edge": 1.0,
+                                           "value": 0.8}]})
     grid = s.grid.solver_grid()
-    x, y = grid.cell_coordinates()
-    expected = 0.5 * (1 - np.tanh(np.hypot(x - 10, y - 10) - 5.0))
-    np.testing.assert_allclose(initial_biofilm(s.biofilm, grid), expected, atol=1e-14)
+    phi = initial_biofilm(s.biofilm, grid)
+    along = dict(zip(np.arange(20) * 0.5, phi[20, 20:]))  # the row through the centre: radius -> phi
+    assert along[5.0] == pytest.approx(0.4, abs=1e-12)
+    assert along[4.0] == pytest.approx(0.8 * 0.8808, abs=1e-4) and along[6.0] == pytest.approx(0.8 * 0.1192, abs=1e-4)
+    assert all(along[3.0 + k] + along[7.0 - k] == pytest.approx(0.8, abs=1e-12) for k in (0.0, 0.5, 1.5))
+    assert np.all(np.diff(phi[20, 20:]) < 0)
+    x, _ = grid.cell_coordinates()
+    box = {"shape": "box", "lower": [0.0, 0.0], "upper": [10.0, 20.0], "value": 0.5}
+    step_last = Scene.model_validate({**s.model_dump(), "biofilm": [s.biofilm[0].model_dump(), box]})
+    assert np.array_equal(initial_biofilm(step_last.biofilm, grid), np.where(x <= 10.0, 0.5, phi))  # sets its cells
+    smooth_last = Scene.model_validate({**s.model_dump(), "biofilm": [box, s.biofilm[0].model_dump()]})
+    assert np.array_equal(initial_biofilm(smooth_last.biofilm, grid), np.maximum(phi, np.where(x <= 10.0, 0.5, 0)))
 
 
 def test_box_distance_is_exact_outside_and_inside():

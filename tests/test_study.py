@@ -1,8 +1,12 @@
 """Study files: sweep expansion (grid, zip), readable stable case ids, validation of every case up front."""
+import os
+import subprocess
+import sys
+
 import pytest
 
 from biostudy.errors import BadInput
-from biostudy.study import dimension, label, load_study
+from biostudy.study import dimension, id_text, load_study
 
 
 def test_grid_sweep_expands_every_combination_last_key_fastest(tiny_study):
@@ -15,8 +19,17 @@ def test_grid_sweep_expands_every_combination_last_key_fastest(tiny_study):
     assert plan.scenes["g=1e+08_r=100"].params.r == 100
 
 
-def test_case_ids_do_not_depend_on_when_or_where_they_are_made(tiny_study):
-    assert [c.id for c in load_study(tiny_study).cases] == [c.id for c in load_study(tiny_study).cases]
+def test_case_ids_do_not_depend_on_when_or_where_they_are_made(tiny_study, tmp_path):
+    """Resume finds a case by its id: another process, with another hash seed and working directory, on
+    another day, makes the same ids (nothing random, hashed per process or from the clock goes in)."""
+    here = [c.id for c in load_study(tiny_study).cases]
+    script = ("import sys; from biostudy.study import load_study; "
+              "print(' '.join(c.id for c in load_study(sys.argv[1]).cases))")
+    for seed in ("1", "2"):
+        there = subprocess.run([sys.executable, "-c", script, str(tiny_study)], cwd=tmp_path, check=True, text=True,
+                               capture_output=True, env={**os.environ, "PYTHONHASHSEED": seed}).stdout.split()
+        assert there == here
+    assert here == ["g=1e+08_r=50", "g=1e+08_r=100", "g=1e+09_r=50", "g=1e+09_r=100"]
 
 
 def test_zip_sweep_pairs_values_and_reaches_any_dotted_key(write_toml, tiny_scene):
@@ -39,7 +52,7 @@ def test_zip_sweep_pairs_values_and_reaches_any_dotted_key(write_toml, tiny_scen
 
 
 def test_labels_and_dimension_names():
-    assert [label(v) for v in (1e8, 50, 50.0, 0.0025, 1 / 3, True, [20, 20, 20], "zero-order", "a b/c")] == \
+    assert [id_text(v) for v in (1e8, 50, 50.0, 0.0025, 1 / 3, True, [20, 20, 20], "zero-order", "a b/c")] == \
         ["1e+08", "50", "50", "0.0025", "0.3333333333333333", "true", "20x20x20", "zero-order", "a-b-c"]
     assert dimension("g") == dimension("params.g") == "g"
     assert dimension("grid.shape") == "grid_shape" and dimension("biofilm.0.radius") == "biofilm_0_radius"

@@ -10,8 +10,9 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from biostudy import runner, store
+from biostudy import combine, runner, store
 from biostudy.cli import app
+from biostudy.scene import load_scene
 from biostudy.study import load_study
 
 cli = CliRunner()
@@ -33,13 +34,17 @@ def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_st
     ds = xr.open_dataset(out / "study.nc")
     assert ds.phi_mean.dims == ("g", "r", "time") and ds.phi.dims == ("g", "r", "time", "y", "x")
     assert ds.g.values.tolist() == [1e8, 1e9] and ds.r.values.tolist() == [50.0, 100.0]
-    assert ds.g.attrs["units"] == "1/T*" and "consumption" in ds.g.attrs["long_name"]
+    assert ds.g.attrs["units"] == "1" and "consumption" in ds.g.attrs["long_name"] and "1/T*" in ds.g.attrs["long_name"]
+    assert ds.r.attrs["units"] == "um" and "µm/T*" in ds.r.attrs["long_name"]
     assert (ds.status.values == "done").all() and ds.case_id.sel(g=1e9, r=50).item() == "g=1e+09_r=50"
     for name in list(ds.data_vars) + list(ds.coords):
+        if name.endswith("_bounds"):  # CF 7.1: bounds carry their cell centre's units and long name
+            continue
         assert "units" in ds[name].attrs and ds[name].attrs.get("long_name"), name
-    # each entry is that case's own dataset
+    # each entry is that case's own dataset, which has its place in the study as dimensions of length 1
     one = xr.open_dataset(out / "cases" / "g=1e+09_r=50.nc")
-    np.testing.assert_array_equal(ds.phi_mean.sel(g=1e9, r=50).values, one.phi_mean.values)
+    assert one.phi_mean.dims == ("g", "r", "time") and one.g.values.tolist() == [1e9]
+    np.testing.assert_array_equal(ds.phi_mean.sel(g=1e9, r=50).values, one.phi_mean.values[0, 0])
     assert one.attrs["status"] == "done" and one.attrs["case_id"] == "g=1e+09_r=50"
     assert one.attrs["g"] == 1e9 and one.attrs["overrides"] == "g = 1e+09\nr = 50.0"
     # swept parameters vary, so they are coordinates, not attributes, of study.nc
@@ -56,21 +61,32 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     assert len(first.ran) == 4 and not first.skipped
     # as if a run had been killed: one case missing, a half-written temporary beside the others
     (out / "cases" / "g=1e+09_r=100.nc").unlink()
-    (out / "cases" / ".g=1e+09_r=100.nc.4242.dead.tmp").write_bytes(b"\x89HDF half")
+    dead = subprocess.Popen(["true"])  # the pid of a writer that is gone
+    dead.wait()
+    leftover = f".g=1e+09_r=100.nc.{dead.pid}.0123abcd.tmp"
+    (out / "cases" / leftover).write_bytes(b"\x89HDF half")
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "cases").glob("*.nc")}
-    store.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
+    combine.write_study(plan, out)  # study.nc of what is there: the lost case is "missing", NaN
     partial = xr.open_dataset(out / "study.nc")
     assert partial.status.sel(g=1e9, r=100).item() == "missing" and partial.attrs["cases_missing"] == 1
     assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
     again = runner.sweep(load_study(tiny_study), out)
     assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
-    assert [p.name for p in again.removed] == [".g=1e+09_r=100.nc.4242.dead.tmp"]
+    assert [p.name for p in again.removed] == [leftover]
     assert case_files(out) == sorted([*stamps, "g=1e+09_r=100.nc"])
     assert all((out / "cases" / n).stat().st_mtime_ns == t for n, t in stamps.items())  # untouched
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
     # a changed scene makes the recorded cases stale: they run again
     changed = runner.sweep(load_study(tiny_study, ["time.steps=10"]), out)
     assert len(changed.ran) == 4
+
+
+def test_fingerprint_follows_what_changes_the_result(tiny_scene):
+    base = runner.fingerprint(load_scene(tiny_scene).problem())
+    assert base == runner.fingerprint(load_scene(tiny_scene).problem())
+    assert base == runner.fingerprint(load_scene(tiny_scene, ["name=other", "description=x"]).problem())
+    assert base != runner.fingerprint(load_scene(tiny_scene, ["params.g=2e8"]).problem())
+    assert base != runner.fingerprint(load_scene(tiny_scene, ["biofilm.0.radius=2"]).problem())
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
@@ -97,8 +113,17 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert np.isnan(ds.phi_mean.sel(case="k_alpha=1e+100")).all()
     assert np.isfinite(ds.phi_mean.sel(case="k_alpha=0.002")).all()
     assert ds.attrs["cases_failed"] == 1 and "k_alpha" not in ds.attrs  # swept: a coordinate, never an attribute
-    record = xr.open_dataset(out / "cases" / "k_alpha=1e+100.nc")
-    assert record.attrs["status"] == "failed" and record.attrs["message"] == message and not record.data_vars
+    record = xr.load_dataset(out / "cases" / "k_alpha=1e+100.nc")  # closed: the sweep below rewrites it
+    assert record.attrs["status"] == "failed" and record.attrs["message"] == message
+    assert set(record.data_vars) == set(combine.CASE_VARIABLES)  # its place in the study, no fields
+    assert record.status.dims == ("case",) and record.k_alpha.values.tolist() == [1e100]
+    for new_defaults in (False, True):  # the README's recipe, under xarray's present and coming defaults
+        with xr.set_options(use_new_combine_kwarg_defaults=new_defaults), xr.open_mfdataset(
+                sorted((out / "cases").glob("*.nc")), data_vars="minimal", join="outer", compat="no_conflicts",
+                combine_attrs="drop_conflicts") as cases:
+            cases = cases.sel(case=ds.case).load()
+        assert cases.status.values.tolist() == ds.status.values.tolist()
+        np.testing.assert_array_equal(cases.phi_mean.values, ds.phi_mean.values)
     assert "failed" in cli.invoke(app, ["show", str(out / "cases" / "k_alpha=1e+100.nc")]).stdout
     # re-running keeps the recorded failure; --retry-failed runs it again
     plan = load_study(study)
@@ -131,22 +156,44 @@ def test_sweep_on_a_dask_cluster_of_two_processes(tiny_study, tmp_path):
     assert case.attrs["omp_num_threads"] == "1"  # Dask's nanny sets it for its workers
 
 
+def test_sweep_on_a_dask_cluster_over_tls(tiny_study, tmp_path):
+    """The README's secure recipe: a scheduler that requires TLS, reached with Dask's TLS configuration (here set
+    in-process; DASK_CONFIG for a real cluster); without it, one line and exit 2; a plain tcp:// client is
+    refused by the scheduler.  A self-signed certificate for 127.0.0.1 made with openssl."""
+    import shutil
+
+    import dask
+    import distributed
+    from distributed.security import Security
+
+    if not shutil.which("openssl"):
+        pytest.skip("no openssl to make a test certificate")
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out", str(cert),
+                    "-days", "1", "-subj", "/CN=localhost", "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"],
+                   check=True, capture_output=True, timeout=60)
+    pem = {f"tls_{role}_{part}": str(path) for role in ("scheduler", "worker", "client")
+           for part, path in (("cert", cert), ("key", key))}
+    security = Security(tls_ca_file=str(cert), require_encryption=True, **pem)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tls",
+                                  security=security, dashboard_address=None) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tls://")
+        refused = sweep_cli(tiny_study, "-o", tmp_path / "refused", "--scheduler", address)
+        assert refused.exit_code == 2 and len(refused.stderr.splitlines()) == 1
+        assert "needs a TLS configuration" in refused.stderr
+        with dask.config.set({"distributed.comm.tls.ca-file": str(cert), "distributed.comm.tls.client.cert": str(cert),
+                              "distributed.comm.tls.client.key": str(key)}):
+            result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", address, "--set", "time.steps=4")
+    assert result.exit_code == 0, result.output
+    assert (xr.open_dataset(tmp_path / "out" / "study.nc").status.values == "done").all()
+
+
 def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
     monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
     result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert result.exit_code == 2
     assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")
-
-
-def _slow_study(write_toml, steps):
-    return write_toml("slow.toml", f"""\
-        scene = "tiny.toml"
-        [set]
-        "time.t_end" = 1.0
-        "time.steps" = {steps}
-        [sweep]
-        r = [50.0, 60.0, 70.0, 80.0]
-        """)
 
 
 def _wait_for(condition, timeout):
@@ -157,8 +204,9 @@ def _wait_for(condition, timeout):
         time.sleep(0.05)
 
 
-def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_scene, tmp_path):
-    study = _slow_study(write_toml, 600)
+@pytest.mark.slow
+def test_a_killed_sweep_leaves_only_complete_files_and_resumes(slow_study, tmp_path):
+    study = slow_study(600)
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q"],
                                stderr=subprocess.PIPE)
@@ -175,16 +223,25 @@ def test_a_killed_sweep_leaves_only_complete_files_and_resumes(write_toml, tiny_
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
 
 
-def test_sigterm_stops_local_workers_and_exits_130(write_toml, tiny_scene, tmp_path):
+def test_sigterm_stops_local_workers_and_exits_130(slow_study, tmp_path):
     psutil = pytest.importorskip("psutil")
-    study = _slow_study(write_toml, 4000)
+    study = slow_study(4000)
     out = tmp_path / "out"
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "sweep", str(study), "-o", str(out), "-q",
                                 "--workers", "2"], stderr=subprocess.PIPE, text=True)
     parent = psutil.Process(process.pid)
-    _wait_for(lambda: len(parent.children()) >= 2, 30)
+
+    def simulating():  # worker processes (forked from the fork server, or spawned) that are computing
+        try:
+            helpers = [p for p in parent.children() if "forkserver" in " ".join(p.cmdline())]
+            workers = [p for p in parent.children(recursive=True) if p not in helpers
+                       and "resource_tracker" not in " ".join(p.cmdline())]
+            return [p for p in workers if p.cpu_times().user > 0.2]
+        except psutil.Error:  # a process came or went while we looked
+            return []
+
+    _wait_for(lambda: len(simulating()) >= 2, 60)  # both workers have started on a case
     workers = parent.children(recursive=True)
-    time.sleep(1.0)
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=30)
     assert process.returncode == 130, stderr

@@ -79,7 +79,8 @@ def test_error_control_meets_tolerance_and_spends_steps_where_needed():
         ds = simulate(sphere_problem(steps=4, numerics=Numerics(time_tolerance=tolerance)))
         errors.append(np.nanmax(np.abs(ds.phi.values[-1] - reference)))
         steps.append(ds.attrs["steps_taken"])
-        assert ds.attrs["largest_step_error"] <= tolerance
+        # the controller spends its tolerance: steps grow until their estimated error comes near it
+        assert 0.1 * tolerance < ds.attrs["largest_step_error"] <= tolerance
     assert errors[0] > errors[1] > errors[2], errors
     assert steps[0] < steps[1] < steps[2], steps
     assert errors[-1] < 0.01
@@ -93,10 +94,16 @@ def test_progress_reports_every_accepted_step():
 
 
 def test_two_dimensional_scene_is_solved_in_two_dimensions():
-    grid = Grid((12, 8), 1.0)
-    x, y = grid.cell_coordinates()
-    phi0 = ((x - 6) ** 2 + (y - 4) ** 2 <= 4).astype(float)
-    ds = simulate(Problem(grid=grid, phi0=phi0, nutrient_fixed=x > 11, t_end=0.1, steps=10, output_times=[0, 0.1]))
-    assert ds.phi.dims == ("time", "y", "x") and "z" not in ds.dims
-    assert ds.phi.shape == (2, 8, 12)
-    assert float(ds.phi_mean[-1]) > float(ds.phi_mean[0])
+    """A 2-D scene is the 3-D scene extruded along z with zero flux on the z faces: phi, c and alpha of the
+    2-D run equal every layer of a 3-D run of three layers (volumes per µm of thickness aside)."""
+    x2, y2 = Grid((12, 8), 1.0).cell_coordinates()
+    phi0 = ((x2 - 6) ** 2 + (y2 - 4) ** 2 <= 4).astype(float)
+    common = dict(t_end=0.1, steps=10, output_times=[0, 0.05, 0.1], params=Parameters(g=1e9))
+    flat = simulate(Problem(grid=Grid((12, 8), 1.0), phi0=phi0, nutrient_fixed=x2 > 11, **common))
+    assert flat.phi.dims == ("time", "y", "x") and "z" not in flat.dims and flat.phi.shape == (3, 8, 12)
+    thick = simulate(Problem(grid=Grid((12, 8, 3), 1.0), phi0=np.stack([phi0] * 3),
+                             nutrient_fixed=np.stack([x2 > 11] * 3), **common))
+    for name in ("phi", "c", "alpha"):
+        for layer in range(3):
+            np.testing.assert_allclose(flat[name].values, thick[name].values[:, layer], rtol=0, atol=1e-9)
+    assert float(flat.phi_mean[-1]) > float(flat.phi_mean[0])  # it grows

@@ -15,6 +15,7 @@ from matplotlib.ticker import NullFormatter
 import numpy as np
 import xarray as xr
 
+from ..formatting import number
 from .style import save
 
 MARKERS = {"space": "s", "time": "o", "both": "D", "adaptive": "^"}
@@ -36,7 +37,7 @@ def work_precision(ds: xr.Dataset, out: Path) -> Path:
             if isinstance(order, str):
                 suffix = f" ({order})"
             else:
-                suffix = f" (order {order:.2f})" if math.isfinite(order) else ""
+                suffix = f" (order {number(order, 3)})" if math.isfinite(order) else ""
             ax.loglog(x[ok], y[ok], marker=MARKERS.get(str(name), "o"), label=f"{name}{suffix}")
         ax.set_xlabel("wall time (s)")
         units = error.attrs.get("units", "1")

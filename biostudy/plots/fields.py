@@ -16,7 +16,7 @@ import xarray as xr
 from matplotlib.ticker import FormatStrFormatter, NullFormatter
 
 from .cuts import Plane, box, cell_axes, sample, sample_nearest
-from .style import SOURCE_GREEN, colour_scale, label, on_scale, run_title, suptitle, time_title
+from .style import SOURCE_GREEN, axis_label, colour_scale, on_scale, run_title, suptitle, time_title
 
 PANEL_WIDTH = 3.0  # inches
 SAMPLES_PER_CELL = 4  # cut resolution: interpolated points per cell edge
@@ -66,7 +66,7 @@ def _draw_rows(ds, names, indices, images, extent, limits, source, axis_labels, 
                 ax.set_ylabel(axis_labels[1], fontsize=8)
             ax.tick_params(labelsize=7)
         bar = fig.colorbar(shown, ax=axes[row, :], shrink=0.9, pad=0.01)
-        bar.set_label(label(ds[name]) + NOTES.get(name, ""), fontsize=9)
+        bar.set_label(axis_label(ds[name]) + NOTES.get(name, ""), fontsize=9)
         if name == "c":  # plain numbers on the logarithmic scale
             low, high = bar.norm.vmin, bar.norm.vmax
             bar.set_ticks([v for v in LOG_TICKS if low <= v <= high * (1 + 1e-9)], labels=None, minor=False)

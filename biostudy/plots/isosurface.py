@@ -49,12 +49,6 @@ def isosurface(field: np.ndarray, level: float, centres: tuple[np.ndarray, ...])
     return (verts + origin)[:, ::-1], faces
 
 
-def surface_area(verts: np.ndarray, faces: np.ndarray) -> float:
-    """Sum of the triangle areas (µm²)."""
-    a, b, c = (verts[faces[:, i]] for i in range(3))
-    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
-
-
 def _draw_mesh(ax, mesh, colour, alpha=1.0):
     if mesh is None:
         return

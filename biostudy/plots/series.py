@@ -8,7 +8,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import xarray as xr
 
-from .style import label, run_title, suptitle
+from .style import axis_label, run_title, suptitle
 
 PHI_RED, C_BLUE = "#d62728", "#1f77b4"
 
@@ -29,7 +29,7 @@ def figure(ds: xr.Dataset, marks: list[float] = ()):
     if "biofilm_volume" in ds:
         volume = ds["biofilm_volume"]
         bottom.plot(time, volume.values, "o-", ms=3, color="0.25")
-        bottom.set_ylabel(label(volume))
+        bottom.set_ylabel(axis_label(volume))
         bottom.set_title(volume.attrs.get("long_name", ""), fontsize=8)
         bottom.set_ylim(bottom=0)
     bottom.set_xlabel("normalised time T*")

@@ -1,4 +1,4 @@
-"""What every figure shares: the headless backend, names and units, colour scales, times, file names.
+"""What every figure shares: names and units, colour scales, times, file names.
 
 Colour scales are shared by all times of a figure so that growth and depletion
 read across it: phi on [0, 1] (its physical range); c logarithmic from its
@@ -10,17 +10,17 @@ compression, red tension, as the paper's stress pictures).  Obstacle cells
 """
 from __future__ import annotations
 
+import os
 import textwrap
 from pathlib import Path
 
-import matplotlib
+import matplotlib.colors as mcolors
+import matplotlib.pyplot as plt
+import numpy as np
+import xarray as xr
 
-matplotlib.use("Agg")  # files only, never a screen
-
-import matplotlib.colors as mcolors  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
+from ..formatting import number, shown_units
+from ..store import temporary_name
 
 OBSTACLE_GREY = "0.6"
 SOURCE_GREEN = "#2ca02c"
@@ -29,18 +29,16 @@ SERIES_NAMES = ("phi_mean", "c_mean", "biofilm_volume")
 SYMBOLS = {"phi": "φ", "c": "c", "alpha": "α", "p": "p", "phi_mean": "mean φ", "c_mean": "mean c",
            "biofilm_volume": "biofilm volume"}
 CMAPS = {"phi": "viridis", "c": "plasma", "alpha": "magma", "p": "RdBu_r"}
-UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "Pa": "Pa", "s": "s"}
 DPI = 110
 C_FLOOR = 1e-3  # lowest nutrient concentration the log colour scale resolves
 
 
 def units(var: xr.DataArray) -> str:
     """Display form of a variable's `units` attribute ('' for dimensionless)."""
-    raw = str(var.attrs.get("units", ""))
-    return UNITS.get(raw, raw)
+    return shown_units(str(var.name), var.attrs.get("units", "1"))
 
 
-def label(var: xr.DataArray, name: str | None = None) -> str:
+def axis_label(var: xr.DataArray, name: str | None = None) -> str:
     """Short axis/colourbar label: symbol and units, e.g. 'p (Pa)', 'φ'."""
     name = name or str(var.name)
     text, unit = SYMBOLS.get(name, name), units(var)
@@ -105,16 +103,11 @@ def time_title(ds: xr.Dataset, index: int) -> str:
     return f"T* = {float(ds['time'].values[index]):.3g}"
 
 
-def number(value: float) -> str:
-    """1e+08 -> 1e8: a parameter value as a physicist writes it."""
-    return f"{value:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
-
-
 def run_title(ds: xr.Dataset) -> str:
     """One line naming the run, for figure titles."""
     title = str(ds.attrs.get("title", "biofilm growth"))
     keys = [k for k in ("g", "r", "k_alpha") if k in ds.attrs]
-    params = ", ".join(f"{k} = {number(float(ds.attrs[k]))}" for k in keys)
+    params = ", ".join(f"{k} = {number(ds.attrs[k], 6)}" for k in keys)
     return f"{title}  ({params})" if params else title
 
 
@@ -137,7 +130,13 @@ def output_paths(out: Path, tags: list[str]) -> list[Path]:
 
 
 def save(fig, path: Path) -> Path:
+    """Write the figure to `path` atomically (a temporary beside it, renamed): complete or absent."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    temporary = temporary_name(path)
+    try:
+        fig.savefig(temporary, dpi=DPI, format=path.suffix.lstrip(".").lower() or "png")
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+        plt.close(fig)
     return path

@@ -18,15 +18,28 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from .style import SERIES_NAMES, label, number, suptitle
+from ..formatting import number, shown_units
+from .style import SERIES_NAMES, axis_label, suptitle
 
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
 NOT_PARAMETERS = {"status", "message", "error", "time"}
 LINESTYLES = ("-", "--", ":", "-.")
+COLUMNS = 3  # panels per row
+
+
+def panels(count: int):
+    """A figure with `count` panels, at most COLUMNS per row; returns it and the panels in order."""
+    rows, cols = -(-count // COLUMNS), min(count, COLUMNS)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.8 * rows), layout="constrained", squeeze=False)
+    for ax in axes.flat[count:]:
+        ax.remove()
+    return fig, list(axes.flat[:count])
 
 
 @dataclass
-class Case:
+class SweepPoint:
+    """One case of a sweep as drawn: its swept values, its output time series, whether it finished."""
+
     params: dict  # swept key -> value, in sweep order
     series: dict  # output name -> values over time
     ok: bool
@@ -46,7 +59,7 @@ def _status_ok(status) -> bool:
     return str(_value(status)).strip().lower() in OK_STATUS
 
 
-def cases(ds: xr.Dataset, names: list[str]) -> tuple[list[Case], list[str]]:
+def cases(ds: xr.Dataset, names: list[str]) -> tuple[list[SweepPoint], list[str]]:
     """The sweep as a flat list of cases, and the names of the parameters that vary."""
     dims = [d for d in ds[names[0]].dims if d != "time"]
     keys = []
@@ -61,12 +74,12 @@ def cases(ds: xr.Dataset, names: list[str]) -> tuple[list[Case], list[str]]:
         ok = all(np.isfinite(s[-1]) for s in series.values())
         if "status" in ds:
             ok = ok and _status_ok(ds["status"].isel({d: i for d, i in at.items() if d in ds["status"].dims}))
-        found.append(Case(params, series, ok))
+        found.append(SweepPoint(params, series, ok))
     varying = [k for k in keys if len({repr(c.params[k]) for c in found}) > 1] or keys[:1]
     return found, varying
 
 
-def roles(found: list[Case], varying: list[str]) -> tuple[str, list[str], list[str]]:
+def roles(found: list[SweepPoint], varying: list[str]) -> tuple[str, list[str], list[str]]:
     """The horizontal-axis parameter, the ones that split cases into lines, and the ones that follow it.
 
     A parameter fixed by the first one (a zip sweep: g and r changing together) does not split
@@ -88,10 +101,10 @@ def _layout(ds: xr.Dataset, names: list[str]):
     return found, x_key, others, follow, groups
 
 
-def _axis_label(ds: xr.Dataset, found: list[Case], x_key: str, follow: list[str]) -> str:
+def _x_axis_text(ds: xr.Dataset, found: list[SweepPoint], x_key: str, follow: list[str]) -> str:
     text = x_key
-    if x_key in ds and ds[x_key].attrs.get("units", "1") != "1":
-        text += f" ({ds[x_key].attrs['units']})"
+    if x_key in ds and shown_units(x_key, ds[x_key].attrs.get("units", "1")):
+        text += f" ({shown_units(x_key, ds[x_key].attrs['units'])})"
     for key in follow:
         values = [c.params[key] for c in sorted(found, key=lambda c: _order(c.params[x_key]))]
         text += f"; with {key} = " + ", ".join(dict.fromkeys(_fmt(v) for v in values))
@@ -103,7 +116,7 @@ def _numeric(values) -> bool:
 
 
 def _fmt(value) -> str:
-    return number(value) if _numeric([value]) else str(value)
+    return number(value, 6) if _numeric([value]) else str(value)
 
 
 def _order(value):
@@ -131,8 +144,8 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     """Outputs at one time (default the last) against the first varying parameter, a line per other combination."""
     found, x_key, others, follow, groups = _layout(ds, names)
     when = float(ds["time"].values[index])
-    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.8), layout="constrained", squeeze=False)
-    for ax, name in zip(axes[0], names):
+    fig, axes = panels(len(names))
+    for ax, name in zip(axes, names):
         where = _axis(ax, x_key, [c.params[x_key] for c in found])
         for g, group in enumerate(groups):
             members = sorted((c for c in found if tuple(c.params[k] for k in others) == group),
@@ -142,11 +155,12 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
             text = ", ".join(f"{k} = {_fmt(v)}" for k, v in zip(others, group)) or None
             ax.plot(xs, ys, "o", ls=LINESTYLES[g % len(LINESTYLES)], label=text)
             failed = [x for x, c in zip(xs, members) if not c.ok]
-            if failed:
+            if failed:  # the legend names the red crosses once, whichever line they belong to
+                named = "failed" in ax.get_legend_handles_labels()[1]
                 ax.plot(failed, [0.03] * len(failed), "x", color="red", ms=8, mew=2,
-                        transform=ax.get_xaxis_transform(), label="failed" if g == 0 else None)
-        ax.set_xlabel(_axis_label(ds, found, x_key, follow), fontsize=9)
-        ax.set_ylabel(label(ds[name]))
+                        transform=ax.get_xaxis_transform(), label=None if named else "failed")
+        ax.set_xlabel(_x_axis_text(ds, found, x_key, follow), fontsize=9)
+        ax.set_ylabel(axis_label(ds[name]))
         ax.set_title(ds[name].attrs.get("long_name", name), fontsize=8)
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
@@ -161,14 +175,14 @@ def series_figure(ds: xr.Dataset, names: list[str]):
     x_values = sorted({c.params[x_key] for c in found}, key=_order)
     colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(x_values)))
     time = ds["time"].values
-    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.8), layout="constrained", squeeze=False)
-    for ax, name in zip(axes[0], names):
+    fig, axes = panels(len(names))
+    for ax, name in zip(axes, names):
         for c in found:
             colour = colours[x_values.index(c.params[x_key])]
             style = LINESTYLES[groups.index(tuple(c.params[k] for k in others)) % len(LINESTYLES)]
             ax.plot(time, c.series[name], color=colour, ls=style, lw=1.2 if c.ok else 0.6)
         ax.set_xlabel("normalised time T*")
-        ax.set_ylabel(label(ds[name]))
+        ax.set_ylabel(axis_label(ds[name]))
         ax.grid(alpha=0.3)
 
     def case_label(v):
@@ -179,7 +193,7 @@ def series_figure(ds: xr.Dataset, names: list[str]):
     legend += [plt.Line2D([], [], color="0.3", ls=LINESTYLES[g % len(LINESTYLES)],
                           label=", ".join(f"{k} = {_fmt(v)}" for k, v in zip(others, group)))
                for g, group in enumerate(groups) if others]
-    axes[0, -1].legend(handles=legend, fontsize=7, loc="best")
+    axes[min(len(names), COLUMNS) - 1].legend(handles=legend, fontsize=7, loc="best")
     suptitle(fig, "sweep: time series of every case" + ("" if all(c.ok for c in found) else
                                                         " (thin lines: failed cases)"))
     return fig

@@ -6,10 +6,13 @@ with a ``[grid]`` table is a scene, one with ``scene = ...`` a study.
 """
 from __future__ import annotations
 
+import difflib
 import os
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+
+from .errors import BadInput
 
 
 def studies_dir() -> Path:
@@ -44,11 +47,16 @@ def entries(directory: Path | None = None) -> list[Entry]:
 
 
 def resolve(name: str | Path) -> Path:
-    """A path as given if it exists; else a bundled file of that name ('directional' or 'directional.toml')."""
+    """A path as given if it exists; else a bundled file of that name ('directional' or 'directional.toml').
+    A bare name that is neither is bad input, with the closest bundled name if one is close."""
     path = Path(name)
     if path.exists() or path.is_absolute() or len(path.parts) > 1:
         return path
     for candidate in (studies_dir() / path, studies_dir() / f"{path}.toml"):
         if candidate.is_file():
             return candidate
-    return path
+    names = sorted(p.stem for p in studies_dir().glob("*.toml"))
+    close = difflib.get_close_matches(path.name.removesuffix(".toml"), names, n=1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    raise BadInput(f"no such file, and no bundled scene or study of that name ({hint}`biostudy scenes` lists "
+                   "them)", path)

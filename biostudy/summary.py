@@ -13,16 +13,12 @@ from rich.console import Console, Group
 from rich.table import Table
 from rich.text import Text
 
-PARAMETERS = (("mu", "Pa"), ("nu", ""), ("d", "µm²/T*"), ("beta", "µm²/T*"), ("k_alpha", "1/T*"),
-              ("k", ""), ("g", "1/T*"), ("r", "µm/T*"))
-AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")
+from solver.problem import parameter_infos
 
+from . import observables
+from .formatting import number, units_text
 
-def _num(value) -> str:
-    try:
-        return f"{float(value):.4g}"
-    except (TypeError, ValueError):
-        return str(value)
+AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")  # what a study.nc written before observables has
 
 
 def _rows(rows: list[tuple[str, str]]) -> Table:
@@ -52,7 +48,8 @@ def _from_scene(attrs: dict) -> dict:
     grid = scene.get("grid", {})
     found = {"grid_shape": grid.get("shape"), "grid_spacing": grid.get("spacing"),
              "consumption": scene.get("model", {}).get("consumption"),
-             "advection": scene.get("numerics", {}).get("advection"), **scene.get("params", {})}
+             "advection": scene.get("numerics", {}).get("advection"),
+             "growth_velocity": scene.get("numerics", {}).get("growth_velocity"), **scene.get("params", {})}
     return {k: v for k, v in found.items() if v is not None}
 
 
@@ -65,11 +62,14 @@ def _header(attrs: dict) -> list[tuple[str, str]]:
         ("overrides", str(attrs.get("overrides", "")).replace("\n", "; ")),
     ]
     if grid:
-        rows.append(("grid", f"{grid} cells of {_num(attrs.get('grid_spacing'))} µm"))
-    model = [f"{k} {attrs[k]}" for k in ("consumption", "advection", "mechanics") if k in attrs]
+        rows.append(("grid", f"{grid} cells of {number(attrs.get('grid_spacing'))} µm"))
+    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "advection", "growth_velocity", "mechanics")
+             if k in attrs]
+    if "nutrient_faces" in attrs:
+        model.append(f"nutrient held on {attrs['nutrient_faces']}")
     rows.append(("model", ", ".join(model)))
-    params = [f"{name} = {_num(attrs[name])}{' ' + unit if unit else ''}" for name, unit in PARAMETERS
-              if name in attrs]
+    params = [f"{p.name} = {number(attrs[p.name])}{' ' + units_text(p.units) if units_text(p.units) else ''}"
+              for p in parameter_infos() if p.name in attrs]
     rows.append(("parameters", ", ".join(params)))
     return rows
 
@@ -89,22 +89,23 @@ def run_summary(ds: xr.Dataset) -> Group:
     if status != "done":
         rows.append(("status", f"[red]{status}[/red]: {attrs.get('message', '')}"))
     rows += [
-        ("run", f"wall time {_num(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
+        ("run", f"wall time {number(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
                 f"{attrs.get('steps_bisected', '-')} bisected" if "steps_taken" in attrs
-         else f"wall time {_num(attrs.get('wall_time'))} s"),
+         else f"wall time {number(attrs.get('wall_time'))} s"),
         ("created", str(attrs.get("created", ""))),
         ("software", _software(attrs)),
     ]
     parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
-    if "time" in ds.dims and all(v in ds for v in AVERAGES):
+    if "time" in ds.dims and "phi" in ds:
         table = Table(title=None, show_edge=False)
-        table.add_column("")
-        table.add_column(f"T* = {_num(ds.time.values[0])}", justify="right")
-        table.add_column(f"T* = {_num(ds.time.values[-1])}", justify="right")
+        table.add_column("observable")
+        table.add_column(f"T* = {number(ds.time.values[0])}", justify="right")
+        table.add_column(f"T* = {number(ds.time.values[-1])}", justify="right")
         table.add_column("units")
-        for var in AVERAGES:
-            values = ds[var].values
-            table.add_row(var, _num(values[0]), _num(values[-1]), str(ds[var].attrs.get("units", "")))
+        table.add_column("meaning")
+        for name, values in observables.variables(ds).items():
+            table.add_row(name, number(values.values[0]), number(values.values[-1]),
+                          units_text(values.attrs["units"]), values.attrs["long_name"])
         parts.append(table)
     return Group(*parts)
 
@@ -115,9 +116,8 @@ def study_summary(ds: xr.Dataset) -> Group:
     dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
     rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
     names = [n.strip() for n in str(attrs.get("sweep_keys", "")).split(",") if n.strip()]
-    swept = [c for c in ds.coords if c not in ds.dims or c in dims]
-    values = [f"{c} = " + ", ".join(_num(v) for v in np.unique(ds[c].values)) for c in swept
-              if c not in ("case", "time", "x", "y", "z", "component") and not c.endswith("_node")]
+    swept = [c for c in ds.coords if ds[c].dims and set(ds[c].dims) <= set(dims) and c != "case"]
+    values = [f"{c} = " + ", ".join(number(v) for v in np.unique(ds[c].values)) for c in swept]
     rows += [
         ("sweep", f"{attrs.get('sweep_mode')} over {', '.join(names)}"),
         ("values", "; ".join(values)),
@@ -127,10 +127,12 @@ def study_summary(ds: xr.Dataset) -> Group:
         ("software", _software(attrs)),
     ]
     name = str(attrs.get("title", "study")).removeprefix("biofilm growth study: ")
-    table = Table(show_edge=False, caption="averages at the last output time")
+    shown = [n for n in observables.SUMMARY if n in ds] or [n for n in AVERAGES if n in ds]
+    table = Table(show_edge=False, caption="observables at the last output time (" + ", ".join(
+        f"{n} {units_text(ds[n].attrs.get('units', '1')) or '1'}" for n in shown) + "; `biostudy analyze` for all)")
     table.add_column("case", no_wrap=True)
     table.add_column("status", no_wrap=True)
-    for column in ("wall s", "steps", *AVERAGES):
+    for column in ("wall s", "steps", *shown):
         table.add_column(column, justify="right")
     table.add_column("message")
 
@@ -140,16 +142,44 @@ def study_summary(ds: xr.Dataset) -> Group:
             values = values.isel(time=-1)
         return values.transpose(*dims, ...).values.ravel()
 
-    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps", "message", *AVERAGES) if v in ds}
+    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps", "message", *shown) if v in ds}
     for i, case in enumerate(columns["case_id"]):
         status = str(columns["status"][i])
         colour = {"done": "green", "failed": "red"}.get(status, "yellow")
-        table.add_row(str(case), f"[{colour}]{status}[/{colour}]", _num(columns["wall_time"][i]),
-                      _num(columns["steps"][i]),
-                      *(_num(columns[v][i]) if v in columns else "-" for v in AVERAGES),
+        table.add_row(str(case), f"[{colour}]{status}[/{colour}]", number(columns["wall_time"][i]),
+                      number(columns["steps"][i]),
+                      *(number(columns[v][i]) if v in columns else "-" for v in shown),
                       str(columns["message"][i]))
     return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
 
 
 def summarize(ds: xr.Dataset, console: Console) -> None:
     console.print(study_summary(ds) if "sweep_mode" in ds.attrs else run_summary(ds))
+
+
+def needs(path) -> str:
+    """What running a scene or a study file needs (validated first: bad input is `BadInput`), as text."""
+    from . import resources
+    from .errors import read_toml
+    from .scene import load_scene
+    from .study import load_study
+
+    available = f"{resources.size(resources.available_memory()).lstrip('~')} of memory available"
+    if "scene" in read_toml(path) and "grid" not in read_toml(path):
+        plan = load_study(path)
+        found = {case.id: resources.estimate(plan.scenes[case.id]) for case in plan.cases}
+        largest = max(found, key=lambda i: found[i].memory)
+        return "\n".join([
+            f"{plan.spec.name}: {len(found)} cases of {plan.scene_file.name}",
+            f"largest case  {largest}: {resources.size(found[largest].memory)} of memory ({found[largest].parts()})",
+            f"on disk       {resources.size(sum(e.disk for e in found.values()))} of case files, as much again "
+            "for study.nc",
+            f"here          {available}; N local workers need about N times the largest case"])
+    scene = load_scene(path)
+    found = resources.estimate(scene)
+    mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
+    return "\n".join([
+        f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
+        f"{found.outputs} outputs, mechanics {mechanics}",
+        f"memory  {resources.size(found.memory)} ({found.parts()}); {available} here",
+        f"on disk {resources.size(found.disk)} for the dataset"])
