@@ -26,7 +26,10 @@ or a cap), to measure what it is worth.
 --in-run N runs the bundled directional scene (studies/directional.toml,
 TVD, 200 steps to T* = 1 unless --steps says otherwise (the scene itself
 has 1000), mechanics at every 0.2 T*) on N^3 cells: there phi
-itself moves between snapshots, which the static cases leave out.  Prints
+itself moves between snapshots, which the static cases leave out.  Each
+version runs the scene file bundled with it: since issue 9 this version's
+grows with growth_velocity = "front", which the first version does not know
+(it runs its own file, the pointwise velocity), so phi differs.  Prints
 each snapshot's seconds and the run's total mechanics time.  Asserts nothing.
 """
 from __future__ import annotations
@@ -34,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 from fresh import header, run_case
@@ -83,9 +87,13 @@ def measure(n: int, k: float, changes: list[str]) -> dict:
 
 
 def in_run(n: int, steps: int, changes: list[str]) -> dict:
-    try:
+    import biostudy
+
+    # the first version (--baseline) calls it biostudy.catalog; asked for biostudy.bundled, the editable
+    # install's finder would hand it this version's module, and so this version's scene file
+    if (Path(biostudy.__file__).parent / "bundled.py").exists():
         from biostudy import bundled
-    except ImportError:  # the first version (--baseline) called it biostudy.catalog
+    else:
         from biostudy import catalog as bundled
     from biostudy.scene import load_scene
     from solver import Run
