@@ -1,6 +1,7 @@
 """Observed order of the hydrostatic stress p under mesh refinement: a growing dense sphere (paper section 3).
 
     python benchmarks/mechanics_order.py
+    python benchmarks/mechanics_order.py --sizes 6 12 24 48 96    # a fifth level (~8 GB, minutes)
 
 One octant of a 16 µm cube (slide on the symmetry planes x-, y-, z-), a
 sphere of radius 4 µm with a smooth edge (tanh, width 1 µm), alpha = 0.01 phi,
@@ -10,6 +11,7 @@ solve): Q1/P0's element pressure and the recovered one (solver/mechanics/pressur
 The observed order from successive differences, log2(|Q_h - Q_h/2| / |Q_h/2 - Q_h/4|),
 and the Richardson estimate of the limit.  Prints a table for docs/mechanics.md.
 """
+import argparse
 import os
 import time
 
@@ -39,12 +41,15 @@ def quantities(n: int) -> tuple[dict, float, tuple[float, float]]:
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 24, 48], help="cells per octant edge")
+    sizes = parser.parse_args().sizes
     print(f"load average {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores); solve: wall and CPU seconds")
     names = ("element", "recovered")
     print(f"{'cells':>6} {'h um':>6} " + " ".join(f"{'Q ' + n + ' Pa':>16} {'|dQ|':>9} {'order':>6}" for n in names)
           + f" {'solve s':>8} {'cpu s':>6}")
     series = {name: [] for name in names}
-    for n in (6, 12, 24, 48):
+    for n in sizes:
         Q, _, seconds = quantities(n)
         cells = []
         for name in names:

@@ -66,11 +66,23 @@ def test_convergence_rejects_bad_options(tmp_path):
     assert result.exit_code == 2 and result.stderr.startswith("error: --series: unknown series sideways")
 
 
+def without_large_mechanics(tmp_path) -> Path:
+    """The catalogue without its one case sized on purpose (growth to alpha = 0.2 on 40³ cells: minutes; its
+    measurement is in docs/mechanics.md, and tests/test_mechanics.py bounds a hard one-shot solve)."""
+    head, *cases = (STUDIES / "stability.toml").read_text().split("\n[[case]]\n")
+    kept = [c for c in cases if '"grid.shape" = [40, 40, 40]' not in c or '"mechanics.enabled" = true' not in c]
+    assert len(kept) == len(cases) - 1, "the catalogue's large mechanics case moved: update this test"
+    head = head.replace('scene = "directional.toml"', f'scene = "{STUDIES / "directional.toml"}"')
+    path = tmp_path / "stability.toml"
+    path.write_text("\n[[case]]\n".join([head, *kept]))
+    return path
+
+
 @pytest.mark.slow
 def test_stability_catalogue_at_reduced_size(tmp_path):
     """Every case completes within bounds, or (mechanics only) stops with its diagnosis; exit 0."""
     out = tmp_path / "stab"
-    result = invoke("stability", STUDIES / "stability.toml", "-o", out, "-q", "--set", "grid.shape=[10,10,10]",
+    result = invoke("stability", without_large_mechanics(tmp_path), "-o", out, "-q", "--set", "grid.shape=[10,10,10]",
                     "--set", "grid.spacing=2.0", "--set", "time.steps=10")
     assert result.exit_code in (0, 1), result.output
     ds = xr.open_dataset(out / "stability.nc")
