@@ -146,12 +146,15 @@ def maze(ds, scene):
         mask = np.isin(sector, [names.index(s) for s in cells])
         sizes.append(mask.sum() * area)
         filled.append((phi[:, mask] >= EXTENT).sum(axis=1).max() * area)
-    rank = np.corrcoef(np.argsort(np.argsort(sizes)), np.argsort(np.argsort(filled)))[0, 1] if len(sizes) > 2 else np.nan
+    varied = len(sizes) > 2 and len(set(filled)) > 1  # no correlation of anything with a constant
+    rank = np.corrcoef(np.argsort(np.argsort(sizes)), np.argsort(np.argsort(filled)))[0, 1] if varied else np.nan
     return [
         ("reaches the centre and settles", "distance of the nearest phi >= 0.5 to the centre (µm); core radius "
          f"{layout.core_radius:g} µm", series(nearest, t, every=8, digits=3)),
-        ("dead ends invaded in proportion to their size", f"{len(sizes)} side branches: rank correlation of area "
-         "with the largest area of phi >= 0.5 reached in them", f"{rank:.2f} (areas {sorted(int(s) for s in sizes)} µm²)"),
+        ("dead ends invaded in proportion to their size", f"{len(sizes)} dead ends (corridors from a leaf back to "
+         "a junction): rank correlation of their area with the largest area of phi >= 0.5 reached in them; "
+         "how many were reached", f"{rank:.2f}; {sum(f > 0 for f in filled)} of {len(sizes)} reached "
+         f"(areas {int(min(sizes))}-{int(max(sizes))} µm²)"),
         ("retraction visible from 40 %", "area of phi >= 0.5 in the entrance sector (µm²)",
          series(in_entrance, t, every=8, digits=3)),
         ("dense biofilm", "max phi", series(measures.max_phi(ds), t, every=8)),
@@ -159,21 +162,21 @@ def maze(ds, scene):
 
 
 def _branches(layout) -> list[list[tuple[int, int]]]:
-    """The maze's side branches: the subtrees hanging off the way from the entrance to the centre."""
+    """The maze's dead ends: from every leaf of its tree off the way in, the corridor of sectors back to the
+    nearest junction (a sector opening into three or more) or to the way; the way's last sector is no leaf."""
     way, tree = set(layout.path()), layout.tree
     out = []
-    for node in layout.path():
-        for child in tree[node]:
-            if child in way:
-                continue
-            seen, stack = {node, child}, [child]
-            while stack:
-                here = stack.pop()
-                for there in tree[here]:
-                    if there not in seen:
-                        seen.add(there)
-                        stack.append(there)
-            out.append(sorted(seen - {node}))
+    for leaf in (n for n, near in tree.items() if len(near) == 1 and n not in way):
+        corridor, previous, here = [leaf], None, leaf
+        while True:
+            onward = [n for n in tree[here] if n != previous]
+            if len(onward) != 1:
+                break
+            previous, here = here, onward[0]
+            if here in way or len(tree[here]) > 2:
+                break
+            corridor.append(here)
+        out.append(sorted(corridor))
     return out
 
 
