@@ -34,8 +34,6 @@ from .formatting import number
 
 CONFIDENCE = 0.95
 RESAMPLES = 1000
-NOT_OUTPUTS = {"status", "message", "case_id", "wall_time", "steps", "bisections", "obstacle", "nutrient_source",
-               "steps_taken", "steps_bisected", "steps_rejected", "elapsed", "newton_iterations"}
 
 
 @dataclass
@@ -168,11 +166,6 @@ def rank_correlations(x: np.ndarray, y: np.ndarray, confidence: float = CONFIDEN
     return out
 
 
-def _problem(design: Sample) -> dict:
-    k = len(design.ranges)
-    return {"num_vars": k, "names": [f"x{i}" for i in range(k)], "bounds": [[0.0, 1.0]] * k}
-
-
 def complete_blocks(design: Sample, ok: np.ndarray) -> tuple[np.ndarray, int, int]:
     """Which cases belong to a base sample (sobol) or trajectory (morris) whose cases are all `ok`: the mask
     over the cases, how many blocks are complete and how many there are."""
@@ -204,7 +197,7 @@ def sobol_indices(design: Sample, y: np.ndarray, ok: np.ndarray, seed: int = 0,
     if kept < 2 or np.ptp(y[rows]) == 0:
         return empty, kept
     with _quiet():
-        found = sobol.analyze(_problem(design), y[rows], calc_second_order=design.with_second_order,
+        found = sobol.analyze(design.unit_problem(), y[rows], calc_second_order=design.with_second_order,
                               num_resamples=resamples, conf_level=confidence, seed=seed)
     result = {name: np.asarray(found[name], dtype=float) for name in ("S1", "S1_conf", "ST", "ST_conf")}
     for name in ("S2", "S2_conf"):
@@ -221,7 +214,8 @@ def morris_indices(design: Sample, unit: np.ndarray, y: np.ndarray, ok: np.ndarr
     if kept < 2:
         return {name: np.full(len(design.ranges), np.nan) for name in ("mu_star", "mu_star_conf", "mu", "sigma")}, kept
     with _quiet():
-        found = morris.analyze(_problem(design), unit[rows], y[rows], num_resamples=resamples, conf_level=confidence,
+        found = morris.analyze(design.unit_problem(), unit[rows], y[rows], num_resamples=resamples,
+                               conf_level=confidence,
                                num_levels=design.morris_levels, seed=seed)
     return {name: np.asarray(found[name], dtype=float) for name in ("mu_star", "mu_star_conf", "mu", "sigma")}, kept
 

@@ -29,6 +29,11 @@ class Entry:
     description: str
 
 
+def kind(data: dict) -> str:
+    """What a TOML file's table is: "scene", "study", "stability" (a catalogue) or "other"."""
+    return "scene" if "grid" in data else "stability" if "case" in data else "study" if "scene" in data else "other"
+
+
 def entries(directory: Path | None = None) -> list[Entry]:
     """Every TOML file in the studies directory, scenes first, each with its description."""
     directory = directory or studies_dir()
@@ -39,9 +44,7 @@ def entries(directory: Path | None = None) -> list[Entry]:
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
             found.append(Entry(path, "unreadable", str(error).splitlines()[0]))
             continue
-        kind = ("scene" if "grid" in data else "stability" if "case" in data else "study" if "scene" in data
-                else "other")
-        found.append(Entry(path, kind, str(data.get("description", ""))))
+        found.append(Entry(path, kind(data), str(data.get("description", ""))))
     order = {"scene": 0, "study": 1, "stability": 2}
     return sorted(found, key=lambda e: (order.get(e.kind, 3), e.path.name))
 

@@ -167,10 +167,15 @@ class Sample(BaseModel):
             return 2 * k + 2 if self.with_second_order else k + 2
         return k + 1 if self.method == "morris" else 1
 
+    def unit_problem(self) -> dict:
+        """SALib's problem over the unit cube, one variable per sampled key (scaled to the ranges later)."""
+        k = len(self.ranges)
+        return {"num_vars": k, "names": [f"x{i}" for i in range(k)], "bounds": [[0.0, 1.0]] * k}
+
     def unit_points(self) -> np.ndarray:
         """The design in the unit cube, one row per case, in the order the cases run (SALib, scipy.stats.qmc)."""
         k = len(self.ranges)
-        unit = {"num_vars": k, "names": [f"x{i}" for i in range(k)], "bounds": [[0.0, 1.0]] * k}
+        unit = self.unit_problem()
         if self.method == "sobol":
             from SALib.sample import sobol
 

@@ -26,9 +26,9 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import map_coordinates
 
-from solver.output import on_output_times
+from solver.output import BIOFILM_THRESHOLD, on_output_times
 
-THRESHOLD = 0.5
+THRESHOLD = BIOFILM_THRESHOLD  # the biofilm's extent, as the run's own biofilm_volume counts it
 DENSE = 0.8
 
 
@@ -65,9 +65,8 @@ def centroid(mask: np.ndarray, centres: list[np.ndarray]) -> np.ndarray | None:
 
 def front_position(ds: xr.Dataset, time_index: int = -1) -> float:
     """Distance (µm) from the initial biofilm's centroid to the farthest phi >= 0.5 toward the source."""
-    dims = [d for d in ("z", "y", "x") if d in ds.dims]
-    centres = [ds[d].values for d in dims]
-    h = float(centres[-1][1] - centres[-1][0])
+    centres = [ds[d].values for d in _cell_dims(ds)]
+    h = spacing(ds)
     start = centroid(ds["phi"].isel(time=0).values >= THRESHOLD, centres)
     source = centroid(ds["nutrient_source"].values.astype(bool), centres)
     if start is None or source is None or np.allclose(start, source):

@@ -97,11 +97,6 @@ def get(name: str) -> Observable:
                      f"height_z along an axis)")
 
 
-def names(ds: xr.Dataset) -> list[str]:
-    """Observables this dataset can give: those whose fields it has (or which it carries already)."""
-    return [n for n, o in REGISTRY.items() if n in ds.data_vars or all(v in ds for v in o.needs)]
-
-
 def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     """The observable over time (and over a study's case dimensions) from the dataset's fields."""
     observable = get(name)

@@ -21,9 +21,8 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import importlib.metadata
 import uuid
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
@@ -163,12 +162,12 @@ def fingerprint(problem: "solver.Problem") -> str:
     """sha256 of everything that determines a run's result (not its name).  The software's versions are not
     in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
     digest = hashlib.sha256()
-    for part in (problem.grid, problem.params, problem.numerics, problem.mechanics, problem.consumption,
-                 problem.t_end, problem.steps):
-        digest.update(repr(part).encode())
-    for array in (problem.phi0, problem.nutrient_fixed, problem.nutrient_value, problem.obstacle,
-                  problem.output_times):
-        digest.update(np.ascontiguousarray(array).tobytes())
+    for part in fields(problem):  # every field, so that a new one cannot be forgotten
+        if part.name == "name":
+            continue
+        value = getattr(problem, part.name)
+        digest.update(part.name.encode())
+        digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
     return digest.hexdigest()
 
 
@@ -177,13 +176,9 @@ NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a r
 
 def software_versions() -> dict[str, str]:
     """The versions a case file records (`biostudy_version`, `version_<package>`) that its numbers depend on."""
-    versions = {"biostudy_version": store.version()}
-    for name in NUMERIC_PACKAGES:
-        try:
-            versions[f"version_{name.replace('-', '_')}"] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            continue
-    return versions
+    from solver.output import versions
+
+    return {"biostudy_version": store.version(), **versions(NUMERIC_PACKAGES, python=False)}
 
 
 def _outdated(record: dict) -> str:

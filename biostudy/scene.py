@@ -242,7 +242,13 @@ class Scene(BaseModel):
         blocked = self._union(self.obstacle, grid)
         if blocked.all():
             raise InvalidAt("obstacle", "covers every cell of the grid")
+        held = {}
         for i, source in enumerate(self.nutrient):
+            if isinstance(source, BoundaryFace):
+                if source.face in held:
+                    raise InvalidAt(f"nutrient[{i}].face", f"'{source.face}' is held by nutrient[{held[source.face]}] "
+                                                           "already")
+                held[source.face] = i
             for j, solid in enumerate(self.obstacle):
                 overlap = np.count_nonzero(source.cells(grid) & solid.cells(grid))
                 if overlap:

@@ -159,14 +159,15 @@ def summarize(ds: xr.Dataset, console: Console) -> None:
 
 def needs(path) -> str:
     """What running a scene or a study file needs (validated first: bad input is `BadInput`), as text."""
-    from . import resources
+    from . import bundled, resources, stability
     from .errors import read_toml
     from .scene import load_scene
     from .study import load_study
 
     available = f"{resources.size(resources.available_memory()).lstrip('~')} of memory available"
-    if "scene" in read_toml(path) and "grid" not in read_toml(path):
-        plan = load_study(path)
+    what = bundled.kind(read_toml(path))
+    if what in ("study", "stability"):
+        plan = load_study(path) if what == "study" else stability.load(path)
         found = {case.id: resources.estimate(plan.scenes[case.id]) for case in plan.cases}
         largest = max(found, key=lambda i: found[i].memory)
         return "\n".join([

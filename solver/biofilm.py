@@ -50,7 +50,13 @@ class Velocity:
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
         self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
-        self.held_faces = list(held_faces)  # (face, cells beside it, value): Dirichlet faces of the nutrient
+        self.held_faces = []  # Dirichlet faces of the nutrient: (axis, cells beside it, their inner neighbours,
+        for face, cells, value in held_faces:  # +1 on a lower face / -1 on an upper one, held value)
+            axis = "xyz".index(face[0])
+            below, above = self.neighbours[axis]
+            lower = face[1] == "-"
+            self.held_faces.append((axis, cells, above[cells] if lower else below[cells], 1.0 if lower else -1.0,
+                                    value))
 
     def central_differences(self, q: np.ndarray) -> list[np.ndarray]:
         """Cell gradient of q per axis; a missing neighbour takes the cell's own value (zero flux)."""
@@ -62,22 +68,22 @@ class Velocity:
         2 c_face - c (the held value on the face)."""
         h2 = 2.0 * self.fv.grid.spacing
         gradient = self.central_differences(c)
-        for face, cells, value in self.held_faces:
-            axis = "xyz".index(face[0])
-            below, above = self.neighbours[axis]
+        for axis, cells, inner, sign, value in self.held_faces:
             ghost = 2.0 * value - c[cells]
-            inner = c[above[cells]] if face[1] == "-" else c[below[cells]]
-            gradient[axis][cells] = (inner - ghost) / h2 if face[1] == "-" else (ghost - inner) / h2
+            gradient[axis][cells] = sign * (c[inner] - ghost) / h2
         return gradient
 
     def __call__(self, c: np.ndarray, phi: np.ndarray | None = None) -> list[np.ndarray]:
-        """Face velocities per axis; `phi` is not needed (the front velocity's signature).  The cell gradient of
-        c and the floor of |grad c| stay readable as `gradient` and `floor_value` (the front velocity uses them)."""
+        """Face velocities per axis; `phi` is not needed (the front velocity's signature)."""
+        return self.field(c)[0]
+
+    def field(self, c: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray] | None, float]:
+        """Face velocities per axis, the cell gradient of c they came from (None when r = 0) and the floor of
+        |grad c| they used (0 where nothing grows: r = 0 or a flat nutrient)."""
         fv, h = self.fv, self.fv.grid.spacing
-        self.gradient, self.floor_value = None, 0.0
         if self.r == 0.0:
-            return [np.zeros(f.lower.size) for f in fv.faces]
-        cell_grad = self.gradient = self.cell_gradient(c)
+            return [np.zeros(f.lower.size) for f in fv.faces], None, 0.0
+        cell_grad = self.cell_gradient(c)
         normal, magnitude = [], []
         for f in fv.faces:
             dn = (c[f.upper] - c[f.lower]) / h
@@ -90,13 +96,13 @@ class Velocity:
             magnitude.append(np.sqrt(squared))
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest == 0.0:
-            return [np.zeros_like(dn) for dn in normal]
-        floor = self.floor_value = self.floor * largest
+            return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0
+        floor = self.floor * largest
         velocities = []
         for f, dn, m in zip(fv.faces, normal, magnitude):
             cf = 0.5 * (c[f.lower] + c[f.upper])
             velocities.append(self.r * cf / (self.k + cf) * dn / np.maximum(m, floor))
-        return velocities
+        return velocities, cell_grad, floor
 
 
 class _Pattern:
@@ -137,7 +143,7 @@ class Biofilm:
         self.tvd = numerics.advection == "tvd"
         self.tolerance = numerics.biofilm_tolerance
         self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces)
-        if numerics.growth_velocity == "front":
+        if numerics.growth_velocity == "front" and params.r > 0:  # no growth: no front to move
             self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band)
         self.pattern = _Pattern(fv, fv.laplacian, self.tvd)
         p = self.pattern

@@ -72,10 +72,10 @@ class FrontVelocity:
         self.cross = ndimage.generate_binary_structure(fv.grid.ndim, 1)
 
     def __call__(self, c: np.ndarray, phi: np.ndarray) -> list[np.ndarray]:
-        w = self.pointwise(c)
-        if self.pointwise.gradient is None or self.pointwise.floor_value == 0.0:
+        w, gradient, floor = self.pointwise.field(c)
+        if floor == 0.0:
             return w  # r = 0 or a flat nutrient: no growth anywhere
-        vectors, front = self._front(c, phi)
+        vectors, front = self._front(c, phi, gradient, floor)
         self.front_cells = int(front.size)
         if front.size == 0:
             return w
@@ -91,13 +91,12 @@ class FrontVelocity:
             faces.append(np.where(a | b, mean, wf))
         return faces
 
-    def _front(self, c: np.ndarray, phi: np.ndarray):
-        """The vector F N per front cell (rows of `vectors`) and the front cells' active indices; after a call
-        of the pointwise velocity (its gradient of c and floor)."""
+    def _front(self, c: np.ndarray, phi: np.ndarray, gradient: list[np.ndarray], floor: float):
+        """The vector F N per front cell (rows of `vectors`) and the front cells' active indices, with the
+        pointwise velocity's cell gradient of c and floor of |grad c| (the same regularised direction)."""
         fv, h, velocity = self.fv, self.fv.grid.spacing, self.pointwise
-        grad_c = np.stack(velocity.gradient, axis=1)  # of the pointwise call just made, with its floor
+        grad_c = np.stack(gradient, axis=1)
         grad_phi = np.stack(velocity.central_differences(phi), axis=1)
-        floor = max(velocity.floor_value, np.finfo(float).tiny)
         owners, vectors = [], []
         for f in fv.faces:
             crossing = (phi[f.lower] >= LEVEL) != (phi[f.upper] >= LEVEL)

@@ -56,9 +56,10 @@ NO_FILL = {"_FillValue": None}  # coordinates never have missing values (CF 2.5.
 TIME_ATTRS = {"units": "1", "long_name": "normalised time T* = t / t_ref (dimensionless)"}
 
 
-def _versions() -> dict:
-    versions = {"version_python": platform.python_version()}
-    for name in PACKAGES:
+def versions(packages=PACKAGES, python: bool = True) -> dict:
+    """`version_<package>` of the installed packages named (and of python), as the datasets record them."""
+    versions = {"version_python": platform.python_version()} if python else {}
+    for name in packages:
         try:
             versions[f"version_{name.replace('-', '_')}"] = metadata.version(name)
         except metadata.PackageNotFoundError:
@@ -133,7 +134,7 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
            {"numerical_diffusion_max": report["numerical_diffusion_max"]}),  # upwind only: |v| h / 2
         "largest_step_error": report["largest_step_error"],
         **{f"wall_time_{stage}": seconds for stage, seconds in report["timings"].items()},
-        **_versions(),
+        **versions(),
     }
     if problem.grid.ndim == 2:
         attrs["slab_thickness"] = SLAB_THICKNESS
@@ -204,14 +205,13 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     coords["time"] = ("time", times, TIME_ATTRS, NO_FILL)
     if problem.mechanics is not None:
         coords["time_mechanics"] = ("time_mechanics", np.array([s.time for s in solved]),
-                                    {"units": "1", "long_name": "normalised time T* of the outputs where the "
+                                    {**TIME_ATTRS, "long_name": "normalised time T* of the outputs where the "
                                                                 "mechanics was solved"}, NO_FILL)
         coords["component"] = ("component", list(AXES[: grid.ndim]),
                                {"long_name": "displacement component", "units": "1"})
     else:
         coords = {k: v for k, v in coords.items() if not k.endswith("_node")}
     return xr.Dataset(data, coords=coords, attrs=_attributes(problem, report, snapshots))
-
 
 
 def on_output_times(ds: xr.Dataset) -> xr.Dataset:

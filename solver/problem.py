@@ -271,14 +271,15 @@ class Problem:
         times = self.output_times
         if times.size == 0 or np.any(np.diff(times) <= 0) or times[0] < 0 or times[-1] > self.t_end:
             raise ValueError("output_times must increase strictly within [0, t_end]")
-        values = self.nutrient_value[self.nutrient_fixed]
-        if np.any((values < 0) | (values > 1)):
-            raise ValueError("held nutrient values must lie in [0, 1]")
-        for face, value in self.nutrient_faces:
+        faces = [face for face, _ in self.nutrient_faces]
+        for face in faces:
             if face not in FACES or face[0] not in self.grid.axes:
                 raise ValueError(f"nutrient face {face!r} is not a face of this {self.grid.ndim}-D grid")
-            if not 0 <= value <= 1:
-                raise ValueError("held nutrient values must lie in [0, 1]")
+        if len(set(faces)) < len(faces):  # held twice would count its boundary flux twice
+            raise ValueError("a nutrient face is held more than once")
+        values = np.concatenate([self.nutrient_value[self.nutrient_fixed], [v for _, v in self.nutrient_faces]])
+        if np.any((values < 0) | (values > 1)):
+            raise ValueError("held nutrient values must lie in [0, 1]")
         if np.any(self.nutrient_fixed & self.obstacle):
             raise ValueError("nutrient sources must not lie inside obstacles")
         if np.any((self.phi0 < 0) | (self.phi0 > 1)):

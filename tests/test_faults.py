@@ -16,6 +16,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import tomllib
 import zlib
 from pathlib import Path
 
@@ -427,6 +428,9 @@ def test_show_tells_what_a_scene_or_a_study_needs(tiny_scene, tiny_study):
     assert "memory  ~" in scene.stdout and "available here" in scene.stdout and "for the dataset" in scene.stdout
     study = invoke("show", tiny_study)
     assert study.exit_code == 0 and "4 cases of tiny.toml" in study.stdout and "largest case" in study.stdout
+    catalogue = invoke("show", Path(__file__).resolve().parents[1] / "studies" / "stability.toml")
+    cases = len(tomllib.loads((Path(__file__).resolve().parents[1] / "studies" / "stability.toml").read_text())["case"])
+    assert catalogue.exit_code == 0 and f"{cases} cases of directional.toml" in catalogue.stdout, catalogue.output
 
 
 # ---------------------------------------------------------------------------------------------

@@ -75,7 +75,7 @@ def test_compression_and_tension_of_p_and_unsolved_outputs():
 
 def test_registry_names_units_and_bad_names():
     for name, observable in observables.REGISTRY.items():
-        assert observable.name == name and observable.units and observable.long_name
+        assert observable.units and observable.long_name, name
     assert set(observables.SUMMARY) <= set(observables.REGISTRY)
     assert observables.get("height_z").long_name == "top of phi >= 0.5 along z"
     with pytest.raises(ValueError, match="unknown observable 'volume'"):

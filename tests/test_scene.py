@@ -190,3 +190,32 @@ def test_agar_scenes_hold_the_nutrient_on_the_bottom_face():
         x, y, z = problem.grid.cell_coordinates()
         colony = problem.phi0 == 1.0
         assert colony[0].any() and np.ptp(x[colony]) + 1 <= 5 and np.ptp(y[colony]) + 1 <= 5
+
+
+def test_a_face_held_twice_is_refused_by_the_scene_and_by_the_solver(write_toml):
+    """Two held values on one face would add its boundary flux twice (Nutrient sums the faces' 2/h² terms)."""
+    path = write_toml("dup.toml", """\
+        [grid]
+        shape = [8, 8]
+        spacing = 1.0
+        [time]
+        t_end = 0.01
+        steps = 2
+        [[biofilm]]
+        shape = "box"
+        lower = [2.0, 0.0]
+        upper = [5.0, 2.0]
+        [[nutrient]]
+        shape = "face"
+        face = "y-"
+        [[nutrient]]
+        shape = "face"
+        face = "y-"
+        value = 0.5
+        """)
+    with pytest.raises(BadInput, match=r"nutrient\[1\]\.face: 'y-' is held by nutrient\[0\] already"):
+        load_scene(path)
+    grid = solver.Grid((8, 8), 1.0)
+    with pytest.raises(ValueError, match="held more than once"):
+        solver.Problem(grid=grid, phi0=np.zeros(grid.cells_shape), nutrient_fixed=np.zeros(grid.cells_shape, bool),
+                       nutrient_faces=(("y-", 1.0), ("y-", 0.5)), t_end=0.01, steps=2, output_times=[0.0, 0.01])

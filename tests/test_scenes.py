@@ -44,7 +44,8 @@ def test_directional_biofilm_stays_dense_and_grows_toward_the_corner_then_backwa
     toward, back = advance(ds, (1, 1, 1), EXTENT, centre), advance(ds, (-1, -1, -1), EXTENT, centre)
     side = advance(ds, (1, -1, 0), EXTENT, centre)
     assert toward[-1] > back[-1] > side[-1] > 0, (toward[-1], back[-1], side[-1])
-    assert np.all(toward <= 0.5 * scene.params.r * time + np.sqrt(3) * scene.grid.spacing)
+    speed = scene.params.r / (scene.params.k + 1)  # r c/(k+c) at its largest, c <= 1
+    assert np.all(toward <= speed * time + np.sqrt(3) * scene.grid.spacing)
     assert ds.phi_mean.values[-1] > ds.phi_mean.values[-2]
 
 
@@ -62,7 +63,8 @@ def test_agar_low_consumption_grows_a_dense_colony_to_the_lid(agar):
     height = scene.grid.solver_grid().extent[2]
     assert top[-1] >= height - scene.grid.spacing and np.all(measures.max_phi(ds) >= DENSE), top
     rise = measures.top(ds, "z", EXTENT) - measures.top(ds, "z", EXTENT)[0]
-    assert np.all(rise <= 0.5 * scene.params.r * ds.time.values + scene.grid.spacing), rise
+    speed = scene.params.r / (scene.params.k + 1)  # r c/(k+c) at its largest, c <= 1
+    assert np.all(rise <= speed * ds.time.values + scene.grid.spacing), rise
 
 
 def test_agar_high_consumption_stays_low_and_spreads_into_a_layer(agar):

@@ -10,7 +10,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from biostudy import combine, runner, store
+from biostudy import bundled, combine, runner, store
 from biostudy.cli import app
 from biostudy.scene import load_scene
 from biostudy.study import load_study
@@ -87,6 +87,10 @@ def test_fingerprint_follows_what_changes_the_result(tiny_scene):
     assert base == runner.fingerprint(load_scene(tiny_scene, ["name=other", "description=x"]).problem())
     assert base != runner.fingerprint(load_scene(tiny_scene, ["params.g=2e8"]).problem())
     assert base != runner.fingerprint(load_scene(tiny_scene, ["biofilm.0.radius=2"]).problem())
+    agar = bundled.resolve("agar-g1e8")  # the nutrient held on a face marks no cell: the face and value count too
+    held = runner.fingerprint(load_scene(agar).problem())
+    assert held != runner.fingerprint(load_scene(agar, ['nutrient.0.face="z+"']).problem())
+    assert held != runner.fingerprint(load_scene(agar, ["nutrient.0.value=0.5"]).problem())
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on

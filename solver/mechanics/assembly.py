@@ -60,7 +60,7 @@ class Assembler:
         self._pattern()
         self.constrain(fixed)
         cells = mesh.grid.cells_shape
-        plane = int(np.prod(cells[1:]))
+        self.plane = plane = int(np.prod(cells[1:]))  # elements per grid plane (cells, obstacles included)
         self.planes = max(1, chunk // plane)  # grid planes per slab
         # first element of every plane (elements are the open cells in grid order)
         self.plane_start = np.searchsorted(mesh.cells, np.arange(cells[0] + 1) * plane)
@@ -104,10 +104,6 @@ class Assembler:
         diag = np.flatnonzero(self.rows == self.indices)
         node, comp = np.nonzero(fixed_node)
         self.fixed_diag = (diag[node], comp)
-
-    @property
-    def n_blocks(self) -> int:
-        return self.indices.size
 
     def gradient(self, u: np.ndarray, elements: slice, corners: bool = False) -> np.ndarray:
         """F = I + grad u at the Gauss points (or the corners) of some elements: (E, Q, 3, 3)."""
@@ -211,8 +207,7 @@ class Assembler:
 
     def _scatter(self, stencil: np.ndarray, K: np.ndarray, elements: slice, first: int, last: int):
         """Add the element matrices (E, a, b, i, k) of grid planes [first, last) into the stencil array."""
-        cells = self.mesh.grid.cells_shape
-        plane = int(np.prod(cells[1:]))
+        cells, plane = self.mesh.grid.cells_shape, self.plane
         slab_shape = (last - first,) + cells[1:]
         if K.shape[0] == (last - first) * plane:  # no obstacle in the slab: elements are its cells
             slab = K.reshape(slab_shape + K.shape[1:])

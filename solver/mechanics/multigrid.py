@@ -35,6 +35,11 @@ import scipy.sparse.linalg as spla
 from .mesh import StructuredMesh
 
 
+def superlu(A: sp.spmatrix):
+    """A sparse LU factorisation's solve (SuperLU, ordering for a symmetric pattern)."""
+    return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve
+
+
 def interpolation_1d(cells: int) -> sp.csr_matrix:
     """Linear interpolation from ceil(cells/2) coarse cells to `cells` fine ones: (cells+1, coarse+1)."""
     fine = np.arange(cells + 1)
@@ -65,7 +70,7 @@ class Level:
 class Multigrid:
     """V-cycle preconditioner: `build(A)` for each new tangent, then call it on residuals."""
 
-    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, coarsest: int = 1_000, degree: int = 3,
+    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, coarsest: int, degree: int,
                  ratio: float = 30.0):
         self.d = d = mesh.ndim
         self.degree, self.ratio = degree, ratio
@@ -106,7 +111,7 @@ class Multigrid:
             empty = A.diagonal() == 0  # coarse dofs whose support is all fixed
             if np.any(empty):
                 A = (A + sp.diags(empty.astype(float))).tobsr(blocksize=(d, d))
-        self.coarse_solve = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve
+        self.coarse_solve = superlu(A)
 
     def _smooth(self, level: Level, x: np.ndarray, b: np.ndarray, zero: bool = False):
         """`degree` Chebyshev steps on D^-1 A x = D^-1 b, in place (zero: x is 0, saves a product)."""

@@ -19,9 +19,8 @@ from __future__ import annotations
 import numpy as np
 import pyamg
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from .multigrid import Multigrid
+from .multigrid import Multigrid, superlu
 
 try:  # PARDISO from PyPI wheels (x86_64); SuperLU is the portable fallback
     import pypardiso
@@ -40,7 +39,7 @@ class Factoriser:
 
     def __call__(self, A: sp.spmatrix):
         if pypardiso is None:
-            return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve
+            return superlu(A)
         if self._pardiso is None:
             self._pardiso = pypardiso.PyPardisoSolver(mtype=-2)
         else:
