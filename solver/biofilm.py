@@ -33,8 +33,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .bounds import ROUNDOFF, Projection
-from .errors import StepFailure
+from .bounds import Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
 from .linear import jacobi_bicgstab
@@ -210,15 +209,7 @@ class Biofilm:
 
     def _checked(self, phi: np.ndarray, upper: float) -> np.ndarray:
         """NaN and maximum-principle check; round-off within ROUNDOFF is projected onto the bounds."""
-        bad = ~np.isfinite(phi)
-        if bad.any():
-            raise StepFailure("biofilm phi is not finite", self.fv.describe(int(np.argmax(bad))))
-        outside = (phi < -ROUNDOFF) | (phi > upper + ROUNDOFF)
-        if outside.any():
-            where = int(np.argmax(outside))
-            raise StepFailure(f"biofilm phi = {phi[where]:.6g} outside [0, {upper:.6g}]",
-                              self.fv.describe(where))
-        return self.projection.onto(phi, 0.0, upper)
+        return self.projection.checked(phi, upper, "biofilm phi", self.fv.describe)
 
     def numerical_diffusion(self, w: list[np.ndarray]) -> float:
         """Upwind's artificial diffusivity max |w| h / 2 (µm²/T*), to set beside beta."""

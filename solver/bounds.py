@@ -16,8 +16,11 @@ then bisected or rejected by the error control.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
+
+from .errors import StepFailure
 
 ROUNDOFF = 1e-8  # relative distance to a bound that counts as round-off
 
@@ -38,3 +41,16 @@ class Projection:
             self.count += count
             self.largest = max(self.largest, float(moved.max()))
         return clipped
+
+    def checked(self, values: np.ndarray, upper: float, name: str, describe: Callable[[int], str]) -> np.ndarray:
+        """`values` (of the field `name`) projected onto [0, upper] when within round-off of it; a NaN, or a
+        value beyond ROUNDOFF (relative to max(upper, 1)), fails the step with the cell `describe(index)`."""
+        bad = ~np.isfinite(values)
+        if bad.any():
+            raise StepFailure(f"{name} is not finite", describe(int(np.argmax(bad))))
+        tolerance = ROUNDOFF * max(upper, 1.0)
+        outside = (values < -tolerance) | (values > upper + tolerance)
+        if outside.any():
+            where = int(np.argmax(outside))
+            raise StepFailure(f"{name} = {values[where]:.6g} outside [0, {upper:.6g}]", describe(where))
+        return self.onto(values, 0.0, upper)

@@ -111,12 +111,4 @@ class Nutrient:
 
     def _checked(self, c: np.ndarray) -> np.ndarray:
         """NaN and bounds check; round-off within ROUNDOFF is projected onto [0, upper]."""
-        bad = ~np.isfinite(c)
-        if bad.any():
-            raise StepFailure("nutrient c is not finite", self.fv.describe(int(np.argmax(bad))))
-        tolerance = ROUNDOFF * max(self.upper, 1.0)
-        low, high = c < -tolerance, c > self.upper + tolerance
-        if low.any() or high.any():
-            where = int(np.argmax(low | high))
-            raise StepFailure(f"nutrient c = {c[where]:.6g} outside [0, {self.upper:g}]", self.fv.describe(where))
-        return self.projection.onto(c, 0.0, self.upper)
+        return self.projection.checked(c, self.upper, "nutrient c", self.fv.describe)
