@@ -448,33 +448,35 @@ def _with_interval(part: xr.Dataset, key: str, o: int, j: int) -> str:
     return number(value, 3)
 
 
-def refreshed(source):
-    """study.nc brought up to date with DIR/cases/: a sweep that is still running, or was interrupted, has not
-    written it yet.  Re-combined from the study file it records (with the overrides study.nc records), when
-    that file is still there and a case file is newer than study.nc; else study.nc as it is."""
+def current(source) -> xr.Dataset:
+    """study.nc's contents up to date with DIR/cases/: a sweep that is still running, or was interrupted, has
+    not written it yet.  Combined in memory from the study file it records (with the overrides study.nc
+    records), when that file is still there and a case file is newer than study.nc; else study.nc as it is.
+    Nothing is written: the directory belongs to its sweep (`ownership`)."""
     import tomllib
 
     import netCDF4
 
-    from . import combine
+    from . import combine, store
     from .study import load_study
     from .tomltext import literal
 
     cases = sorted(source.parent.joinpath("cases").glob("*.nc"), key=lambda p: p.stat().st_mtime)
     if not cases or (source.is_file() and source.stat().st_mtime >= cases[-1].stat().st_mtime):
-        return source
+        return store.open_dataset(source)
     record = source if source.is_file() else cases[-1]
     try:
         with netCDF4.Dataset(record) as nc:
             attrs = {name: nc.getncattr(name) for name in ("study_file", "overrides") if name in nc.ncattrs()}
     except OSError:
-        return source
+        return store.open_dataset(source)
     study_file = attrs.get("study_file")
     if not study_file or not os.path.isfile(study_file):
-        return source
+        return store.open_dataset(source)
     fixed = tomllib.loads(str(attrs.get("overrides", ""))) if record == source else {}
     plan = load_study(study_file, [f"{key}={literal(value)}" for key, value in fixed.items()])
-    return combine.write_study(plan, source.parent)
+    with contextlib.ExitStack() as opened:
+        return combine.combine(plan, source.parent, opened).load()
 
 
 def write(source, outputs: list[str] | None = None, times: list[float] | None = None) -> tuple[list, str]:
@@ -487,8 +489,8 @@ def write(source, outputs: list[str] | None = None, times: list[float] | None = 
     from .plots.analysis import indices_figure, sample_figure, scatter_figure
     from .plots.style import save
 
-    source = refreshed(Path(source))
-    ds = store.open_dataset(source)
+    source = Path(source)
+    ds = current(source)
     directory = source.parent
     try:
         result = analyze(ds, outputs or None, times or None)
