@@ -12,7 +12,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import BadInput
+from .errors import BadInput, first_line
 
 
 def studies_dir() -> Path:
@@ -42,7 +42,7 @@ def entries(directory: Path | None = None) -> list[Entry]:
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
-            found.append(Entry(path, "unreadable", str(error).splitlines()[0]))
+            found.append(Entry(path, "unreadable", first_line(error)))
             continue
         found.append(Entry(path, kind(data), str(data.get("description", ""))))
     order = {"scene": 0, "study": 1, "stability": 2}

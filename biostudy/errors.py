@@ -23,6 +23,11 @@ from .formatting import value_text
 SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
 
 
+
+def first_line(error: BaseException) -> str:
+    """The first line of an exception's message, or its type's name when the message is empty."""
+    return (str(error).splitlines() or [type(error).__name__])[0]
+
 class BadInput(Exception):
     """Input a user can fix.  str() is 'file: key: problem' (parts that are known); `more` holds the
     other problems found in the same input, `lines()` all of them."""
@@ -125,7 +130,7 @@ def from_validation_error(error: ValidationError, file: str | Path | None,
 
 def from_toml_error(error: tomllib.TOMLDecodeError, file: str | Path) -> BadInput:
     """tomllib's message, e.g. 'Expected '=' after a key (at line 3, column 5)', as one line."""
-    return BadInput(f"not valid TOML: {str(error).splitlines()[0]}", file)
+    return BadInput(f"not valid TOML: {first_line(error)}", file)
 
 
 def read_toml(path: str | Path) -> dict:

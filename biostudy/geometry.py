@@ -31,7 +31,7 @@ from solver import Grid
 from solver.problem import FACES
 
 from . import structures
-from .errors import InvalidAt
+from .errors import InvalidAt, first_line
 from .formatting import value_text
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
@@ -225,7 +225,7 @@ def _read_mask(path: str, mtime_ns: int, size: int) -> np.ndarray:
     except OSError as error:
         raise InvalidAt("path", f"cannot read {path} ({error.strerror or error})") from None
     except Exception as error:  # whatever a damaged or crafted header raises (ValueError, SyntaxError, ...)
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        reason = first_line(error)
         raise InvalidAt("path", f"cannot read {path} as a .npy array: not a .npy file ({reason})") from None
     if dtype.hasobject:
         raise InvalidAt("path", f"cannot read {path} as a .npy array: it holds Python objects, not booleans")
@@ -235,7 +235,7 @@ def _read_mask(path: str, mtime_ns: int, size: int) -> np.ndarray:
     try:
         array = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as error:
-        raise InvalidAt("path", f"cannot read {path} as a .npy array ({str(error).splitlines()[0]})") from None
+        raise InvalidAt("path", f"cannot read {path} as a .npy array ({first_line(error)})") from None
     if array.dtype != bool:
         if not (np.issubdtype(array.dtype, np.integer) and np.isin(array, (0, 1)).all()):
             raise InvalidAt("path", f"{path} holds {array.dtype} values; a mask is boolean (or 0/1)")

@@ -40,7 +40,7 @@ import numpy as np
 import xarray as xr
 
 from . import netcdf
-from .errors import BadInput
+from .errors import BadInput, first_line
 
 TMP_GLOB = ".*.tmp"
 TEMPORARY = re.compile(r"^\..+\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")  # .NAME.PID.TOKEN.tmp, see `temporary_name`
@@ -214,9 +214,9 @@ def open_dataset(path: str | Path) -> xr.Dataset:
         with xr.open_dataset(path, engine="netcdf4") as ds:
             return netcdf.as_run(ds.load())
     except (OSError, ValueError) as error:
-        raise BadInput(f"not a netCDF dataset ({str(error).splitlines()[0]})", path) from None
+        raise BadInput(f"not a netCDF dataset ({first_line(error)})", path) from None
     except RuntimeError as error:  # netCDF4/HDF5 while reading data: a checksum that does not match
-        raise BadInput(f"damaged: its data cannot be read ({str(error).splitlines()[0]})", path) from None
+        raise BadInput(f"damaged: its data cannot be read ({first_line(error)})", path) from None
 
 
 def kind(ds: xr.Dataset) -> str:

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .errors import first_line
+
 if TYPE_CHECKING:
     import solver
     import xarray as xr
@@ -100,7 +102,7 @@ def solve(problem: "solver.Problem") -> Outcome:
     except Exception as error:  # a bug or resource problem in this case must not sink the others
         frame = traceback.extract_tb(error.__traceback__)[-1]
         where = f" (at {Path(frame.filename).name}:{frame.lineno})"
-        message = f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}{where}"
+        message = f"{type(error).__name__}: {str(error) and first_line(error)}{where}"
         if isinstance(error, MemoryError):
             message = f"out of memory ({message})"
         return Outcome("failed", None, message, time.perf_counter() - began, type(error).__name__)

@@ -97,3 +97,10 @@ def test_dataset_layout_after_a_netcdf_round_trip(write_toml, tmp_path):
     assert recorded["params"]["g"] == 2e8 and recorded["grid"]["shape"] == [10, 9, 8]
     assert load_scene(path, ["params.g=2e8"]).to_toml() == attrs["scene"]
     xr.testing.assert_allclose(back.phi, ds.phi)
+
+
+def test_first_line_of_an_error_never_fails_on_an_empty_message():
+    from biostudy.errors import first_line
+
+    assert first_line(OSError("bad header\nmore detail")) == "bad header"
+    assert first_line(OSError()) == "OSError"  # str(error).splitlines()[0] raised IndexError here
