@@ -498,7 +498,7 @@ def write(source, outputs: list[str] | None = None, times: list[float] | None = 
         raise BadInput(str(error), source, "--output" if "output" in str(error) else None) from None
     text = table_text(result)
     written = [store.write_atomic(result, directory / "analysis.nc")]
-    (directory / "analysis.md").write_text(text, encoding="utf-8")
+    store.write_text(directory / "analysis.md", text)
     written.append(directory / "analysis.md")
     written.append(save(indices_figure(result), directory / "analysis_indices.png"))
     names = list(result.output.values)

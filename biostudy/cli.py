@@ -326,6 +326,7 @@ def convergence(
 
     def start():
         from . import convergence as refinement
+        from . import store
         from .plots.accuracy import work_precision
         from .scene import apply_overrides, read_scene_data
 
@@ -339,7 +340,7 @@ def convergence(
             ds, report = refinement.run(data, path, directory, levels, chosen, tolerance, workers, scheduler,
                                         notify, fixed, reference, time, force, rerun_all)
             table = refinement.table_text(ds)
-            (directory / "convergence.md").write_text(table)
+            store.write_text(directory / "convergence.md", table)
             work_precision(ds, directory / "work_precision.png")
             return _Finished(f"wrote {directory / 'convergence.nc'}, convergence.md, work_precision.png "
                              f"({len(report.ran)} runs, {len(report.skipped)} finished before)", report.failed,
@@ -474,6 +475,7 @@ def stability(
 
     def start():
         from . import stability as catalogue_run
+        from . import store
 
         path = bundled.resolve(catalogue)
         plan = catalogue_run.load(path, overrides)
@@ -482,7 +484,7 @@ def stability(
         def run(notify) -> _Finished:
             ds, report = catalogue_run.run(plan, directory, workers, scheduler, notify, force, rerun_all)
             table = catalogue_run.table_text(ds)
-            (directory / "stability.md").write_text(table)
+            store.write_text(directory / "stability.md", table)
             failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}
             return _Finished(f"wrote {directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of "
                              f"{ds.sizes['case']} cases completed within bounds or stopped with a diagnosis",

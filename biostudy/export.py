@@ -24,7 +24,6 @@ filters; the cell count of each file is the number of open cells.
 """
 from __future__ import annotations
 
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -35,7 +34,7 @@ import xarray as xr
 from solver import Grid
 from solver.problem import AXES
 
-from .store import temporary_name
+from .store import atomic
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
 MECHANICS_TIME = "time_mechanics"
@@ -142,9 +141,9 @@ def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[
             field_data["mechanics_time"] = float(ds[MECHANICS_TIME].values[m]) if m >= 0 else float("nan")
         mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
         vectors = "u" if point_data else None
-        written.append(_atomic(directory / SNAPSHOT.format(t),
+        written.append(atomic(directory / SNAPSHOT.format(t),
                                lambda path: _write_vtu(path, mesh, field_data, vectors)))  # noqa: B023 (called at once)
-    written.append(_atomic(directory / COLLECTION, lambda path: _write_collection(path, written, times)))
+    written.append(atomic(directory / COLLECTION, lambda path: _write_collection(path, written, times)))
     return written
 
 
@@ -188,17 +187,6 @@ def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -
     if vectors is not None:
         piece.find("PointData").set("Vectors", vectors)
     tree.write(path)
-
-
-def _atomic(path: Path, write) -> Path:
-    """write(temporary) beside `path`, then renamed to it: the file is complete or absent."""
-    temporary = temporary_name(path)
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
-    return path
 
 
 def _write_collection(path: Path, files: list[Path], times: np.ndarray) -> Path:

@@ -115,9 +115,7 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False) -> Iterato
         _check_owner(directory, owner, force)
         record = toml_dumps({"owner": owner.describe(), "fingerprint": owner.fingerprint, **asdict(owner),
                              "keys": list(owner.keys)})
-        temporary = store.temporary_name(directory / OWNER)
-        temporary.write_text(record, encoding="utf-8")
-        os.replace(temporary, directory / OWNER)
+        store.write_text(directory / OWNER, record)
         yield directory
     finally:
         os.close(fd)  # releases the lock

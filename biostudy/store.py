@@ -34,7 +34,7 @@ import os
 import re
 import secrets
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 import xarray as xr
@@ -96,29 +96,46 @@ def temporary_name(path: Path) -> Path:
     return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
 
 
-def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
-    beside it, fsync, rename; nothing else on failure."""
+def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False) -> Path:
+    """write(temporary) beside `path` (unique to this writer), then renamed to it: the file is complete or
+    absent, and nothing else is left on failure.  `fsync`: the data and the rename reach the disk first."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     temporary = temporary_name(path)
     try:
-        ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4", encoding=netcdf.encoding(ds))
-        with open(temporary, "rb+") as handle:
-            os.fsync(handle.fileno())
+        write(temporary)
+        if fsync:
+            with open(temporary, "rb+") as handle:
+                os.fsync(handle.fileno())
         os.replace(temporary, path)
-    except BaseException:
+    finally:
         temporary.unlink(missing_ok=True)
-        raise
+    if fsync:
+        _fsync_directory(path.parent)
+    return path
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """A text file (a report beside a dataset), written atomically."""
+    return atomic(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+
+
+def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
+    beside it, fsync, rename; nothing else on failure."""
+    return atomic(path, lambda temporary: ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4",
+                                                       encoding=netcdf.encoding(ds)), fsync=True)
+
+
+def _fsync_directory(directory: Path) -> None:
     try:
-        directory = os.open(path.parent, os.O_RDONLY)
+        handle = os.open(directory, os.O_RDONLY)
         try:
-            os.fsync(directory)
+            os.fsync(handle)
         finally:
-            os.close(directory)
+            os.close(handle)
     except OSError:
         pass  # directories cannot be fsynced on every platform; the rename itself is done
-    return path
 
 
 def _alive(pid: int) -> bool:

@@ -10,7 +10,6 @@ compression, red tension, as the paper's stress pictures).  Obstacle cells
 """
 from __future__ import annotations
 
-import os
 import textwrap
 from pathlib import Path
 
@@ -20,7 +19,7 @@ import numpy as np
 import xarray as xr
 
 from ..formatting import number, shown_units
-from ..store import temporary_name
+from ..store import atomic
 
 OBSTACLE_GREY = "0.6"
 SOURCE_GREEN = "#2ca02c"
@@ -131,12 +130,8 @@ def output_paths(out: Path, tags: list[str]) -> list[Path]:
 
 def save(fig, path: Path) -> Path:
     """Write the figure to `path` atomically (a temporary beside it, renamed): complete or absent."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = temporary_name(path)
     try:
-        fig.savefig(temporary, dpi=DPI, format=path.suffix.lstrip(".").lower() or "png")
-        os.replace(temporary, path)
+        return atomic(path, lambda temporary: fig.savefig(temporary, dpi=DPI,
+                                                         format=path.suffix.lstrip(".").lower() or "png"))
     finally:
-        temporary.unlink(missing_ok=True)
         plt.close(fig)
-    return path
