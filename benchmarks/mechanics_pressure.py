@@ -91,11 +91,11 @@ def block(n: int):
 def grate():
     from biostudy import bundled
     from biostudy.scene import load_scene
-    from solver import Run
+    from solver import Simulation
 
     scene = load_scene(bundled.resolve("grate"), ["mechanics.every=1000"])
     problem = scene.problem()
-    run = Run(problem)
+    run = Simulation(problem)
     *_, last = list(run)
     grid = problem.grid
     corners = obstacle_corners(problem.obstacle, grid.spacing) + [(0, 0), (grid.extent[0], 0), (0, grid.extent[1]),

@@ -18,8 +18,8 @@ import numpy as np  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 
 from solver import Grid, Parameters  # noqa: E402
-from solver.finite_volume import FiniteVolumeGrid  # noqa: E402
-from solver.nutrient import Nutrient  # noqa: E402
+from solver.transport.finite_volume import FiniteVolumeGrid  # noqa: E402
+from solver.transport.nutrient import Nutrient  # noqa: E402
 
 
 def directional(n: int):

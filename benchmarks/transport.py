@@ -7,7 +7,7 @@
 Per grid: ms per step split into nutrient solve, velocity, phi solve and
 bookkeeping (everything else in the loop: expansion, checks, snapshots), the
 one-off setup, peak memory (each size runs in a fresh process), and the same
-grid stepped by plain FiPy (`solver.fipy_reference`, every matrix rebuilt)
+grid stepped by plain FiPy (`tests/fipy_reference.py`, every matrix rebuilt)
 with its default solvers (LU) and with CG/GMRES (the pointwise growth velocity,
 as FiPy's terms write it).  Each growth velocity asked for gets its own rows.
 The cost exponent is fitted between the smallest and largest size: time per
@@ -38,16 +38,16 @@ def directional(n: int, steps: int, advection: str = "upwind", velocity: str = "
     phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
     held = (x > 17) & (y > 17) & (z > 17)
     dt = 1e-3
-    return Problem(grid=grid, phi0=phi0, nutrient_fixed=held, t_end=steps * dt, steps=steps,
+    return Problem(grid=grid, phi0=phi0, nutrient_held=held, t_end=steps * dt, steps=steps,
                    output_times=[0.0, steps * dt], numerics=Numerics(advection=advection, growth_velocity=velocity),
                    name="directional")
 
 
 def measure_fast(n: int, steps: int, advection: str, velocity: str) -> dict:
-    from solver import Run
+    from solver import Simulation
 
     began = time.perf_counter()
-    run = Run(directional(n, steps, advection, velocity))
+    run = Simulation(directional(n, steps, advection, velocity))
     snapshots = iter(run)
     next(snapshots)  # t = 0: operators built, first nutrient solve, first AMG hierarchy
     setup = time.perf_counter() - began
@@ -66,7 +66,8 @@ def measure_fast(n: int, steps: int, advection: str, velocity: str) -> dict:
 
 
 def measure_fipy(n: int, steps: int, solvers: str) -> dict:
-    from solver.fipy_reference import FipyTransport
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "tests"))
+    from fipy_reference import FipyTransport  # the plain-FiPy reference lives beside the tests that use it
 
     reference = FipyTransport(directional(n, steps), solvers=solvers)
     reference.solve_nutrient()

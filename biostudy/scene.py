@@ -285,7 +285,7 @@ class Scene(BaseModel):
         phi0[blocked] = 0.0  # biofilm does not live inside a solid
         mechanics = self.mechanics.solver_setup() if self.mechanics is not None else None
         return solver.Problem(
-            grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
+            grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
             params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
             numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)

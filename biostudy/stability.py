@@ -19,7 +19,7 @@ workers, a Dask cluster, resume) and gets a verdict:
 
 What the read-back can and cannot see: the solver itself checks c and phi
 against their bounds after every step and projects round-off (within
-`solver.bounds.ROUNDOFF`) onto them, failing the step beyond that; so the
+`solver.transport.bounds.ROUNDOFF`) onto them, failing the step beyond that; so the
 written c and phi lie within each step's bounds by construction, and the
 read-back confirms the file, not the numerics.  It does check what no single
 step does (phi against the source's bound over the whole run, alpha, p, NaN
@@ -38,7 +38,7 @@ import numpy as np
 import xarray as xr
 from pydantic import ConfigDict, Field, model_validator
 
-from solver.bounds import ROUNDOFF
+from solver.transport.bounds import ROUNDOFF
 from solver.output import cf_attrs, on_output_times
 from solver.problem import parameter_infos
 

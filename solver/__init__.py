@@ -10,10 +10,10 @@ Nothing here knows about files, schemas or command lines.
 """
 from .errors import MechanicsError, SimulationError, StepFailure
 from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
-from .timeloop import Progress, Run, Snapshot, evolve, simulate
+from .timeloop import Progress, Simulation, Snapshot, evolve, simulate
 
 __all__ = [
     "Grid", "Parameters", "Numerics", "MechanicsSetup", "Problem",
-    "simulate", "evolve", "Run", "Snapshot", "Progress",
+    "simulate", "evolve", "Simulation", "Snapshot", "Progress",
     "SimulationError", "MechanicsError", "StepFailure",
 ]

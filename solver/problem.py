@@ -223,8 +223,8 @@ class Problem:
     """One simulation (docs/model.md): initial state, sources, obstacles, clocks.
 
     phi0: initial biofilm density per cell (0 in obstacles).
-    nutrient_fixed: cells where c is held at ``nutrient_value`` at all times.
-    nutrient_value: held concentration per cell (read where nutrient_fixed).
+    nutrient_held: cells where c is held at ``nutrient_value`` at all times.
+    nutrient_value: held concentration per cell (read where nutrient_held).
     nutrient_faces: boundary faces where c is held, as (face, value) pairs, e.g.
         (("z-", 1.0),): a Dirichlet condition on the grid's outer face (the
         paper's "nodes on the bottom plane"); the cells next to it stay free
@@ -237,7 +237,7 @@ class Problem:
 
     grid: Grid
     phi0: np.ndarray
-    nutrient_fixed: np.ndarray
+    nutrient_held: np.ndarray
     t_end: float
     steps: int
     output_times: np.ndarray
@@ -254,7 +254,7 @@ class Problem:
         shape = self.grid.cells_shape
         fix = object.__setattr__
         fix(self, "phi0", np.asarray(self.phi0, dtype=float).reshape(shape))
-        fix(self, "nutrient_fixed", np.asarray(self.nutrient_fixed, dtype=bool).reshape(shape))
+        fix(self, "nutrient_held", np.asarray(self.nutrient_held, dtype=bool).reshape(shape))
         value = np.ones(shape) if self.nutrient_value is None else self.nutrient_value
         fix(self, "nutrient_value", np.broadcast_to(np.asarray(value, dtype=float), shape).copy())
         obstacle = np.zeros(shape, bool) if self.obstacle is None else self.obstacle
@@ -277,10 +277,10 @@ class Problem:
                 raise ValueError(f"nutrient face {face!r} is not a face of this {self.grid.ndim}-D grid")
         if len(set(faces)) < len(faces):  # held twice would count its boundary flux twice
             raise ValueError("a nutrient face is held more than once")
-        values = np.concatenate([self.nutrient_value[self.nutrient_fixed], [v for _, v in self.nutrient_faces]])
+        values = np.concatenate([self.nutrient_value[self.nutrient_held], [v for _, v in self.nutrient_faces]])
         if np.any((values < 0) | (values > 1)):
             raise ValueError("held nutrient values must lie in [0, 1]")
-        if np.any(self.nutrient_fixed & self.obstacle):
+        if np.any(self.nutrient_held & self.obstacle):
             raise ValueError("nutrient sources must not lie inside obstacles")
         if np.any((self.phi0 < 0) | (self.phi0 > 1)):
             raise ValueError("initial phi must lie in [0, 1]")

@@ -27,6 +27,7 @@ from typing import Callable, Iterator
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .counters import Count, Counters, values
 from .errors import SimulationError, StepFailure
 from .problem import Problem
 from .transport import State, Transport
@@ -83,6 +84,12 @@ class Clock:
         self.dt = self.nominal
         self.steps = self.bisections = self.rejected = 0
         self.largest_error = 0.0
+
+    def counters(self) -> Counters:
+        return {"steps_taken": Count(self.steps, "accepted steps"),
+                "steps_bisected": Count(self.bisections, "failed steps, bisected"),
+                "steps_rejected": Count(self.rejected, "steps rejected by the error control"),
+                "largest_step_error": Count(self.largest_error, "largest accepted local error estimate in phi")}
 
     def advance(self, state: State, until: float) -> State:
         """Step from state.t to exactly `until`."""
@@ -142,7 +149,7 @@ def _mechanics(problem: Problem):
     return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle)
 
 
-class Run:
+class Simulation:
     """One simulation: iterate it for a `Snapshot` at every output time; its cost stays readable."""
 
     def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
@@ -178,31 +185,19 @@ class Run:
 
     def report(self) -> dict:
         """What the run cost: wall time, counters, where the time went."""
-        t, c = self.transport, self.clock
-        return {
-            "wall_time": time.perf_counter() - self.started,
-            "steps_taken": c.steps, "steps_bisected": c.bisections, "steps_rejected": c.rejected,
-            "timings": dict(t.timings),
-            "nutrient_cg_iterations": t.nutrient.amg.iterations,
-            "nutrient_amg_rebuilds": t.nutrient.amg.rebuilds,
-            "biofilm_iterations": t.biofilm.iterations,
-            "nutrient_active_set_iterations": t.nutrient.active_set_iterations,
-            "projected_c_count": t.nutrient.projection.count, "projected_c_largest": t.nutrient.projection.largest,
-            "projected_phi_count": t.biofilm.projection.count, "projected_phi_largest": t.biofilm.projection.largest,
-            "numerical_diffusion_max": None if t.biofilm.tvd else t.largest_numerical_diffusion,
-            "largest_step_error": c.largest_error,
-        }
+        return {"wall_time": time.perf_counter() - self.started, "timings": dict(self.transport.timings),
+                **values({**self.clock.counters(), **self.transport.counters()})}
 
 
 def evolve(problem: Problem, progress: Callable[[Progress], None] | None = None) -> Iterator[Snapshot]:
     """Yield a `Snapshot` at every output time; ``next()`` steps it in tests."""
-    return iter(Run(problem, progress))
+    return iter(Simulation(problem, progress))
 
 
 def simulate(problem: Problem, progress: Callable[[Progress], None] | None = None):
     """Run `problem` to t_end and return its dataset (see `output.to_dataset`)."""
     from .output import to_dataset
 
-    run = Run(problem, progress)
-    snapshots = list(run)
-    return to_dataset(problem, snapshots, run.report())
+    simulation = Simulation(problem, progress)
+    snapshots = list(simulation)
+    return to_dataset(problem, snapshots, simulation.report())

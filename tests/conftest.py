@@ -134,7 +134,7 @@ def tiny_run():
         phi0 = (sum((q - m) ** 2 for q, m in zip(coords, centre)) <= (2 * spacing) ** 2).astype(float)
         held = np.logical_and.reduce([q > (n - 1) * spacing for q, n in zip(coords, shape)])
         blocked = np.logical_and.reduce([q < 2 * spacing for q in coords[:2]])
-        return simulate(Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_fixed=held,
+        return simulate(Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_held=held,
                                 obstacle=blocked, t_end=0.02, steps=4, output_times=[0, 0.01, 0.02], name="tiny"))
 
     return run

@@ -6,7 +6,7 @@ import pytest
 import xarray as xr
 
 from biostudy import stability
-from solver.bounds import ROUNDOFF
+from solver.transport.bounds import ROUNDOFF
 from test_cli import invoke
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
@@ -109,7 +109,7 @@ def test_bounds_check_catches_what_the_solver_must_never_write(tmp_path):
 
     grid = Grid((6, 6), 1.0)
     x, y = grid.cell_coordinates()
-    ds = simulate(Problem(grid=grid, phi0=(x < 3).astype(float), nutrient_fixed=x > 5, t_end=0.1, steps=5,
+    ds = simulate(Problem(grid=grid, phi0=(x < 3).astype(float), nutrient_held=x > 5, t_end=0.1, steps=5,
                           output_times=[0, 0.1]))
     assert stability.examine(ds)["broken"] == ""
     for corrupt, expected in ((lambda d: d.phi.values.__setitem__((1, 2, 2), np.nan), "non-finite"),

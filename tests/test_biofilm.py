@@ -5,7 +5,7 @@ import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
 from solver import Grid, Numerics, Parameters, Problem, evolve, simulate
-from solver.finite_volume import fipy_mesh
+from solver.transport.finite_volume import fipy_mesh
 from solver.errors import StepFailure
 from solver.timeloop import Clock
 from solver.transport import Transport
@@ -14,7 +14,7 @@ from solver.transport import Transport
 def problem_on(grid, phi0, held=None, value=None, obstacle=None, t_end=1.0, steps=100, outputs=None, **kw):
     held = np.zeros(grid.cells_shape, bool) if held is None else held
     outputs = np.linspace(0, t_end, 2) if outputs is None else outputs
-    return Problem(grid=grid, phi0=phi0, nutrient_fixed=held, nutrient_value=value, obstacle=obstacle,
+    return Problem(grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, obstacle=obstacle,
                    t_end=t_end, steps=steps, output_times=outputs, **kw)
 
 

@@ -3,8 +3,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from solver import Grid, Numerics, Parameters, Problem
-from solver.finite_volume import FiniteVolumeGrid
-from solver.fipy_reference import FipyTransport
+from solver.transport.finite_volume import FiniteVolumeGrid
+from fipy_reference import FipyTransport
 from solver.transport import Transport
 
 
@@ -45,7 +45,7 @@ def directional(n, steps, t_end):
     grid = Grid((n, n, n), 20.0 / n)
     x, y, z = grid.cell_coordinates()
     phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
-    return Problem(grid=grid, phi0=phi0, nutrient_fixed=(x > 16) & (y > 16) & (z > 16),
+    return Problem(grid=grid, phi0=phi0, nutrient_held=(x > 16) & (y > 16) & (z > 16),
                    t_end=t_end, steps=steps, output_times=[0, t_end], params=Parameters(k_alpha=0.5),
                    numerics=Numerics(growth_velocity="pointwise"))  # the FiPy reference has the pointwise velocity
 

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from solver.finite_volume import FiniteVolumeGrid
-from solver.nutrient import Nutrient
+from solver.transport.finite_volume import FiniteVolumeGrid
+from solver.transport.nutrient import Nutrient
 from solver.problem import Grid, Parameters
 
 LENGTH = 16.0  # µm; c = 1 held in the first column of cells, zero flux at x = LENGTH
@@ -123,7 +123,7 @@ def test_bounds_hold_on_stiff_nutrient(consumption, d, g):
 def test_held_face_cosh_profile_converges_at_second_order(face):
     """c = 1 held on the boundary face itself (no source cells): c = cosh(m (L - s)) / cosh(m L), s the distance
     from the face; the cells beside the face stay free.  The velocity's cell gradient there uses the face value."""
-    from solver.biofilm import Velocity
+    from solver.transport.biofilm import Velocity
 
     gamma, m = 0.25, 0.5
     errors, slopes, sizes = [], [], []

@@ -19,7 +19,7 @@ def small_problem(shape=(6, 5, 4), obstacle=True):
         blocked[..., -1, 0] = True
     held = np.zeros(grid.cells_shape, bool)
     held[..., -1, -1] = True
-    return Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_fixed=held, obstacle=blocked, t_end=0.01,
+    return Problem(grid=grid, phi0=np.where(blocked, 0, phi0), nutrient_held=held, obstacle=blocked, t_end=0.01,
                    steps=4, output_times=[0, 0.005, 0.01], params=Parameters(g=2e8), name="small")
 
 

@@ -30,7 +30,7 @@ def test_problem_has_the_scenes_masks_in_solver_order(tiny_scene):
     disc = (x - 8) ** 2 + (y - 8) ** 2 <= 9
     assert np.array_equal(problem.phi0, np.where(disc, 0.5, 0.0))
     corner = (x > 14) & (y > 14)
-    assert np.array_equal(problem.nutrient_fixed, corner)
+    assert np.array_equal(problem.nutrient_held, corner)
     assert np.all(problem.nutrient_value[corner] == 0.8)
     # the obstacle box x in [0, 3], y in [12, 16]: 3 x 4 cells, the row index is y
     assert problem.obstacle.sum() == 12 and problem.obstacle[15, 0] and not problem.obstacle[0, 15]
@@ -178,7 +178,7 @@ def test_directional_scene_is_the_papers_4_1():
     assert problem.t_end == 1.0 and problem.steps == 1000 and len(problem.output_times) == 21
     x, y, z = problem.grid.cell_coordinates()
     assert np.array_equal(problem.phi0, ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float))
-    assert np.array_equal(problem.nutrient_fixed, (x > 19) & (y > 19) & (z > 19))  # the corner cell, as the paper
+    assert np.array_equal(problem.nutrient_held, (x > 19) & (y > 19) & (z > 19))  # the corner cell, as the paper
     assert problem.params == solver.Parameters()
 
 
@@ -186,7 +186,7 @@ def test_agar_scenes_hold_the_nutrient_on_the_bottom_face():
     """Paper 4.2: c = 1 on the bottom plane itself; the colony (5 µm across) stands on it, its cells free."""
     for name in ("agar-g1e8", "agar-g1e10"):
         problem = load_scene(bundled.resolve(name)).problem()
-        assert problem.nutrient_faces == (("z-", 1.0),) and not problem.nutrient_fixed.any()
+        assert problem.nutrient_faces == (("z-", 1.0),) and not problem.nutrient_held.any()
         x, y, z = problem.grid.cell_coordinates()
         colony = problem.phi0 == 1.0
         assert colony[0].any() and np.ptp(x[colony]) + 1 <= 5 and np.ptp(y[colony]) + 1 <= 5
@@ -217,5 +217,5 @@ def test_a_face_held_twice_is_refused_by_the_scene_and_by_the_solver(write_toml)
         load_scene(path)
     grid = solver.Grid((8, 8), 1.0)
     with pytest.raises(ValueError, match="held more than once"):
-        solver.Problem(grid=grid, phi0=np.zeros(grid.cells_shape), nutrient_fixed=np.zeros(grid.cells_shape, bool),
+        solver.Problem(grid=grid, phi0=np.zeros(grid.cells_shape), nutrient_held=np.zeros(grid.cells_shape, bool),
                        nutrient_faces=(("y-", 1.0), ("y-", 0.5)), t_end=0.01, steps=2, output_times=[0.0, 0.01])

@@ -13,7 +13,7 @@ def sphere_problem(n=10, t_end=0.2, steps=20, outputs=(0.0, 0.2), **kw):
     x, y, z = grid.cell_coordinates()
     phi0 = ((x - 10) ** 2 + (y - 10) ** 2 + (z - 10) ** 2 <= 25).astype(float)
     held = (x > 16) & (y > 16) & (z > 16)
-    return Problem(grid=grid, phi0=phi0, nutrient_fixed=held, t_end=t_end, steps=steps,
+    return Problem(grid=grid, phi0=phi0, nutrient_held=held, t_end=t_end, steps=steps,
                    output_times=np.asarray(outputs), **kw)
 
 
@@ -99,10 +99,10 @@ def test_two_dimensional_scene_is_solved_in_two_dimensions():
     x2, y2 = Grid((12, 8), 1.0).cell_coordinates()
     phi0 = ((x2 - 6) ** 2 + (y2 - 4) ** 2 <= 4).astype(float)
     common = dict(t_end=0.1, steps=10, output_times=[0, 0.05, 0.1], params=Parameters(g=1e9))
-    flat = simulate(Problem(grid=Grid((12, 8), 1.0), phi0=phi0, nutrient_fixed=x2 > 11, **common))
+    flat = simulate(Problem(grid=Grid((12, 8), 1.0), phi0=phi0, nutrient_held=x2 > 11, **common))
     assert flat.phi.dims == ("time", "y", "x") and "z" not in flat.dims and flat.phi.shape == (3, 8, 12)
     thick = simulate(Problem(grid=Grid((12, 8, 3), 1.0), phi0=np.stack([phi0] * 3),
-                             nutrient_fixed=np.stack([x2 > 11] * 3), **common))
+                             nutrient_held=np.stack([x2 > 11] * 3), **common))
     for name in ("phi", "c", "alpha"):
         for layer in range(3):
             np.testing.assert_allclose(flat[name].values, thick[name].values[:, layer], rtol=0, atol=1e-9)

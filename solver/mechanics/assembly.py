@@ -41,24 +41,24 @@ from .mesh import StructuredMesh
 class Evaluation:
     """One evaluation at a displacement: everything Newton and the output need."""
 
-    residual: np.ndarray  # (dofs,), zero at fixed dofs
-    matrix: sp.bsr_matrix | None  # consistent tangent, identity at fixed dofs
+    residual: np.ndarray  # (dofs,), zero at constrained dofs
+    matrix: sp.bsr_matrix | None  # consistent tangent, identity at constrained dofs
     pressure: np.ndarray  # (elements,) Cauchy hydrostatic stress p = w kappa (Theta - 1), Pa
     min_det: np.ndarray  # (elements,) smallest det F over Gauss points and corners
     energy: float
 
 
 class Assembler:
-    """Assembles on a fixed pattern; `fixed` marks dofs held at zero."""
+    """Assembles on a fixed pattern; `constrained` marks dofs held at zero."""
 
-    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, chunk: int = 4096):
+    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = 4096):
         self.mesh = mesh
         self.d = d = mesh.ndim
         self.ref = ref = mesh.reference
         self.edofs = mesh.element_dofs()
         nloc = ref.gradients.shape[1]
         self._pattern()
-        self.constrain(fixed)
+        self.constrain(constrained)
         cells = mesh.grid.cells_shape
         self.plane = plane = int(np.prod(cells[1:]))  # elements per grid plane (cells, obstacles included)
         self.planes = max(1, chunk // plane)  # grid planes per slab
@@ -95,15 +95,15 @@ class Assembler:
         self.indices = mesh.grid_to_mesh_node[col_grid].astype(np.int32)
         self.indptr = np.searchsorted(self.rows, np.arange(mesh.n_nodes + 1)).astype(np.int32)
 
-    def constrain(self, fixed: np.ndarray):
-        """Hold the dofs `fixed` at zero: their rows and columns become the identity's."""
+    def constrain(self, constrained: np.ndarray):
+        """Hold the dofs `constrained` at zero: their rows and columns become the identity's."""
         d = self.d
-        self.fixed = np.asarray(fixed, bool)
-        fixed_node = self.fixed.reshape(-1, d)
-        self.keep = ~fixed_node[self.rows][:, :, None] & ~fixed_node[self.indices][:, None, :]
+        self.constrained = np.asarray(constrained, bool)
+        constrained_node = self.constrained.reshape(-1, d)
+        self.keep = ~constrained_node[self.rows][:, :, None] & ~constrained_node[self.indices][:, None, :]
         diag = np.flatnonzero(self.rows == self.indices)
-        node, comp = np.nonzero(fixed_node)
-        self.fixed_diag = (diag[node], comp)
+        node, comp = np.nonzero(constrained_node)
+        self.constrained_diagonal = (diag[node], comp)
 
     def gradient(self, u: np.ndarray, elements: slice, corners: bool = False) -> np.ndarray:
         """F = I + grad u at the Gauss points (or the corners) of some elements: (E, Q, 3, 3)."""
@@ -158,7 +158,7 @@ class Assembler:
                 K = self._element_matrices(Fd, Gd, J, s, c_fg, c_gg, c_swap, we * kappa / (Jg * V))
                 self._scatter(stencil, K, part, first, last)
         residual = np.bincount(self.edofs.ravel(), weights=forces.ravel(), minlength=mesh.n_dofs)
-        residual[self.fixed] = 0.0
+        residual[self.constrained] = 0.0
         matrix = self._matrix(stencil) if tangent and np.all(min_det > 0) else None
         return Evaluation(residual, matrix, pressure, min_det, energy)
 
@@ -223,5 +223,5 @@ class Assembler:
         d, n = self.d, self.mesh.n_dofs
         data = stencil.reshape(-1, d, d)[self.gather]
         data *= self.keep
-        data[self.fixed_diag[0], self.fixed_diag[1], self.fixed_diag[1]] = 1.0
+        data[self.constrained_diagonal[0], self.constrained_diagonal[1], self.constrained_diagonal[1]] = 1.0
         return sp.bsr_matrix((data, self.indices, self.indptr), shape=(n, n))

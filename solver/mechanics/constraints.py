@@ -5,7 +5,7 @@
 * obstacles (rigid, frictionless): on every face between an open cell and an
   obstacle cell, the component along that face's normal is zero; the
   tangential ones stay free.  A node touching obstacle faces with different
-  normals therefore has all those components fixed;
+  normals therefore has all those components held;
 * whatever rigid-body motion (3 translations + 3 rotations in 3-D, 2 + 1 in
   2-D) the constraints above leave free is removed by pinning single
   components of a few nodes, chosen greedily: a component is pinned only if
@@ -75,21 +75,21 @@ def _obstacle_normals(mesh: StructuredMesh) -> np.ndarray:
     return out.reshape(-1, d)
 
 
-def boundary_fixed(mesh: StructuredMesh, clamp=(), slide=()) -> np.ndarray:
+def boundary_held(mesh: StructuredMesh, clamp=(), slide=()) -> np.ndarray:
     """(dofs,) bool: held by clamp and slide faces and by obstacle faces."""
     d = mesh.ndim
-    fixed = np.zeros((mesh.n_nodes, d), bool)
+    constrained = np.zeros((mesh.n_nodes, d), bool)
     for face in (*clamp, *slide):
         axis = AXES.index(face[0])
         if axis >= d:
             raise ValueError(f"face {face!r} does not exist in a {d}-D grid")
         nodes = _face_nodes(mesh, axis, face[1])
         if face in clamp:
-            fixed[nodes, :] = True
+            constrained[nodes, :] = True
         else:
-            fixed[nodes, axis] = True
-    fixed |= _obstacle_normals(mesh)[mesh.nodes]
-    return fixed.ravel()
+            constrained[nodes, axis] = True
+    constrained |= _obstacle_normals(mesh)[mesh.nodes]
+    return constrained.ravel()
 
 
 def rigid_modes(points: np.ndarray) -> np.ndarray:
@@ -118,13 +118,13 @@ def _row_basis(rows: np.ndarray, tol: float) -> np.ndarray:
     return vt[sv > tol * max(sv[0], 1.0)]
 
 
-def pin_rigid_modes(mesh: StructuredMesh, fixed: np.ndarray,
+def pin_rigid_modes(mesh: StructuredMesh, constrained: np.ndarray,
                     stiffness: np.ndarray | None = None) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """`fixed` plus the pins removing the remaining rigid-body modes; also the pins as (mesh node, comp).
+    """`constrained` plus the pins removing the remaining rigid-body modes; also the pins as (mesh node, comp).
 
     stiffness: per mesh node (e.g. `node_stiffness`); None pins at the domain's corner (the origin)."""
     d = mesh.ndim
-    fixed = fixed.copy()
+    constrained = constrained.copy()
     piece = pieces(mesh)
     coords = mesh.node_coordinates()
     pins = []
@@ -139,7 +139,7 @@ def pin_rigid_modes(mesh: StructuredMesh, fixed: np.ndarray,
             anchor = pool[np.argmin(np.linalg.norm(coords[pool] - centre, axis=1))]
         x = (coords[nodes] - coords[anchor]) / mesh.h  # relative, in cells: well-conditioned
         modes = rigid_modes(x).reshape(nodes.size, d, -1)
-        held = fixed.reshape(-1, d)[nodes]
+        held = constrained.reshape(-1, d)[nodes]
         basis = _row_basis(modes[held], 1e-9)
         local = np.flatnonzero(np.isin(nodes, pool))
         candidates = [np.flatnonzero(nodes == anchor)[0]]
@@ -154,9 +154,9 @@ def pin_rigid_modes(mesh: StructuredMesh, fixed: np.ndarray,
                 rest = row - basis.T @ (basis @ row)
                 if np.linalg.norm(rest) > 1e-9 * max(np.linalg.norm(row), 1.0):
                     basis = np.vstack([basis, rest / np.linalg.norm(rest)])
-                    fixed[nodes[index] * d + comp] = True
+                    constrained[nodes[index] * d + comp] = True
                     pins.append((int(nodes[index]), comp))
-    return fixed, pins
+    return constrained, pins
 
 
 def pieces(mesh: StructuredMesh) -> np.ndarray:
@@ -179,7 +179,7 @@ def node_stiffness(mesh: StructuredMesh, weight: np.ndarray) -> np.ndarray:
     return total / np.bincount(conn.ravel(), minlength=mesh.n_nodes)
 
 
-def gauge(mesh: StructuredMesh, u: np.ndarray, fixed: np.ndarray, pins: list[tuple[int, int]]) -> np.ndarray:
+def gauge(mesh: StructuredMesh, u: np.ndarray, constrained: np.ndarray, pins: list[tuple[int, int]]) -> np.ndarray:
     """u minus the rigid-body motion that is zero at the held dofs and equals u at `pins`.
 
     The same equilibrium pinned elsewhere (exact for infinitesimal rotations:
@@ -190,7 +190,7 @@ def gauge(mesh: StructuredMesh, u: np.ndarray, fixed: np.ndarray, pins: list[tup
     coords = mesh.node_coordinates()
     modes = rigid_modes((coords - coords.mean(axis=0)) / mesh.h)
     rows = np.array([node * d + comp for node, comp in pins])
-    held = np.flatnonzero(fixed)
+    held = np.flatnonzero(constrained)
     held = held[~np.isin(held, rows)]
     system = np.vstack([modes[held], modes[rows]])
     target = np.concatenate([np.zeros(held.size), u[rows]])
@@ -198,8 +198,8 @@ def gauge(mesh: StructuredMesh, u: np.ndarray, fixed: np.ndarray, pins: list[tup
     return u - modes @ coefficients
 
 
-def body_modes(mesh: StructuredMesh, dense: np.ndarray, fixed: np.ndarray) -> np.ndarray:
-    """Orthonormal rigid-body modes of each connected dense body, zero elsewhere and at fixed dofs.
+def body_modes(mesh: StructuredMesh, dense: np.ndarray, constrained: np.ndarray) -> np.ndarray:
+    """Orthonormal rigid-body modes of each connected dense body, zero elsewhere and at constrained dofs.
 
     `dense` marks elements (e.g. phi > 1/2).  A body that touches no
     constraint floats in the void, held only by its residual stiffness: its
@@ -224,6 +224,6 @@ def body_modes(mesh: StructuredMesh, dense: np.ndarray, fixed: np.ndarray) -> np
         modes[nodes] = rigid_modes((coords[nodes] - coords[nodes].mean(axis=0)) / mesh.h).reshape(nodes.size, d, -1)
         columns.append(modes.reshape(mesh.n_dofs, -1))
     Z = np.hstack(columns)
-    Z[fixed] = 0.0
+    Z[constrained] = 0.0
     q, r = np.linalg.qr(Z)
     return q[:, np.abs(np.diag(r)) > 1e-10 * np.abs(np.diag(r)).max()]

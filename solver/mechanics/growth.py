@@ -27,7 +27,7 @@ from ..problem import Grid, MechanicsSetup, Parameters
 from . import material, preconditioners
 from .assembly import Assembler
 from . import constraints
-from .constraints import boundary_fixed, pin_rigid_modes, rigid_modes
+from .constraints import boundary_held, pin_rigid_modes, rigid_modes
 from .linear import TangentSolver
 from .loading import Attempts, Refused, step_load
 from .mesh import StructuredMesh
@@ -56,13 +56,13 @@ class GrowthMechanics:
         self.mesh = mesh = StructuredMesh(grid, obstacle)
         if mesh.n_elements == 0:
             raise ValueError("every cell is an obstacle: nothing to deform")
-        self.held = boundary_fixed(mesh, setup.clamp, setup.slide)  # by the scene: faces, obstacles
+        self.held = boundary_held(mesh, setup.clamp, setup.slide)  # by the scene: faces, obstacles
         # the reported u is pinned at the domain's corner; the solve pins where the biofilm is stiff
-        self.fixed, self.pins = pin_rigid_modes(mesh, self.held)
+        self.constrained, self.pins = pin_rigid_modes(mesh, self.held)
         self.gauge_pins, self.pieces = self.pins, constraints.pieces(mesh)
-        self.assembler = Assembler(mesh, self.fixed, settings.chunk)
+        self.assembler = Assembler(mesh, self.constrained, settings.chunk)
         modes = rigid_modes((mesh.node_coordinates() - mesh.node_coordinates().mean(axis=0)) / mesh.h)
-        self.linear = TangentSolver(preconditioners.choose(setup.linear_solver, mesh.n_dofs, mesh, self.fixed,
+        self.linear = TangentSolver(preconditioners.choose(setup.linear_solver, mesh.n_dofs, mesh, self.constrained,
                                                            modes, settings), settings)
         self.pressure = PressureRecovery(mesh)
         # last converged state, per element / dof
@@ -115,8 +115,8 @@ class GrowthMechanics:
         linear.reset_budget()
         linear.invalidate()  # a new stiffness: the old preconditioner would cost more than a new one
         self._pin_where_stiff(phi1)
-        if hasattr(linear.preconditioner, "Z"):  # the softest modes: rigid motions of each dense body
-            linear.preconditioner.Z = constraints.body_modes(self.mesh, phi1 > 0.5, self.fixed)
+        if linear.preconditioner.uses_modes:  # the softest modes: rigid motions of each dense body
+            linear.preconditioner.follow(constraints.body_modes(self.mesh, phi1 > 0.5, self.constrained))
         attempts = Attempts()
 
         def system(s_phi: float, s_alpha: float):
@@ -144,10 +144,10 @@ class GrowthMechanics:
         stiffness = constraints.node_stiffness(self.mesh, material.weight(phi, self.setup.residual_stiffness))
         if constraints.pins_are_stiff(self.pins, stiffness, self.pieces):
             return
-        self.fixed, self.pins = pin_rigid_modes(self.mesh, self.held, stiffness)
+        self.constrained, self.pins = pin_rigid_modes(self.mesh, self.held, stiffness)
         self.u = constraints.gauge(self.mesh, self.u, self.held, self.pins)
-        self.assembler.constrain(self.fixed)
-        self.linear.constrain(self.fixed)
+        self.assembler.constrain(self.constrained)
+        self.linear.constrain(self.constrained)
 
     def _result(self, u, evaluation, phi, attempts: Attempts, krylov: int, builds: int,
                 seconds: float) -> MechanicsResult:

@@ -66,9 +66,9 @@ class TangentSolver:
         """The next solve rebuilds first (the problem changed, e.g. a new snapshot's phi)."""
         self.ready = False
 
-    def constrain(self, fixed: np.ndarray):
+    def constrain(self, constrained: np.ndarray):
         """Other dofs held (the rigid-body pins moved): rebuild on the next solve."""
-        self.preconditioner.constrain(fixed)
+        self.preconditioner.constrain(constrained)
         self.ready = False
 
     def _build(self, A):
@@ -87,7 +87,7 @@ class TangentSolver:
             return np.zeros_like(b)
         if not self.ready:
             self._build(A)
-        elif hasattr(self.preconditioner, "prepare"):
+        else:
             self.preconditioner.prepare(A)
         x = np.zeros_like(b)
         for attempt in ("stale", "fresh", "gmres"):

@@ -9,7 +9,7 @@ two are compared in docs/mechanics.md.)
   from the coarse nodes, a Kronecker product of 1-D interpolations.  An odd
   cell count n gets ceil(n/2) coarse cells whose last one reaches past the
   domain; only its restriction to the domain matters.  Rows of nodes without
-  dofs (inside obstacles) are dropped, rows of fixed dofs zeroed, so the
+  dofs (inside obstacles) are dropped, rows of constrained dofs zeroed, so the
   coarse correction never moves a held component.
 * Coarse operators: Galerkin, A_c = P^T A P, in ndim x ndim blocks (BSR):
   they inherit the coefficient jumps (biofilm/void contrast 1e4) without
@@ -70,7 +70,7 @@ class Level:
 class Multigrid:
     """V-cycle preconditioner: `build(A)` for each new tangent, then call it on residuals."""
 
-    def __init__(self, mesh: StructuredMesh, fixed: np.ndarray, coarsest: int, degree: int,
+    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, coarsest: int, degree: int,
                  ratio: float = 30.0):
         self.d = d = mesh.ndim
         self.degree, self.ratio = degree, ratio
@@ -88,18 +88,18 @@ class Multigrid:
             shape, nodes = tuple((n + 1) // 2 for n in shape), used
         self.levels.append(Level())
         self.interpolation = self.levels[0].P if len(self.levels) > 1 else None
-        self.constrain(fixed)
+        self.constrain(constrained)
 
-    def constrain(self, fixed: np.ndarray):
+    def constrain(self, constrained: np.ndarray):
         """Zero the interpolation's rows of held dofs: a coarse correction never moves them."""
         if self.interpolation is None:
             return
-        free = sp.diags((~np.asarray(fixed, bool)).astype(float))
+        free = sp.diags((~np.asarray(constrained, bool)).astype(float))
         P = (free @ self.interpolation).tobsr(blocksize=self.interpolation.blocksize)
         self.levels[0] = Level(P)
 
     def build(self, A: sp.spmatrix):
-        """Galerkin operators and smoother data for tangent A (fine level, identity at fixed dofs)."""
+        """Galerkin operators and smoother data for tangent A (fine level, identity at constrained dofs)."""
         d = self.d
         A = A.tobsr(blocksize=(d, d))
         for level in self.levels[:-1]:
@@ -108,7 +108,7 @@ class Multigrid:
             top = 1.1 * _largest_eigenvalue(level)
             level.bounds = (top / self.ratio, top)
             A = level.R @ (A @ level.P)
-            empty = A.diagonal() == 0  # coarse dofs whose support is all fixed
+            empty = A.diagonal() == 0  # coarse dofs whose support is all constrained
             if np.any(empty):
                 A = (A + sp.diags(empty.astype(float))).tobsr(blocksize=(d, d))
         self.coarse_solve = superlu(A)

@@ -54,7 +54,31 @@ def backend() -> str:
     return "pardiso" if pypardiso is not None else "superlu"
 
 
-class Direct:
+class Preconditioner:
+    """What the tangent solver asks of a preconditioner: `build` for a new tangent, `constrain` when other
+    dofs are held, `prepare` for an operator close to the built one, and `follow` for the rigid-body modes
+    of the dense bodies (only a deflated preconditioner uses them: `uses_modes`)."""
+
+    name = "preconditioner"
+    uses_modes = False
+
+    def build(self, A: sp.spmatrix):
+        raise NotImplementedError
+
+    def constrain(self, constrained: np.ndarray):
+        raise NotImplementedError
+
+    def prepare(self, A: sp.spmatrix):
+        """Nothing to redo for another operator: the built preconditioner serves as it is."""
+
+    def follow(self, modes: np.ndarray):
+        """Nothing to do with the modes of the bodies (see `Deflated`)."""
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class Direct(Preconditioner):
     """Factor once, solve many."""
 
     def __init__(self):
@@ -65,41 +89,41 @@ class Direct:
     def build(self, A: sp.spmatrix):
         self._solve = self._factorise(A.tocsr())
 
-    def constrain(self, fixed: np.ndarray):
+    def constrain(self, constrained: np.ndarray):
         pass  # the factors come from the (constrained) matrix itself
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         return self._solve(r)
 
 
-class GeometricMultigrid:
+class GeometricMultigrid(Preconditioner):
     """V-cycles on the grid's own coarse spaces; the coarsest level factorised."""
 
-    def __init__(self, mesh, fixed: np.ndarray, coarsest: int, degree: int):
-        self.cycle = Multigrid(mesh, fixed, coarsest=coarsest, degree=degree)
+    def __init__(self, mesh, constrained: np.ndarray, coarsest: int, degree: int):
+        self.cycle = Multigrid(mesh, constrained, coarsest=coarsest, degree=degree)
         self.name = f"multigrid({len(self.cycle.levels)} levels)"
 
     def build(self, A: sp.spmatrix):
         self.cycle.build(A)
 
-    def constrain(self, fixed: np.ndarray):
-        self.cycle.constrain(fixed)
+    def constrain(self, constrained: np.ndarray):
+        self.cycle.constrain(constrained)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         return self.cycle(r)
 
 
-class SmoothedAggregation:
-    """pyamg's smoothed aggregation, rigid-body modes (zero at fixed dofs) as near-null space."""
+class SmoothedAggregation(Preconditioner):
+    """pyamg's smoothed aggregation, rigid-body modes (zero at constrained dofs) as near-null space."""
 
-    def __init__(self, modes: np.ndarray, fixed: np.ndarray, ndim: int, coarsest: int):
+    def __init__(self, modes: np.ndarray, constrained: np.ndarray, ndim: int, coarsest: int):
         self.all_modes, self.d, self.coarsest = modes, ndim, coarsest
         self.name = "smoothed aggregation(pyamg)"
         self._cycle = None
-        self.constrain(fixed)
+        self.constrain(constrained)
 
-    def constrain(self, fixed: np.ndarray):
-        self.modes = np.where(np.asarray(fixed, bool)[:, None], 0.0, self.all_modes)
+    def constrain(self, constrained: np.ndarray):
+        self.modes = np.where(np.asarray(constrained, bool)[:, None], 0.0, self.all_modes)
 
     def build(self, A: sp.spmatrix):
         hierarchy = pyamg.smoothed_aggregation_solver(
@@ -114,28 +138,33 @@ class SmoothedAggregation:
         return self._cycle @ r
 
 
-class Deflated:
+class Deflated(Preconditioner):
     """Another preconditioner M with the rigid-body modes corrected exactly (balancing form):
     M_d = Z E^-1 Z^T + (I - Z E^-1 Z^T A) M (I - A Z E^-1 Z^T),  E = Z^T A Z.
 
     The modes left free by pinning single nodes of the soft void are the
     softest of the tangent; a preconditioner built from another tangent can
     leave errors in them that neither the residual nor the energy shows.  The
-    Galerkin correction in span(Z) (Z the rigid-body modes, zero at fixed
+    Galerkin correction in span(Z) (Z the rigid-body modes, zero at constrained
     dofs) removes them before and after M, keeping symmetry."""
+
+    uses_modes = True
 
     def __init__(self, inner):
         self.inner = inner
         self.name = f"deflated {inner.name}"
-        self.Z = None  # orthonormal modes (dofs, k); set before `build` (they follow the biofilm)
+        self.Z = None  # orthonormal modes (dofs, k): `follow` sets them before `build` (they follow the biofilm)
         self._A = self._AZ = self._Einv = None
+
+    def follow(self, modes: np.ndarray):
+        self.Z = modes
 
     def build(self, A: sp.spmatrix):
         self.inner.build(A)
         self.prepare(A)
 
-    def constrain(self, fixed: np.ndarray):
-        self.inner.constrain(fixed)
+    def constrain(self, constrained: np.ndarray):
+        self.inner.constrain(constrained)
 
     def prepare(self, A: sp.spmatrix):
         """The exact part for operator A (k products with A); the inner preconditioner stays."""
@@ -150,16 +179,16 @@ class Deflated:
         return x + Z @ (Einv @ (Z.T @ (r - self._A @ x)))
 
 
-def choose(method: str, n_dofs: int, mesh, fixed: np.ndarray, modes: np.ndarray, settings):
+def choose(method: str, n_dofs: int, mesh, constrained: np.ndarray, modes: np.ndarray, settings):
     """The preconditioner a `MechanicsSetup.linear_solver` names ("auto": by size), deflated if asked."""
     if method == "auto":
         method = "direct" if n_dofs <= settings.direct_limit else "multigrid"
     if method == "direct":
         inner = Direct()
     elif method == "multigrid":
-        inner = GeometricMultigrid(mesh, fixed, settings.coarsest, settings.smoothing)
+        inner = GeometricMultigrid(mesh, constrained, settings.coarsest, settings.smoothing)
     elif method == "amg":
-        inner = SmoothedAggregation(modes, fixed, mesh.ndim, settings.coarsest)
+        inner = SmoothedAggregation(modes, constrained, mesh.ndim, settings.coarsest)
     else:
         raise ValueError(f"unknown linear solver {method!r}")
     return Deflated(inner) if settings.deflate else inner

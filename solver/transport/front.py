@@ -63,7 +63,6 @@ class FrontVelocity:
         self.fv = fv
         self.pointwise = pointwise  # a biofilm.Velocity: r, k, floor, cell gradients
         self.band = band
-        self.front_cells = 0  # of the last call, for the cost report
         lower = np.concatenate([f.lower for f in fv.faces])
         upper = np.concatenate([f.upper for f in fv.faces])
         weight = np.full(2 * lower.size, fv.grid.spacing)
@@ -76,7 +75,6 @@ class FrontVelocity:
         if floor == 0.0:
             return w  # r = 0 or a flat nutrient: no growth anywhere
         vectors, front = self._front(c, phi, gradient, floor)
-        self.front_cells = int(front.size)
         if front.size == 0:
             return w
         nearest = self._nearest(front, phi >= LEVEL)

@@ -20,7 +20,8 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import StepFailure
+from ..counters import Count, Counters
+from ..errors import StepFailure
 
 ROUNDOFF = 1e-8  # relative distance to a bound that counts as round-off
 
@@ -31,6 +32,10 @@ class Projection:
 
     count: int = 0
     largest: float = 0.0
+
+    def counters(self, name: str) -> Counters:
+        return {f"projected_{name}_count": Count(self.count, f"values of {name} projected onto a bound (round-off)"),
+                f"projected_{name}_largest": Count(self.largest, f"largest correction of {name} by that projection")}
 
     def onto(self, values: np.ndarray, lower: float, upper: float) -> np.ndarray:
         """`values` clipped to [lower, upper]; the correction is tallied."""

@@ -17,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..counters import Count, Counters
 from .biofilm import Biofilm
 from .expansion import grow
 from .finite_volume import FiniteVolumeGrid
 from .nutrient import Nutrient
-from .problem import Problem
+from ..problem import Problem
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class Transport:
     def __init__(self, problem: Problem):
         self.problem = problem
         self.fv = FiniteVolumeGrid(problem.grid, problem.obstacle)
-        self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_fixed,
+        self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_held,
                                  problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces)
         self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces)
         self.timings = defaultdict(float)
@@ -73,6 +74,14 @@ class Transport:
         self.timings["expansion"] += clock() - after_biofilm
         c = self._nutrient(phi, state.c) if with_nutrient else None
         return State(state.t + dt, phi, alpha, c)
+
+    def counters(self) -> Counters:
+        """The nutrient's and the biofilm's counters; upwind runs add their largest numerical diffusion."""
+        found = {**self.nutrient.counters(), **self.biofilm.counters()}
+        if not self.biofilm.tvd:
+            found["numerical_diffusion_max"] = Count(self.largest_numerical_diffusion,
+                                                     "largest numerical diffusivity |v| h / 2 of upwinding, um2")
+        return found
 
     def full(self, values: np.ndarray) -> np.ndarray:
         """Active-cell values as a grid array, NaN in obstacles."""

@@ -33,11 +33,12 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..counters import Count, Counters
 from .bounds import Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
 from .linear import jacobi_bicgstab
-from .problem import Numerics, Parameters
+from ..problem import Numerics, Parameters
 
 
 class Velocity:
@@ -161,6 +162,10 @@ class Biofilm:
             ))
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
+
+    def counters(self) -> Counters:
+        return {"biofilm_iterations": Count(self.iterations, "BiCGSTAB iterations of the phi solves"),
+                **self.projection.counters("phi")}
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
         """CSR data of the advection operator (per unit volume) for face velocities w."""

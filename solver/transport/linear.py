@@ -21,7 +21,8 @@ import pyamg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import StepFailure
+from ..counters import Count, Counters
+from ..errors import StepFailure
 
 
 class ReusedAMG:
@@ -36,6 +37,10 @@ class ReusedAMG:
         self.fresh_iterations = None
         self.rebuilds = 0
         self.iterations = 0  # total CG iterations, for the cost report
+
+    def counters(self, prefix: str) -> Counters:
+        return {f"{prefix}_cg_iterations": Count(self.iterations, "CG iterations, all solves together"),
+                f"{prefix}_amg_rebuilds": Count(self.rebuilds, "builds of the AMG hierarchy")}
 
     def _rebuild(self, matrix: sp.csr_matrix):
         self.hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=50)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .problem import Grid
+from ..problem import Grid
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .finite_volume import fipy_mesh
-from .problem import Problem
+from solver.transport.finite_volume import fipy_mesh
+from solver.problem import Problem
 
 HOLD = 1e12  # held cells: implicit source this many times stiffer than diffusion
 
@@ -41,7 +41,7 @@ class FipyTransport:
         # held cells by a stiff implicit source: FiPy's c.constrain(where=cell mask) decouples the
         # held cells from their neighbours (measured: c = 0 beside a held c = 1 with FiPy 4.0.3)
         stiff = HOLD * max(p.d / problem.grid.spacing**2, p.g)
-        self.held = fipy.CellVariable(mesh=mesh, value=stiff * problem.nutrient_fixed.ravel())
+        self.held = fipy.CellVariable(mesh=mesh, value=stiff * problem.nutrient_held.ravel())
         if solvers == "default":
             self.nutrient_solver = self.biofilm_solver = None
         else:

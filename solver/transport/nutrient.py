@@ -31,10 +31,11 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .bounds import ROUNDOFF, Projection
-from .errors import StepFailure
+from ..counters import Count, Counters
+from ..errors import StepFailure
 from .finite_volume import FiniteVolumeGrid
 from .linear import ReusedAMG
-from .problem import Consumption, Parameters
+from ..problem import Consumption, Parameters
 
 MAX_ACTIVE_SET_ITERATIONS = 100
 
@@ -43,22 +44,22 @@ class Nutrient:
     """Solves for c on the active cells given phi; keeps its AMG hierarchy between calls."""
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, consumption: Consumption,
-                 fixed: np.ndarray, value: np.ndarray, tolerance: float = 1e-10,
+                 held: np.ndarray, value: np.ndarray, tolerance: float = 1e-10,
                  faces: tuple[tuple[str, float], ...] = ()):
         self.fv = fv
         self.consumption = consumption
         self.gamma = params.g / params.d
         laplacian = fv.laplacian
-        fixed = fv.to_active(fixed).astype(bool)
-        held_value = np.where(fixed, fv.to_active(value), 0.0)
+        held_cells = fv.to_active(held).astype(bool)
+        held_value = np.where(held_cells, fv.to_active(value), 0.0)
         self.faces = [(face, fv.boundary_cells(face), float(v)) for face, v in faces]
         face_coefficient, face_inflow = np.zeros(fv.n), np.zeros(fv.n)
         for _, cells, v in self.faces:
             face_coefficient[cells] += 2.0 / fv.grid.spacing**2
             face_inflow[cells] += 2.0 * v / fv.grid.spacing**2
-        held = fixed | self._unreachable(laplacian, fixed | (face_coefficient > 0))
+        held = held_cells | self._unreachable(laplacian, held_cells | (face_coefficient > 0))
         self.free = np.flatnonzero(~held)
-        self.upper = max([0.0, *held_value[fixed], *(v for _, _, v in self.faces)])
+        self.upper = max([0.0, *held_value[held_cells], *(v for _, _, v in self.faces)])
         self.c_held = held_value
         lap_free = laplacian[self.free]
         self.stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
@@ -68,12 +69,18 @@ class Nutrient:
         self.active_set_iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
+    def counters(self) -> Counters:
+        return {**self.amg.counters("nutrient"),
+                "nutrient_active_set_iterations": Count(self.active_set_iterations,
+                                                        "zero-order consumption: active-set iterations"),
+                **self.projection.counters("c")}
+
     @staticmethod
-    def _unreachable(laplacian: sp.csr_matrix, fixed: np.ndarray) -> np.ndarray:
+    def _unreachable(laplacian: sp.csr_matrix, sources: np.ndarray) -> np.ndarray:
         """Cells in connected regions that contain no source cell."""
         count, label = connected_components(laplacian, directed=False)
         fed = np.zeros(count, bool)
-        fed[label[fixed]] = True
+        fed[label[sources]] = True
         return ~fed[label]
 
     def solve(self, phi: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
