@@ -25,7 +25,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from biostudy.scene import load_scene  # noqa: E402
+from biostudy.inputs.scene import load_scene  # noqa: E402
 from solver import simulate  # noqa: E402
 
 SCENE = Path(__file__).resolve().parents[1] / "studies" / "directional.toml"

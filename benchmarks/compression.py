@@ -1,5 +1,5 @@
 """File size and write time of run datasets: uncompressed contiguous float64 (as before issue 11) against the
-encoding `biostudy.netcdf.encoding` gives them (zlib + shuffle, one snapshot per chunk).
+encoding `biostudy.data.netcdf.encoding` gives them (zlib + shuffle, one snapshot per chunk).
 
     .venv/bin/python benchmarks/compression.py directional grate
 
@@ -20,8 +20,9 @@ from pathlib import Path  # noqa: E402
 
 import xarray as xr  # noqa: E402
 
-from biostudy import bundled, netcdf  # noqa: E402
-from biostudy.scene import load_scene  # noqa: E402
+from biostudy.inputs import bundled
+from biostudy.data import netcdf  # noqa: E402
+from biostudy.inputs.scene import load_scene  # noqa: E402
 from solver import simulate  # noqa: E402
 
 REPEATS = 5

@@ -28,8 +28,8 @@ os.environ.setdefault("FIPY_SOLVERS", "scipy")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from biostudy import measures  # noqa: E402
-from biostudy.scene import load_scene  # noqa: E402
+from biostudy.quantities import measures  # noqa: E402
+from biostudy.inputs.scene import load_scene  # noqa: E402
 from solver import simulate  # noqa: E402
 
 SCENES = ("agar2d", "agar2d-g1e10", "agar2d-thin", "directional2d")
@@ -60,8 +60,8 @@ def run(name: str, refine: int, velocity: str, results: Path, t_end: float | Non
     minimum = measures.nutrient_minimum(ds)
     result = {
         "scene": name, "velocity": velocity, "h": scene.grid.spacing, "wall_time": time.perf_counter() - began,
-        "time": ds["time"].values.tolist(), "max_phi": measures.max_phi(ds).tolist(),
-        "top": measures.top(ds, "y").tolist(), "dense_area": measures.dense_volume(ds).tolist(),
+        "time": ds["time"].values.tolist(), "phi_max": measures.phi_max(ds).tolist(),
+        "height": measures.height(ds, "y").tolist(), "dense_area": measures.volume(ds).tolist(),
         "reach": measures.reach(ds, "y").tolist(), "c_min_y": minimum["y"].tolist(),
         "phi_at_c_min": minimum["phi"].tolist(), "c_mean": ds["c_mean"].values.tolist(),
     }
@@ -71,7 +71,7 @@ def run(name: str, refine: int, velocity: str, results: Path, t_end: float | Non
 
 def row(result: dict, times: list[float], brief: bool) -> str:
     cells = [f"{m:.2f}/{t:.1f}/{a:.0f}" + ("" if brief else f"/{y:.1f}:{p:.2f}") for m, t, a, y, p in
-             zip(result["max_phi"], result["top"], result["dense_area"], result["c_min_y"], result["phi_at_c_min"])]
+             zip(result["phi_max"], result["height"], result["dense_area"], result["c_min_y"], result["phi_at_c_min"])]
     cells = [c.replace("nan", "–") for c in cells] + ["–"] * (len(result["time"]) - len(cells))
     at = {round(t, 9): c for t, c in zip(result["time"], cells)}
     cells = [at.get(round(t, 9), "–") for t in times]  # a run cut short (--t-end) has no later columns

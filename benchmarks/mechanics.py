@@ -92,10 +92,10 @@ def in_run(n: int, steps: int, changes: list[str]) -> dict:
     # the first version (--baseline) calls it biostudy.catalog; asked for biostudy.bundled, the editable
     # install's finder would hand it this version's module, and so this version's scene file
     if (Path(biostudy.__file__).parent / "bundled.py").exists():
-        from biostudy import bundled
+        from biostudy.inputs import bundled
     else:
         from biostudy import catalog as bundled
-    from biostudy.scene import load_scene
+    from biostudy.inputs.scene import load_scene
     from solver import Run
 
     scene = load_scene(bundled.resolve("directional"), [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}",

@@ -89,8 +89,8 @@ def block(n: int):
 
 
 def grate():
-    from biostudy import bundled
-    from biostudy.scene import load_scene
+    from biostudy.inputs import bundled
+    from biostudy.inputs.scene import load_scene
     from solver import Simulation
 
     scene = load_scene(bundled.resolve("grate"), ["mechanics.every=1000"])

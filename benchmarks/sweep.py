@@ -39,8 +39,16 @@ os.environ.setdefault("FIPY_SOLVERS", "scipy")  # before FiPy is first imported
 import psutil  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from biostudy import bundled, combine, runner, store  # noqa: E402
-from biostudy.study import load_study  # noqa: E402
+from biostudy.commands.sweep import run_study  # noqa: E402
+from biostudy.data import combine, store  # noqa: E402
+from biostudy.execution.jobs import Execution, fingerprint  # noqa: E402
+from biostudy.inputs import bundled  # noqa: E402
+from biostudy.plans.study import load_study  # noqa: E402
+
+
+def sweep(plan, out, **execution):
+    """A study's sweep into `out` as `biostudy sweep` runs it (`execution`: workers, retry_failed, ...)."""
+    return run_study(plan, out, Execution(**execution))
 
 
 def write_study(directory: Path, name: str, scene_overrides: dict, values: list[float],
@@ -98,14 +106,14 @@ def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
     validate = time.perf_counter() - began
     out = directory / "overhead-out"
     began = time.perf_counter()
-    runner.sweep(plan, out)
+    sweep(plan, out)
     total = time.perf_counter() - began + validate
     simulated = simulated_seconds(out)
 
     # the parts, timed again one by one on the finished cases
     began = time.perf_counter()
     for case in plan.cases:
-        runner.fingerprint(plan.scenes[case.id].problem())
+        fingerprint(plan.scenes[case.id].problem())
     compile_ = time.perf_counter() - began
     began = time.perf_counter()
     for case in plan.cases:
@@ -128,12 +136,12 @@ def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
 POOL_START = """
 import os, time
 os.environ["FIPY_SOLVERS"] = "scipy"
-from biostudy import pool as local
+from biostudy.execution import pool as local
 if __name__ == "__main__":
     began = time.perf_counter()
-    pool = local._Pool(2)
-    pool.give("a", None)  # solve(None) fails at once in the worker: a round trip
-    pool.give("b", None)
+    pool = local.LocalPool(2)
+    pool.submit("a", None)  # solve(None) fails at once in the worker: a round trip
+    pool.submit("b", None)
     while pool.busy:
         pool.finished()
     print(time.perf_counter() - began)
@@ -160,7 +168,7 @@ def speedup(directory: Path, steps: int) -> list[tuple[str, float]]:
         out = directory / f"speedup-{workers}"
         began, cpu = time.perf_counter(), time.process_time()
         with Others() as others:
-            runner.sweep(plan, out, workers=workers)
+            sweep(plan, out, workers=workers)
         times[label] = time.perf_counter() - began
         rows.append((f"{label}: sweep wall time (s)", times[label]))
         rows.append((f"{label}: simulation per case (s)", simulated_seconds(out) / len(plan.cases)))

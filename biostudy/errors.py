@@ -1,11 +1,13 @@
-"""Bad input, told in one line per problem: the file, the key, what is wrong.
+"""Bad input, told in one line per problem: the file, the key, what is wrong; and failures, told in one line.
 
 Everything a user can fix by editing a file or a command line ends up as a
 `BadInput` (the CLI prints it and exits with status 2, no traceback).  The
 schema's validators raise `InvalidAt` to say which key a cross-field problem
 belongs to; `from_validation_error` and `from_toml_error` turn pydantic's and
 tomllib's multi-line reports into such lines: every problem pydantic found,
-so that an incomplete scene is fixed in one go.
+so that an incomplete scene is fixed in one go.  A `Failed` is the other
+kind of end: the input was good, the computation could not be done or kept
+(exit status 1).
 """
 from __future__ import annotations
 
@@ -23,10 +25,10 @@ from .formatting import value_text
 SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
 
 
-
 def first_line(error: BaseException) -> str:
     """The first line of an exception's message, or its type's name when the message is empty."""
     return (str(error).splitlines() or [type(error).__name__])[0]
+
 
 class BadInput(Exception):
     """Input a user can fix.  str() is 'file: key: problem' (parts that are known); `more` holds the
@@ -54,6 +56,12 @@ class BadInput(Exception):
     def relocated(self, file, key) -> "BadInput":
         """Every problem attributed to file(old file or None), its key rewritten by key(old key or None)."""
         return BadInput(self.problem, file(self.file), key(self.key), tuple(o.relocated(file, key) for o in self.more))
+
+
+class Failed(Exception):
+    """A computation that could not be done or kept (a simulation that failed, a result that could not be
+    written, a sweep whose workers are gone): exit status 1, the message says what happened and what was
+    kept."""
 
 
 class InvalidAt(ValueError):
@@ -131,20 +139,3 @@ def from_validation_error(error: ValidationError, file: str | Path | None,
 def from_toml_error(error: tomllib.TOMLDecodeError, file: str | Path) -> BadInput:
     """tomllib's message, e.g. 'Expected '=' after a key (at line 3, column 5)', as one line."""
     return BadInput(f"not valid TOML: {first_line(error)}", file)
-
-
-def read_toml(path: str | Path) -> dict:
-    """Parse a TOML file; a missing, unreadable or malformed file is `BadInput`."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise BadInput("no such file", path) from None
-    except IsADirectoryError:
-        raise BadInput("is a directory, not a TOML file", path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise BadInput(f"cannot read: {error}", path) from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise from_toml_error(error, path) from None

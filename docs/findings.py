@@ -2,7 +2,7 @@
 
 `FINDINGS[scene](ds, scene)` returns rows (statement, what is measured, value) for one bundled scene's
 full-length run; `docs/gallery.py` calls it for every scene it runs and writes docs/gallery/findings.md.
-Quantities come from `biostudy.measures` (dense = phi >= 0.8, the paper's isosurface level; extent =
+Quantities come from `biostudy.quantities.measures` (dense = phi >= 0.8, the paper's isosurface level; extent =
 phi >= 0.5); stresses at the last output where the mechanics was solved.
 """
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import xarray as xr
 from scipy import ndimage
 
-from biostudy import measures
+from biostudy.quantities import measures
 
 DENSE, EXTENT = measures.DENSE, measures.THRESHOLD
 
@@ -65,11 +65,11 @@ def directional(ds, scene):
     return [
         ("mean c settles around 10 %", "c_mean at T* = 0.2, 0.5, 1", f"{c[at(ds, .2)]:.3f}, {c[at(ds, .5)]:.3f}, {c[-1]:.3f}"),
         ("phi still filling at T* = 1", "phi_mean at T* = 0.8, 0.9, 1", f"{m[at(ds, .8)]:.3f}, {m[at(ds, .9)]:.3f}, {m[-1]:.3f}"),
-        ("the sphere's volume increases", "dense volume (µm³)", series(measures.dense_volume(ds), t, digits=4)),
+        ("the sphere's volume increases", "dense volume (µm³)", series(measures.volume(ds), t, digits=4)),
         ("egg-shaped toward the source, slightly backward, little to the sides",
          "advance by T* = 1 of phi >= 0.5 / phi >= 0.8 along the diagonal",
          advances(ds, (10, 10, 10), dirs, EXTENT) + " / " + advances(ds, (10, 10, 10), dirs, DENSE)),
-        ("dense biofilm (the paper's phi >= 0.8 renders)", "max phi", series(measures.max_phi(ds), t)),
+        ("dense biofilm (the paper's phi >= 0.8 renders)", "max phi", series(measures.phi_max(ds), t)),
         ("compression inside, a ring of tension at the edge, zero outside", "p", stresses(ds)),
     ]
 
@@ -77,7 +77,7 @@ def directional(ds, scene):
 def agar(ds, scene):
     t = ds.time.values
     height = scene.grid.solver_grid().extent[2]
-    top, top_dense = measures.top(ds, "z", EXTENT), measures.top(ds, "z", DENSE)
+    top, top_dense = measures.height(ds, "z", EXTENT), measures.height(ds, "z", DENSE)
     rows = [
         ("height", "top of phi >= 0.5 / phi >= 0.8 (µm)", series(top, t) + " / " + series(top_dense, t)),
         ("fills the cube (g = 1e8: after 13 % of the time)", "phi >= 0.5 / phi >= 0.8 at the lid",
@@ -86,7 +86,7 @@ def agar(ds, scene):
         ("spreads into a bottom layer", "reach of phi >= 0.5 from the colony's axis (µm)",
          series(measures.reach(ds, "z", EXTENT), t)),
         ("dense biofilm", "max phi / dense volume (µm³) at T* = 1",
-         f"{measures.max_phi(ds)[-1]:.2f} / {measures.dense_volume(ds)[-1]:.0f}"),
+         f"{measures.phi_max(ds)[-1]:.2f} / {measures.volume(ds)[-1]:.0f}"),
         ("equilibrium: neither c nor phi changes at the end", "c_mean / phi_mean at T* = 0.8 and 1",
          f"{ds.c_mean.values[at(ds, .8)]:.3f} → {ds.c_mean.values[-1]:.3f} / "
          f"{ds.phi_mean.values[at(ds, .8)]:.3f} → {ds.phi_mean.values[-1]:.3f}"),
@@ -100,7 +100,7 @@ def agar(ds, scene):
 def _cap_and_stem(ds):
     out = []
     z = ds.z.values
-    top = measures.top(ds, "z", EXTENT)
+    top = measures.height(ds, "z", EXTENT)
     for i in (at(ds, .2), at(ds, .3), at(ds, .5), at(ds, 1.0)):
         phi = ds.phi.values[i] >= EXTENT
         width = lambda sel: 2 * np.sqrt(phi[sel].sum(axis=(1, 2)).max() / np.pi)  # disc of the largest layer
@@ -124,7 +124,7 @@ def obstacles(ds, scene):
         ("grows around the columns and reconnects behind them", "dense biofilm in the column's shadow",
          f"from {when(ds, np.array(dense_behind))}; at T* = 1 {'one body with the colony' if one else 'separate'}"),
         ("dense biofilm", "max phi / dense volume (µm³) at T* = 1",
-         f"{measures.max_phi(ds)[-1]:.2f} / {measures.dense_volume(ds)[-1]:.0f}"),
+         f"{measures.phi_max(ds)[-1]:.2f} / {measures.volume(ds)[-1]:.0f}"),
         ("pressure as in the other scenes", "p", stresses(ds)),
     ]
 
@@ -157,7 +157,7 @@ def maze(ds, scene):
          f"(areas {int(min(sizes))}-{int(max(sizes))} µm²)"),
         ("retraction visible from 40 %", "area of phi >= 0.5 in the entrance sector (µm²)",
          series(in_entrance, t, every=8, digits=3)),
-        ("dense biofilm", "max phi", series(measures.max_phi(ds), t, every=8)),
+        ("dense biofilm", "max phi", series(measures.phi_max(ds), t, every=8)),
     ]
 
 

@@ -48,7 +48,7 @@ def kept_rows(table: Path) -> dict[str, str]:
 
 
 def main(names: list[str]) -> None:
-    from biostudy.scene import load_scene
+    from biostudy.inputs.scene import load_scene
 
     OUT.mkdir(parents=True, exist_ok=True)
     table, findings = OUT / "runs.md", OUT / "findings.md"

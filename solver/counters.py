@@ -1,26 +1,35 @@
-"""What a run counted, told by the part that counted it: a value and what it means.
+"""What a run counts, declared once: each counter's name and meaning.
 
-Each component of a run (the nutrient's solver, the biofilm's, the clock)
-reports its own counters (`counters()`), so the run's cost report collects
-them without reaching into the components' insides; the dataset writes the
-values as attributes (docs/model.md, "The dataset").
+Each part of a run (the clock, the nutrient's solver, the biofilm's, the
+projections onto the bounds) reports its own counters (`counters()` ->
+{name: value}), so the run's cost report collects them without reaching into
+the parts' insides; the dataset writes the values as attributes, and what a
+counter means is read here (`MEANINGS`) by whoever tabulates them.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+MEANINGS = {
+    "steps_taken": "accepted time steps",
+    "steps_bisected": "failed steps, bisected",
+    "steps_rejected": "steps rejected by the error control",
+    "largest_step_error": "largest accepted local error estimate in phi (error-controlled steps)",
+    "nutrient_cg_iterations": "CG iterations of the nutrient solves, all together",
+    "nutrient_amg_rebuilds": "builds of the nutrient's AMG hierarchy",
+    "nutrient_active_set_iterations": "active-set iterations of zero-order consumption",
+    "biofilm_iterations": "BiCGSTAB iterations of the phi solves, all together",
+    "projected_c_count": "values of c the solver projected onto their bounds (round-off)",
+    "projected_c_largest": "largest correction of c by that projection",
+    "projected_phi_count": "values of phi the solver projected onto their bounds (round-off)",
+    "projected_phi_largest": "largest correction of phi by that projection",
+    "numerical_diffusion_max": "largest numerical diffusivity |v| h / 2 of upwinding (um2 per T*)",
+}
+
+Counters = dict[str, int | float]
 
 
-@dataclass(frozen=True)
-class Count:
-    """One counter: its value and a line on what it counts."""
-
-    value: int | float
-    meaning: str
-
-
-Counters = dict[str, Count]
-
-
-def values(counters: Counters) -> dict[str, int | float]:
-    """name -> value, for a dataset's attributes."""
-    return {name: count.value for name, count in counters.items()}
+def declared(counters: Counters) -> Counters:
+    """`counters` as they are, once each name is known to `MEANINGS` (a counter nobody can read is a bug)."""
+    unknown = sorted(set(counters) - set(MEANINGS))
+    if unknown:
+        raise KeyError(f"counters without a meaning in solver.counters.MEANINGS: {', '.join(unknown)}")
+    return counters

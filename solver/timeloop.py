@@ -27,7 +27,7 @@ from typing import Callable, Iterator
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .counters import Count, Counters, values
+from .counters import Counters, declared
 from .errors import SimulationError, StepFailure
 from .problem import Problem
 from .transport import State, Transport
@@ -86,10 +86,10 @@ class Clock:
         self.largest_error = 0.0
 
     def counters(self) -> Counters:
-        return {"steps_taken": Count(self.steps, "accepted steps"),
-                "steps_bisected": Count(self.bisections, "failed steps, bisected"),
-                "steps_rejected": Count(self.rejected, "steps rejected by the error control"),
-                "largest_step_error": Count(self.largest_error, "largest accepted local error estimate in phi")}
+        return {"steps_taken": self.steps,
+                "steps_bisected": self.bisections,
+                "steps_rejected": self.rejected,
+                "largest_step_error": self.largest_error}
 
     def advance(self, state: State, until: float) -> State:
         """Step from state.t to exactly `until`."""
@@ -186,7 +186,7 @@ class Simulation:
     def report(self) -> dict:
         """What the run cost: wall time, counters, where the time went."""
         return {"wall_time": time.perf_counter() - self.started, "timings": dict(self.transport.timings),
-                **values({**self.clock.counters(), **self.transport.counters()})}
+                **declared({**self.clock.counters(), **self.transport.counters()})}
 
 
 def evolve(problem: Problem, progress: Callable[[Progress], None] | None = None) -> Iterator[Snapshot]:

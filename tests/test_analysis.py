@@ -1,11 +1,11 @@
-"""Designs and sensitivity analysis (`biostudy.designs`, `biostudy.analysis`) against functions whose indices are
+"""Designs and sensitivity analysis (`biostudy.plans.designs`, `biostudy.reports.sensitivity`) against functions whose indices are
 known exactly: Ishigami (Sobol'), linear and logarithmic functions (Morris), and a matrix-inverse formula (PRCC)."""
 import numpy as np
 import pytest
 import xarray as xr
 
-from biostudy import analysis
-from biostudy.designs import Sample
+from biostudy.reports import sensitivity as analysis
+from biostudy.plans.designs import Sample
 
 PI = np.pi
 # Ishigami, a = 7, b = 0.1: V = a²/8 + b pi⁴/5 + b² pi⁸/18 + 1/2; V1 = (1 + b pi⁴/5)²/2, V2 = a²/8,
@@ -119,8 +119,8 @@ def test_designs_are_nested_in_n_inside_their_ranges_and_on_their_scale():
     ranges = {"g": [1e8, 1e10, "log"], "r": [50.0, 200.0], "time.steps": [10, 40]}
     for method, n, more, rows in (("sobol", 8, 16, 8 * 8), ("halton", 9, 20, 9), ("morris", 3, 5, 3 * 4)):
         small, large = sample(method, n, ranges), sample(method, more, ranges)
-        first = small.points({"time.steps": True})
-        assert len(first) == rows and large.points({"time.steps": True})[:rows] == first, method
+        first = small.points()
+        assert len(first) == rows and large.points()[:rows] == first, method
         g = np.array([p["g"] for p in first])
         assert ((1e8 <= g) & (g <= 1e10)).all() and all(isinstance(p["time.steps"], int) for p in first)
     g = np.array([p["g"] for p in sample("sobol", 256, ranges).points()])

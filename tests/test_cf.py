@@ -109,13 +109,15 @@ def test_the_declared_units_of_every_other_dataset_parse_too():
     """stability.nc, convergence.nc and the observables, whose datasets cost too much to make here."""
     import cf_xarray.units
 
-    from biostudy import convergence, observables, stability
-    from biostudy.scene import SCENE_KEYS, key_info  # noqa: F401
+    from biostudy.reports import convergence
+    from biostudy.quantities import observables
+    from biostudy.reports import stability
+    from biostudy.inputs.scene import SCENE_KEYS, key_info  # noqa: F401
     from solver.output import cf_units
     from solver.problem import parameter_infos
 
     declared = [u for u, _ in (*stability.NUMBERS.values(), *stability.COORDS.values())]
-    declared += list(convergence.UNITS.values()) + [o.units for o in observables.REGISTRY.values()]
+    declared += [c.units for c in convergence.COMPARED] + [o.units for o in observables.REGISTRY.values()]
     declared += [cf_units(p.units) for p in parameter_infos()]
     for units in declared:
         cf_xarray.units.units.parse_units(units)
@@ -214,8 +216,10 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
 def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
     """A case file read as one run (show, plot, export) is squeezed; an old run's steps_bisections is
     steps_bisected; combine reads both."""
-    from biostudy import combine, netcdf, store
-    from biostudy.study import load_study
+    from biostudy.data import combine
+    from biostudy.data import netcdf
+    from biostudy.data import store
+    from biostudy.plans.study import load_study
 
     case = store.open_dataset(made / "grid" / "cases" / "g=1e+08_r=50.nc")
     assert case.phi.dims == ("time", "y", "x") and float(case.g) == 1e8 and case.status.item() == "done"

@@ -71,7 +71,7 @@ def test_a_failed_simulation_exits_1_and_writes_nothing(tiny_scene, tmp_path):
     result = invoke("run", tiny_scene, "-o", out, "-q", "--set", "params.k_alpha=1e100",
                     "--set", "numerics.max_substeps=40")
     assert result.exit_code == 1
-    assert result.stderr.startswith(f"simulation failed: {tiny_scene}: t = ")
+    assert result.stderr.startswith(f"error: simulation failed: {tiny_scene}: t = ")
     assert "Traceback" not in result.output
     assert not out.exists() and sorted(os.listdir(tmp_path)) == ["tiny.toml"]
 
@@ -189,7 +189,7 @@ def test_importing_sets_nothing_and_the_command_pins_the_solver_suite(tiny_scene
     """No side effects on import: FiPy's solver suite and the picture backend are set where a biostudy
     process starts (the command, a worker), not by importing solver or biostudy."""
     env = {k: v for k, v in os.environ.items() if k not in ("FIPY_SOLVERS", "MPLBACKEND")}
-    imported = subprocess.run([sys.executable, "-c", "import os, solver, biostudy.cli, biostudy.runner, "
+    imported = subprocess.run([sys.executable, "-c", "import os, solver, biostudy.cli, biostudy.execution.jobs, "
                                "biostudy.plots; print(sorted({'FIPY_SOLVERS', 'MPLBACKEND'} & set(os.environ)))"],
                               env=env, capture_output=True, text=True, check=True)
     assert imported.stdout.strip() == "[]"

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from biostudy import measures
-from biostudy.scene import load_scene
+from biostudy.quantities import measures
+from biostudy.inputs.scene import load_scene
 from solver import simulate
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
@@ -53,14 +53,14 @@ def test_front_velocity_matches_the_refined_model_while_the_colony_grows(name, r
     index = [int(np.argmin(np.abs(np.asarray(reference["time"]) - t))) for t in times]
     assert np.allclose(np.asarray(reference["time"])[index], times)
     pick = lambda key: np.asarray(reference[key])[index]
-    top = measures.top(ds, "y")
-    assert np.all(np.abs(top - pick("top")) <= h + 1e-9), (top, pick("top"))
-    assert np.all(measures.max_phi(ds)[pick("max_phi") >= measures.DENSE] >= measures.DENSE)
+    top = measures.height(ds, "y")
+    assert np.all(np.abs(top - pick("height")) <= h + 1e-9), (top, pick("height"))
+    assert np.all(measures.phi_max(ds)[pick("phi_max") >= measures.DENSE] >= measures.DENSE)
     inside = pick("phi_at_c_min") >= measures.DENSE
     assert inside.sum() >= 2, "compare the start and at least one output after it"
     assert inside[1:].any(), "an output after the start, where the two runs can differ"
     dense = np.nan_to_num(ds.phi.values) >= measures.DENSE
-    area, bound = measures.dense_volume(ds), np.array([perimeter(m, h) for m in dense])
+    area, bound = measures.volume(ds), np.array([perimeter(m, h) for m in dense])
     assert np.all((np.abs(area - pick("dense_area")) <= bound)[inside]), (area, pick("dense_area"), bound)
     minimum = measures.nutrient_minimum(ds)["y"]
     assert np.all((np.abs(minimum - pick("c_min_y")) <= 2 * h + 1e-9)[inside]), (minimum, pick("c_min_y"))
@@ -74,4 +74,4 @@ def test_pointwise_velocity_on_one_micron_cells_loses_the_dense_colony():
     ds = simulate(scene.problem())
     reference = REFERENCE["agar2d"]
     assert reference["dense_area"][reference["time"].index(0.2)] > 50.0
-    assert measures.dense_volume(ds)[-1] == 0.0
+    assert measures.volume(ds)[-1] == 0.0

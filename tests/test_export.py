@@ -1,4 +1,4 @@
-"""ParaView export (`biostudy.export`): every VTU read back with meshio against the dataset, and the PVD."""
+"""ParaView export (`biostudy.data.export`): every VTU read back with meshio against the dataset, and the PVD."""
 import xml.etree.ElementTree as ET
 
 import meshio
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from biostudy.export import export
+from biostudy.data.export import export
 from solver.output import on_output_times
 
 H = 1.5  # µm: a spacing other than 1 so that index and coordinate mix-ups show

@@ -27,12 +27,24 @@ import xarray as xr
 from typer.testing import CliRunner
 
 import solver
-from biostudy import ownership, pool, resources, runner, store
+from biostudy.execution import ownership
+from biostudy.execution import pool
+from biostudy.inputs import resources
+from biostudy.execution import jobs as runner
+from biostudy.data import store
 from biostudy.cli import app
-from biostudy.study import load_study
+from biostudy.plans.study import load_study
+from biostudy.commands.sweep import run_study
+from biostudy.execution import backends, dask
+from biostudy.execution.jobs import Execution, fingerprint
 from test_sweep import _wait_for as wait_for
 
 cli = CliRunner()
+
+def sweep(plan, out, **execution):
+    """A study's sweep into `out` as `biostudy sweep` runs it (`execution`: workers, retry_failed, ...)."""
+    return run_study(plan, out, Execution(**execution))
+
 
 
 def invoke(*args):
@@ -70,7 +82,7 @@ def no_simulation(monkeypatch):
         raise AssertionError("simulated although the output was refused")
 
     monkeypatch.setattr(solver, "simulate", refuse)
-    monkeypatch.setattr(runner, "solve", refuse)
+    monkeypatch.setattr(backends, "solve", refuse)
 
 
 
@@ -121,7 +133,7 @@ def test_run_replaces_an_earlier_result_of_the_same_scene_and_says_so(write_toml
 
 def test_a_sweep_leaves_other_writers_temporaries_alone(tiny_study, tmp_path):
     out = tmp_path / "out"
-    assert runner.sweep(load_study(tiny_study), out).ok
+    assert sweep(load_study(tiny_study), out).ok
     other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])  # a writer still running
     dead = subprocess.Popen(["true"])  # one that is gone
     dead.wait()
@@ -132,7 +144,7 @@ def test_a_sweep_leaves_other_writers_temporaries_alone(tiny_study, tmp_path):
             path.write_text("someone's")
         gone = out / "cases" / f".g=1e+08_r=50.nc.{dead.pid}.0123abcd.tmp"
         gone.write_bytes(b"\x89HDF half")
-        report = runner.sweep(load_study(tiny_study), out)
+        report = sweep(load_study(tiny_study), out)
         assert report.removed == [gone] and all(p.read_text() == "someone's" for p in kept)
     finally:
         other.kill()
@@ -188,7 +200,7 @@ def test_a_second_sweep_into_a_directory_in_use_is_refused_and_the_first_goes_on
 
 def _stored_chunk(raw: bytes, snapshot: np.ndarray) -> tuple[int, int]:
     """Where a snapshot is stored in a netCDF4 file, as (offset, length): its chunk, deflated after the
-    shuffle and the fletcher32 filters (`biostudy.netcdf.encoding`), found by inflating each zlib stream."""
+    shuffle and the fletcher32 filters (`biostudy.data.netcdf.encoding`), found by inflating each zlib stream."""
     shuffled = np.ascontiguousarray(snapshot).view(np.uint8).reshape(-1, snapshot.itemsize).T.tobytes()
     for at in range(len(raw) - 1):
         if raw[at] != 0x78 or (raw[at] * 256 + raw[at + 1]) % 31:
@@ -205,7 +217,7 @@ def _stored_chunk(raw: bytes, snapshot: np.ndarray) -> tuple[int, int]:
 def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     out = tmp_path / "out"
     plan = load_study(tiny_study)
-    runner.sweep(plan, out)
+    sweep(plan, out)
     path = store.case_file(out, "g=1e+09_r=50")
     good = store.open_dataset(path).phi.values
     raw = bytearray(path.read_bytes())
@@ -218,7 +230,7 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     assert "damaged: its data cannot be read" in one_line_error(invoke("show", path))
     study_nc = (out / "study.nc").read_bytes()
     (out / "study.nc").write_bytes(study_nc[:8] + b"\0" * (len(study_nc) - 8))  # beyond reading: replaced
-    report = runner.sweep(plan, out)
+    report = sweep(plan, out)
     assert report.damaged == report.ran == ["g=1e+09_r=50"] and len(report.skipped) == 3
     np.testing.assert_array_equal(store.open_dataset(path).phi.values, good)
     study = xr.open_dataset(out / "study.nc")
@@ -231,11 +243,11 @@ def test_resuming_while_this_process_holds_a_case_file_open(tiny_study, tmp_path
     open here would crash HDF5 at a later open (store.intact)."""
     out = tmp_path / "out"
     plan = load_study(tiny_study)
-    runner.sweep(plan, out)
+    sweep(plan, out)
     held = xr.open_dataset(store.case_file(out, "g=1e+09_r=50"))
     assert held.status.item() == "done"
     for _ in range(3):
-        assert len(runner.sweep(plan, out).skipped) == 4
+        assert len(sweep(plan, out).skipped) == 4
     held.close()
 
 
@@ -335,7 +347,7 @@ def test_a_killed_worker_fails_its_case_and_the_others_finish(slow_study, tmp_pa
 
 def deadly_serve(tasks, lifeline):
     """A worker whose case r = 60 kills it (as a case that runs out of memory would), every time."""
-    import biostudy.worker as worker
+    import biostudy.execution.worker as worker
 
     solve = worker.solve
 
@@ -352,8 +364,8 @@ def _sweep_with_a_deadly_case(study, out, *options) -> subprocess.CompletedProce
     script = textwrap.dedent(f"""\
         import sys
         sys.path.insert(0, {str(Path(__file__).parent)!r})
-        import biostudy.worker, test_faults
-        biostudy.worker.serve = test_faults.deadly_serve
+        import biostudy.execution.worker, test_faults
+        biostudy.execution.worker.serve = test_faults.deadly_serve
         from biostudy.cli import app
         app(["sweep", {str(study)!r}, "-o", {str(out)!r}, "-q", "--workers", "2", *{list(options)!r}])
         """)
@@ -366,7 +378,7 @@ def test_a_case_that_always_kills_its_worker_does_not_block_the_rest(slow_study,
     first = _sweep_with_a_deadly_case(study, out)
     assert first.returncode == 1 and "r=60 failed: worker died: signal 9" in first.stderr, first.stderr
     assert xr.open_dataset(out / "study.nc").status.values.tolist() == ["done", "failed", "done", "done"]
-    assert runner.sweep(load_study(study), out).ran == []  # the failure is recorded: resuming skips it
+    assert sweep(load_study(study), out).ran == []  # the failure is recorded: resuming skips it
     retried = _sweep_with_a_deadly_case(study, out, "--retry-failed")  # it dies again; nothing else is lost
     assert "1 cases run, 3 skipped" in retried.stderr and "r=60 failed: worker died" in retried.stderr
 
@@ -380,7 +392,7 @@ def test_a_case_out_of_memory_is_recorded_as_such_and_the_others_go_on(tiny_stud
         return simulate(problem, **kwargs)
 
     monkeypatch.setattr(solver, "simulate", greedy)
-    report = runner.sweep(load_study(tiny_study), tmp_path / "out")
+    report = sweep(load_study(tiny_study), tmp_path / "out")
     assert list(report.failed) == ["g=1e+09_r=50"] and len(report.ran) == 4
     assert report.failed["g=1e+09_r=50"].startswith("out of memory (MemoryError: Unable to allocate 1.2 TiB")
 
@@ -501,7 +513,7 @@ def _mask_scene(write_toml, path: str):
 
 
 def test_a_relative_mask_path_stays_in_the_scene_folder_an_absolute_one_is_taken_as_given(write_toml, tmp_path):
-    from biostudy.scene import load_scene
+    from biostudy.inputs.scene import load_scene
 
     outside = tmp_path.parent / f"{tmp_path.name}-outside.npy"  # beside the test's folder: must not be read
     inside = tmp_path / "sub" / "mask.npy"

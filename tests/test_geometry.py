@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from biostudy.errors import InvalidAt
-from biostudy.geometry import Box, Cylinder, Mask, Sphere
+from biostudy.inputs.geometry import Box, Cylinder, Mask, Sphere
 from solver import Grid
 
 

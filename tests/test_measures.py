@@ -1,8 +1,8 @@
-"""Dense quantities of a run (`biostudy.measures`) against values computed by hand on small fields."""
+"""Dense quantities of a run (`biostudy.quantities.measures`) against values computed by hand on small fields."""
 import numpy as np
 import xarray as xr
 
-from biostudy import measures
+from biostudy.quantities import measures
 
 H = 0.5  # µm: a spacing other than 1 so that index and coordinate mix-ups show
 
@@ -21,8 +21,8 @@ def test_dense_volume_counts_cells_at_or_above_the_level():
     phi[:3, :2] = 0.8  # 6 cells exactly at the level
     phi[3, 0] = 0.79
     ds = dataset(np.zeros((8, 6)), phi)
-    assert np.allclose(measures.dense_volume(ds), [0.0, 6 * H * H])
-    assert np.allclose(measures.max_phi(ds), [0.0, 0.8])
+    assert np.allclose(measures.volume(ds), [0.0, 6 * H * H])
+    assert np.allclose(measures.phi_max(ds), [0.0, 0.8])
 
 
 def test_top_is_the_upper_face_of_a_step_and_the_crossing_of_a_ramp():
@@ -31,8 +31,8 @@ def test_top_is_the_upper_face_of_a_step_and_the_crossing_of_a_ramp():
     ramp = np.zeros((8, 6))
     ramp[:, 2] = 1.0 - np.arange(8) / 8  # phi = 1 - j/8 along y: 0.5 at j = 4, i.e. y = (4 + 0.5) H
     full = np.ones((8, 6))  # up to the last cell: its upper face
-    assert np.allclose(measures.top(dataset(step, ramp, full), "y"), [3 * H, 4.5 * H, 8 * H])
-    assert np.isnan(measures.top(dataset(np.full((8, 6), 0.4)), "y")[0])
+    assert np.allclose(measures.height(dataset(step, ramp, full), "y"), [3 * H, 4.5 * H, 8 * H])
+    assert np.isnan(measures.height(dataset(np.full((8, 6), 0.4)), "y")[0])
 
 
 def test_reach_is_the_farthest_dense_cell_centre_from_the_initial_axis():

@@ -190,10 +190,12 @@ def test_tangent_is_the_derivative_of_the_residual_and_residual_of_the_energy(sh
 
 
 def test_the_memory_estimate_knows_every_preconditioner_and_the_solvers_auto_limit():
-    """biostudy.resources keeps its own copy of the limit (it must not import the solver): the same
-    preconditioner for "auto", and a per-node figure for every choice a scene can make."""
-    from biostudy import resources
+    """The estimate asks the solver what "auto" means (one rule), and has a per-node figure for every choice a
+    scene can make."""
+    from biostudy.inputs import resources
+    from solver.mechanics import linear_solver_for
     from solver.problem import LINEAR_SOLVERS
 
-    assert resources.DIRECT_LIMIT == Settings().direct_limit
+    limit = Settings().direct_limit
+    assert [linear_solver_for("auto", n) for n in (limit, limit + 1)] == ["direct", "multigrid"]
     assert {(m, d) for m in LINEAR_SOLVERS if m != "auto" for d in (2, 3)} == set(resources.MECHANICS_PER_NODE)

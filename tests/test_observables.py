@@ -1,9 +1,9 @@
-"""Observables (`biostudy.observables`) against values computed by hand on small fields, and a run's own series."""
+"""Observables (`biostudy.quantities.observables`) against values computed by hand on small fields, and a run's own series."""
 import numpy as np
 import pytest
 import xarray as xr
 
-from biostudy import observables
+from biostudy.quantities import observables
 
 H = 0.5  # µm: a spacing other than 1 so that index and coordinate mix-ups show
 

@@ -112,7 +112,7 @@ def test_mechanics_has_its_own_time_coordinate():
 def test_the_dataset_says_which_pressure_it_holds(tmp_path):
     """p's attributes and the dataset's name the pressure: recovered by default, the paper's element
     pressure on request; both survive the netCDF file."""
-    from biostudy import store
+    from biostudy.data import store
 
     base = small_problem(shape=(4, 3), obstacle=False)
     uniform = replace(base, phi0=np.ones(base.grid.cells_shape), params=Parameters(k_alpha=0.5),

@@ -26,12 +26,14 @@ GROWN = textwrap.dedent("""\
 
     from typer.testing import CliRunner
     import xarray as xr
-    from biostudy import stability
     from biostudy.cli import app
-    from biostudy.combine import _coordinate
-    from biostudy.scene import Scene
+    from biostudy.execution.jobs import plan_jobs
+    from biostudy.plans import catalogue
+    from biostudy.reports import stability
+    from biostudy.data.combine import _coordinate
+    from biostudy.inputs.scene import Scene
 
-    scene, catalogue = sys.argv[1], sys.argv[2]
+    scene, catalogue_file = sys.argv[1], sys.argv[2]
     cli = CliRunner()
     found = {"schema": Scene.model_json_schema()["$defs"]["Params"]["properties"]["q"]}
     bad = cli.invoke(app, ["run", scene, "--set", "params.q=-1", "-o", "bad.nc"])
@@ -41,8 +43,8 @@ GROWN = textwrap.dedent("""\
     found["attrs_q"] = float(xr.open_dataset("run.nc").attrs["q"])
     found["variable_q"] = [float(xr.open_dataset("run.nc")["q"]), dict(xr.open_dataset("run.nc")["q"].attrs)]
     found["show"] = cli.invoke(app, ["show", "run.nc"]).stdout
-    plan = stability.load(stability.Path(catalogue))
-    table = stability.verdicts(stability.plan_jobs(plan), stability.Path("unrun"))
+    plan = catalogue.load(stability.Path(catalogue_file))
+    table = stability.verdicts(plan_jobs(plan), stability.Path("unrun"))
     found["stability_q"] = [table.q.values.tolist(), dict(table.q.attrs)]
     found["sweep_coordinate"] = _coordinate("q", [1.0, 2.0])[1]
     print(json.dumps(found))

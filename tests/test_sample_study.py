@@ -5,7 +5,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from biostudy.designs import Sample
+from biostudy.plans.designs import Sample
 
 cli = CliRunner()
 

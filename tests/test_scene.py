@@ -5,11 +5,13 @@ import numpy as np
 import pytest
 
 import solver
-from biostudy import bundled, stability
+from biostudy.inputs import bundled
+from biostudy.plans import catalogue
 from biostudy.errors import BadInput
-from biostudy.scene import Scene, key_info, load_scene, parse_override
-from biostudy.study import load_study
-from biostudy.tomltext import dumps
+from biostudy.inputs.keys import parse_override
+from biostudy.inputs.scene import Scene, key_info, load_scene
+from biostudy.plans.study import load_study
+from biostudy.inputs.tomltext import dumps
 
 
 def test_defaults_are_the_solvers_and_the_papers(tiny_scene):
@@ -166,7 +168,7 @@ def test_every_bundled_file_validates():
         elif entry.kind == "study":
             assert load_study(entry.path).cases
         else:
-            plan = stability.load(entry.path)
+            plan = catalogue.load(entry.path)
             assert plan.cases
             for scene in plan.scenes.values():
                 scene.problem()

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from biostudy import bundled, measures
-from biostudy.scene import load_scene
+from biostudy.inputs import bundled
+from biostudy.quantities import measures
+from biostudy.inputs.scene import load_scene
 from solver import simulate
 
 DENSE, EXTENT = measures.DENSE, measures.THRESHOLD
@@ -37,9 +38,9 @@ def test_directional_biofilm_stays_dense_and_grows_toward_the_corner_then_backwa
     ("a slight egg-like shape"), and least on the sides; "the whole domain would fill up if continued": phi's
     mean still rises at T* = 1.  No part of it outruns the front-speed bound r/2."""
     scene, ds = run("directional", "time.steps=250")
-    assert np.all(measures.max_phi(ds) >= DENSE)
-    dense = measures.dense_volume(ds)
-    assert dense[-1] > dense[0] and np.all(measures.dense_volume(ds, EXTENT) >= dense[0])
+    assert np.all(measures.phi_max(ds) >= DENSE)
+    dense = measures.volume(ds)
+    assert dense[-1] > dense[0] and np.all(measures.volume(ds, EXTENT) >= dense[0])
     centre, time = (10.0, 10.0, 10.0), ds.time.values
     toward, back = advance(ds, (1, 1, 1), EXTENT, centre), advance(ds, (-1, -1, -1), EXTENT, centre)
     side = advance(ds, (1, -1, 0), EXTENT, centre)
@@ -59,10 +60,10 @@ def test_agar_low_consumption_grows_a_dense_colony_to_the_lid(agar):
     """4.2, g = 1e8: the colony "grows much higher, filling the entire discretized cube": dense biofilm
     (phi >= 0.8) reaches the lid, and stays dense; not faster than the front-speed bound r/2 allows."""
     scene, ds = agar["1e8"]
-    top = measures.top(ds, "z", DENSE)
+    top = measures.height(ds, "z", DENSE)
     height = scene.grid.solver_grid().extent[2]
-    assert top[-1] >= height - scene.grid.spacing and np.all(measures.max_phi(ds) >= DENSE), top
-    rise = measures.top(ds, "z", EXTENT) - measures.top(ds, "z", EXTENT)[0]
+    assert top[-1] >= height - scene.grid.spacing and np.all(measures.phi_max(ds) >= DENSE), top
+    rise = measures.height(ds, "z", EXTENT) - measures.height(ds, "z", EXTENT)[0]
     speed = scene.params.r / (scene.params.k + 1)  # r c/(k+c) at its largest, c <= 1
     assert np.all(rise <= speed * ds.time.values + scene.grid.spacing), rise
 
@@ -72,12 +73,12 @@ def test_agar_high_consumption_stays_low_and_spreads_into_a_layer(agar):
     a biofilm layer at the bottom": lower than the g = 1e8 colony at every output, no higher at the end than
     at T* = 0.5 (within a cell), wider than tall, and dense; its nutrient plateau "significantly" below."""
     (tall_scene, tall), (scene, low) = agar["1e8"], agar["1e10"]
-    top, tall_top = measures.top(low, "z", EXTENT), measures.top(tall, "z", EXTENT)
+    top, tall_top = measures.height(low, "z", EXTENT), measures.height(tall, "z", EXTENT)
     assert np.all(top[1:] < tall_top[1:]), (top, tall_top)
     half = int(np.argmin(np.abs(low.time.values - 0.5)))
     assert top[-1] - top[half] < scene.grid.spacing, top
     assert 2 * measures.reach(low, "z", EXTENT)[-1] > top[-1]
-    assert measures.max_phi(low)[-1] >= DENSE
+    assert measures.phi_max(low)[-1] >= DENSE
     assert np.all(low.c_mean.values[1:] < tall.c_mean.values[1:])
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from biostudy import store
-from biostudy.scene import load_scene
+from biostudy.data import store
+from biostudy.inputs.scene import load_scene
 from conftest import CUBE_SCENE
 from solver import simulate
 

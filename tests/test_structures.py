@@ -4,8 +4,8 @@ import pytest
 from scipy import ndimage
 
 from biostudy.errors import BadInput
-from biostudy.scene import Scene, initial_biofilm, scene_from_data
-from biostudy.structures import CircularMaze, grate
+from biostudy.inputs.scene import Scene, initial_biofilm, scene_from_data
+from biostudy.inputs.structures import CircularMaze, grate
 from solver import Grid
 
 

@@ -6,7 +6,8 @@ import sys
 import pytest
 
 from biostudy.errors import BadInput
-from biostudy.study import dimension, id_text, load_study
+from biostudy.inputs.keys import dimension, id_text
+from biostudy.plans.study import load_study
 
 
 def test_grid_sweep_expands_every_combination_last_key_fastest(tiny_study):
@@ -23,7 +24,7 @@ def test_case_ids_do_not_depend_on_when_or_where_they_are_made(tiny_study, tmp_p
     """Resume finds a case by its id: another process, with another hash seed and working directory, on
     another day, makes the same ids (nothing random, hashed per process or from the clock goes in)."""
     here = [c.id for c in load_study(tiny_study).cases]
-    script = ("import sys; from biostudy.study import load_study; "
+    script = ("import sys; from biostudy.plans.study import load_study; "
               "print(' '.join(c.id for c in load_study(sys.argv[1]).cases))")
     for seed in ("1", "2"):
         there = subprocess.run([sys.executable, "-c", script, str(tiny_study)], cwd=tmp_path, check=True, text=True,
@@ -48,7 +49,7 @@ def test_zip_sweep_pairs_values_and_reaches_any_dotted_key(write_toml, tiny_scen
                                           "grid_shape=20x20_numerics_advection=tvd_k_alpha=0.0025"]
     second = plan.scenes[plan.cases[1].id]
     assert second.grid.shape == [20, 20] and second.numerics.advection == "tvd" and second.time.steps == 10
-    assert plan.fixed == {"time.steps": 10}
+    assert plan.common == {"time.steps": 10}
 
 
 def test_labels_and_dimension_names():
@@ -90,6 +91,6 @@ def test_bad_studies_name_the_file_and_key(write_toml, tiny_scene, text, where):
 def test_scene_and_study_files_are_told_apart(tiny_scene, tiny_study):
     with pytest.raises(BadInput, match="this is a scene file"):
         load_study(tiny_scene)
-    from biostudy.scene import load_scene
+    from biostudy.inputs.scene import load_scene
     with pytest.raises(BadInput, match="this is a study file"):
         load_scene(tiny_study)

@@ -10,12 +10,23 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from biostudy import bundled, combine, runner, store
+from biostudy.inputs import bundled
+from biostudy.data import combine
+from biostudy.execution import jobs as runner
+from biostudy.data import store
 from biostudy.cli import app
-from biostudy.scene import load_scene
-from biostudy.study import load_study
+from biostudy.inputs.scene import load_scene
+from biostudy.plans.study import load_study
+from biostudy.commands.sweep import run_study
+from biostudy.execution import backends, dask
+from biostudy.execution.jobs import Execution, fingerprint
 
 cli = CliRunner()
+
+def sweep(plan, out, **execution):
+    """A study's sweep into `out` as `biostudy sweep` runs it (`execution`: workers, retry_failed, ...)."""
+    return run_study(plan, out, Execution(**execution))
+
 
 
 def sweep_cli(*args):
@@ -57,7 +68,7 @@ def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_st
 def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path):
     out = tmp_path / "out"
     plan = load_study(tiny_study)
-    first = runner.sweep(plan, out)
+    first = sweep(plan, out)
     assert len(first.ran) == 4 and not first.skipped
     # as if a run had been killed: one case missing, a half-written temporary beside the others
     (out / "cases" / "g=1e+09_r=100.nc").unlink()
@@ -70,27 +81,27 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     partial = xr.open_dataset(out / "study.nc")
     assert partial.status.sel(g=1e9, r=100).item() == "missing" and partial.attrs["cases_missing"] == 1
     assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
-    again = runner.sweep(load_study(tiny_study), out)
+    again = sweep(load_study(tiny_study), out)
     assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
     assert [p.name for p in again.removed] == [leftover]
     assert case_files(out) == sorted([*stamps, "g=1e+09_r=100.nc"])
     assert all((out / "cases" / n).stat().st_mtime_ns == t for n, t in stamps.items())  # untouched
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
     # a changed scene makes the recorded cases stale: they run again
-    changed = runner.sweep(load_study(tiny_study, ["time.steps=10"]), out)
+    changed = sweep(load_study(tiny_study, ["time.steps=10"]), out)
     assert len(changed.ran) == 4
 
 
 def test_fingerprint_follows_what_changes_the_result(tiny_scene):
-    base = runner.fingerprint(load_scene(tiny_scene).problem())
-    assert base == runner.fingerprint(load_scene(tiny_scene).problem())
-    assert base == runner.fingerprint(load_scene(tiny_scene, ["name=other", "description=x"]).problem())
-    assert base != runner.fingerprint(load_scene(tiny_scene, ["params.g=2e8"]).problem())
-    assert base != runner.fingerprint(load_scene(tiny_scene, ["biofilm.0.radius=2"]).problem())
+    base = fingerprint(load_scene(tiny_scene).problem())
+    assert base == fingerprint(load_scene(tiny_scene).problem())
+    assert base == fingerprint(load_scene(tiny_scene, ["name=other", "description=x"]).problem())
+    assert base != fingerprint(load_scene(tiny_scene, ["params.g=2e8"]).problem())
+    assert base != fingerprint(load_scene(tiny_scene, ["biofilm.0.radius=2"]).problem())
     agar = bundled.resolve("agar-g1e8")  # the nutrient held on a face marks no cell: the face and value count too
-    held = runner.fingerprint(load_scene(agar).problem())
-    assert held != runner.fingerprint(load_scene(agar, ['nutrient.0.face="z+"']).problem())
-    assert held != runner.fingerprint(load_scene(agar, ["nutrient.0.value=0.5"]).problem())
+    held = fingerprint(load_scene(agar).problem())
+    assert held != fingerprint(load_scene(agar, ['nutrient.0.face="z+"']).problem())
+    assert held != fingerprint(load_scene(agar, ["nutrient.0.value=0.5"]).problem())
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
@@ -131,15 +142,15 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert "failed" in cli.invoke(app, ["show", str(out / "cases" / "k_alpha=1e+100.nc")]).stdout
     # re-running keeps the recorded failure; --retry-failed runs it again
     plan = load_study(study)
-    assert runner.sweep(plan, out).ran == []
-    assert runner.sweep(plan, out, retry_failed=True).ran == ["k_alpha=1e+100"]
+    assert sweep(plan, out).ran == []
+    assert sweep(plan, out, retry_failed=True).ran == ["k_alpha=1e+100"]
 
 
 def test_local_processes_give_the_serial_results(tiny_study, tmp_path):
     plan = load_study(tiny_study)
-    serial = runner.sweep(plan, tmp_path / "serial")
+    serial = sweep(plan, tmp_path / "serial")
     environment = dict(os.environ)
-    local = runner.sweep(plan, tmp_path / "local", workers=2)
+    local = sweep(plan, tmp_path / "local", workers=2)
     assert dict(os.environ) == environment  # the workers' settings are theirs only
     assert sorted(local.ran) == sorted(serial.ran) and local.ok
     a, b = (xr.open_dataset(tmp_path / d / "study.nc") for d in ("serial", "local"))
@@ -194,7 +205,7 @@ def test_sweep_on_a_dask_cluster_over_tls(tiny_study, tmp_path):
 
 
 def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
-    monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(dask, "CONNECT_TIMEOUT", "1s")
     result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert result.exit_code == 2
     assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")
@@ -221,7 +232,7 @@ def test_a_killed_sweep_leaves_only_complete_files_and_resumes(slow_study, tmp_p
     assert 1 <= len(finished) < 4 and not (out / "study.nc").exists()
     for path in finished:
         assert store.recorded(path)["status"] == "done"  # complete, readable files only
-    report = runner.sweep(load_study(study), out)
+    report = sweep(load_study(study), out)
     assert len(report.skipped) == len(finished) and len(report.ran) == 4 - len(finished)
     assert not list((out / "cases").glob(".*"))
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
@@ -262,7 +273,7 @@ def test_cases_on_different_grids_keep_their_time_series_in_study_nc(write_toml,
         mode = "zip"
         "grid.shape" = [[16, 16], [20, 16]]
         """)
-    assert runner.sweep(load_study(study), tmp_path / "out").ok
+    assert sweep(load_study(study), tmp_path / "out").ok
     ds = xr.open_dataset(tmp_path / "out" / "study.nc")
     assert ds.grid_shape.values.tolist() == ["16x16", "20x16"]
     assert ds.phi_mean.dims == ("case", "time") and ds.phi_mean.notnull().all()

@@ -29,6 +29,7 @@ import xarray as xr
 
 from solver.output import on_output_times
 
+from ..quantities import observables
 from . import analysis, fields, isosurface, series, sweep, warped
 from .cuts import plane_for
 from .style import SERIES_NAMES, field_names, output_paths, save, snapshot_indices
@@ -99,7 +100,6 @@ def _marks(ds: xr.Dataset, indices: list[int], time: float | None) -> list[float
 
 
 def _sweep_figures(ds: xr.Dataset, variable: str | None, time: float | None, cut: str | None):
-    from .. import observables
 
     known = [n for n in dict.fromkeys((*SERIES_NAMES, *observables.REGISTRY)) if n in ds]
     if variable is not None and variable not in known:

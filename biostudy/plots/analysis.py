@@ -14,7 +14,9 @@ import numpy as np
 import xarray as xr
 
 from ..formatting import number, units_text
-from .style import suptitle
+from ..reports.cases import cases_of
+from .style import axis_label, suptitle
+from .sweep import panels
 
 COLUMNS = 3  # panels per row of the indices figure
 
@@ -95,8 +97,6 @@ def scatter_figure(outputs: dict[str, np.ndarray], units: dict[str, str], parame
 
 def sample_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     """A sampled study's outputs at one output time against each sampled parameter."""
-    from ..analysis import cases_of
-
     flat = cases_of(ds)
     outputs = {n: np.asarray(flat.values(ds[n].isel(time=index)), dtype=float) for n in names}
     units = {n: str(ds[n].attrs.get("units", "1")) for n in names}
@@ -108,10 +108,6 @@ def sample_figure(ds: xr.Dataset, names: list[str], index: int = -1):
 
 def sample_series_figure(ds: xr.Dataset, names: list[str]):
     """Every case's time series of each output, thin lines (cases that did not finish: none drawn)."""
-    from ..analysis import cases_of
-    from .sweep import panels
-    from .style import axis_label
-
     flat = cases_of(ds)
     fig, axes = panels(len(names))
     time = ds["time"].values

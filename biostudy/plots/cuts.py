@@ -26,7 +26,7 @@ import numpy as np
 import xarray as xr
 from scipy import ndimage
 
-from ..measures import centroid
+from ..quantities.measures import centroid
 
 AXES = ("x", "y", "z")
 _AXIS_CUT = re.compile(r"^\s*([xyz])\s*=\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(?:um|µm)?\s*$")

@@ -19,7 +19,7 @@ import numpy as np
 import xarray as xr
 
 from ..formatting import number, shown_units
-from ..store import atomic
+from ..data.store import atomic
 
 OBSTACLE_GREY = "0.6"
 SOURCE_GREEN = "#2ca02c"

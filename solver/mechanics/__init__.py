@@ -14,7 +14,16 @@ One file per concept:
   settings         every heuristic and cap in one object
   growth           `GrowthMechanics`: checks, load stepping, result
 """
-from .growth import GrowthMechanics, MechanicsResult
-from .settings import Settings
+from .settings import Settings, linear_solver_for
 
-__all__ = ["GrowthMechanics", "MechanicsResult", "Settings"]
+__all__ = ["GrowthMechanics", "MechanicsResult", "Settings", "linear_solver_for"]
+
+
+def __getattr__(name: str):
+    # the assembly and its solvers are imported when first asked for, not with the settings: a scene's
+    # memory estimate (`linear_solver_for`) must not pay for scikit-fem's import
+    if name in ("GrowthMechanics", "MechanicsResult"):
+        from . import growth
+
+        return getattr(growth, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -21,6 +21,7 @@ import pyamg
 import scipy.sparse as sp
 
 from .multigrid import Multigrid, superlu
+from .settings import linear_solver_for
 
 try:  # PARDISO from PyPI wheels (x86_64); SuperLU is the portable fallback
     import pypardiso
@@ -181,8 +182,7 @@ class Deflated(Preconditioner):
 
 def choose(method: str, n_dofs: int, mesh, constrained: np.ndarray, modes: np.ndarray, settings):
     """The preconditioner a `MechanicsSetup.linear_solver` names ("auto": by size), deflated if asked."""
-    if method == "auto":
-        method = "direct" if n_dofs <= settings.direct_limit else "multigrid"
+    method = linear_solver_for(method, n_dofs, settings)
     if method == "direct":
         inner = Direct()
     elif method == "multigrid":

@@ -57,3 +57,11 @@ class Settings:
 
 
 DEFAULT = Settings()
+
+
+def linear_solver_for(method: str, n_dofs: int, settings: Settings | None = None) -> str:
+    """The preconditioner a `MechanicsSetup.linear_solver` choice means for `n_dofs` unknowns: "auto" is a
+    factorisation up to `Settings.direct_limit` dofs, multigrid beyond; any other choice is itself."""
+    if method != "auto":
+        return method
+    return "direct" if n_dofs <= (settings or Settings()).direct_limit else "multigrid"

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..counters import Count, Counters
+from ..counters import Counters
 from .bounds import Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
@@ -164,7 +164,7 @@ class Biofilm:
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
     def counters(self) -> Counters:
-        return {"biofilm_iterations": Count(self.iterations, "BiCGSTAB iterations of the phi solves"),
+        return {"biofilm_iterations": self.iterations,
                 **self.projection.counters("phi")}
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:

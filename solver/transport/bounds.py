@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..counters import Count, Counters
+from ..counters import Counters
 from ..errors import StepFailure
 
 ROUNDOFF = 1e-8  # relative distance to a bound that counts as round-off
@@ -34,8 +34,8 @@ class Projection:
     largest: float = 0.0
 
     def counters(self, name: str) -> Counters:
-        return {f"projected_{name}_count": Count(self.count, f"values of {name} projected onto a bound (round-off)"),
-                f"projected_{name}_largest": Count(self.largest, f"largest correction of {name} by that projection")}
+        return {f"projected_{name}_count": self.count,
+                f"projected_{name}_largest": self.largest}
 
     def onto(self, values: np.ndarray, lower: float, upper: float) -> np.ndarray:
         """`values` clipped to [lower, upper]; the correction is tallied."""

@@ -21,7 +21,7 @@ import pyamg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..counters import Count, Counters
+from ..counters import Counters
 from ..errors import StepFailure
 
 
@@ -39,8 +39,8 @@ class ReusedAMG:
         self.iterations = 0  # total CG iterations, for the cost report
 
     def counters(self, prefix: str) -> Counters:
-        return {f"{prefix}_cg_iterations": Count(self.iterations, "CG iterations, all solves together"),
-                f"{prefix}_amg_rebuilds": Count(self.rebuilds, "builds of the AMG hierarchy")}
+        return {f"{prefix}_cg_iterations": self.iterations,
+                f"{prefix}_amg_rebuilds": self.rebuilds}
 
     def _rebuild(self, matrix: sp.csr_matrix):
         self.hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=50)

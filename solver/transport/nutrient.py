@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .bounds import ROUNDOFF, Projection
-from ..counters import Count, Counters
+from ..counters import Counters
 from ..errors import StepFailure
 from .finite_volume import FiniteVolumeGrid
 from .linear import ReusedAMG
@@ -71,8 +71,7 @@ class Nutrient:
 
     def counters(self) -> Counters:
         return {**self.amg.counters("nutrient"),
-                "nutrient_active_set_iterations": Count(self.active_set_iterations,
-                                                        "zero-order consumption: active-set iterations"),
+                "nutrient_active_set_iterations": self.active_set_iterations,
                 **self.projection.counters("c")}
 
     @staticmethod

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..counters import Count, Counters
+from ..counters import Counters
 from .biofilm import Biofilm
 from .expansion import grow
 from .finite_volume import FiniteVolumeGrid
@@ -79,8 +79,7 @@ class Transport:
         """The nutrient's and the biofilm's counters; upwind runs add their largest numerical diffusion."""
         found = {**self.nutrient.counters(), **self.biofilm.counters()}
         if not self.biofilm.tvd:
-            found["numerical_diffusion_max"] = Count(self.largest_numerical_diffusion,
-                                                     "largest numerical diffusivity |v| h / 2 of upwinding, um2")
+            found["numerical_diffusion_max"] = self.largest_numerical_diffusion
         return found
 
     def full(self, values: np.ndarray) -> np.ndarray:

@@ -1,0 +1,311 @@
+"""The `biostudy` command line (README, "Commands"): load, validate, call; nothing else.
+
+Every command calls one function of `biostudy.commands` with keyword-only
+options.  Exit status: 0 done, 1 a computation failed (the message says why),
+2 bad input (one line per problem: file, key, problem; no traceback), 130
+interrupted (no file is left half-written).  Progress goes to stderr
+(`progress`).  The commands' modules are imported inside the commands: `--version`
+and `-h` do not pay for numpy, xarray and FiPy.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+from pathlib import Path
+from typing import Annotated, Callable, List, Optional
+
+import typer
+
+from ..errors import BadInput, Failed
+from ..execution import worker
+from ..inputs import bundled
+from . import progress
+from .options import (FLAG, CaseOverrides, Directory, Force, Overrides, Quiet, RerunAll, RetryFailed, SceneArgument,
+                      Scheduler, Workers, overrides)
+
+app = typer.Typer(name="biostudy", no_args_is_help=True, pretty_exceptions_enable=False,
+                  context_settings={"help_option_names": ["-h", "--help"]},
+                  help="Parameter studies of biofilm growth: run scenes, sweep studies, inspect results.")
+
+
+def _version(value: bool) -> None:
+    if value:
+        from ..data.store import version  # lazily: the version alone imports nothing heavy
+
+        typer.echo(f"biostudy {version()}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _process(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, metavar=FLAG,
+                                                   help="print the version and exit")] = False) -> None:
+    # Where a biostudy process starts, before FiPy or matplotlib is imported: FiPy's scipy solver suite,
+    # and pictures drawn to files, never to a screen.
+    worker.pin_solvers()
+    os.environ["MPLBACKEND"] = "Agg"
+
+
+def _fail(message: str, status: int) -> typer.Exit:
+    typer.echo(message, err=True)  # plain echo: rich would wrap a long message over several lines
+    return typer.Exit(status)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt  # SIGTERM unwinds like Ctrl-C: temporary files are removed on the way out
+
+
+@contextlib.contextmanager
+def _guarded():
+    """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C / SIGTERM ->
+    exit 130."""
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    except BadInput as error:
+        raise _fail("\n".join(f"error: {line}" for line in error.lines()), 2) from None
+    except Failed as error:
+        raise _fail(f"error: {error}", 1) from None
+    except KeyboardInterrupt:
+        raise _fail("interrupted: finished files are kept, nothing is left half-written", 130) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@app.command()
+def run(
+    scene: SceneArgument,
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="OUT.nc",
+                                                   help="dataset to write (default: NAME.nc, the scene's name)")] = None,
+    overrides: Overrides = [],
+    force: Annotated[bool, typer.Option("--force", metavar=FLAG,
+                                        help="replace OUT.nc even if it holds the result of another scene or a "
+                                             "sweep's file (never an input or a file biostudy did not write)")] = False,
+    quiet: Quiet = False,
+):
+    """Run one simulation and write its dataset (netCDF)."""
+    with _guarded():
+        from ..commands import run as command  # lazily (module docstring)
+
+        loaded = command.load(scene, overrides=overrides, output=output, force=force)
+        with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
+            result = command.compute(loaded, progress=report)
+        progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
+
+
+def _job_command(quiet: bool, load: Callable, **execution) -> None:
+    """The one path of every job command (sweep, convergence, stability).
+
+    load() reads and validates (bad input: exit 2 before anything runs) and returns a `commands.JobCommand`,
+    which runs the jobs on the chosen pool and says what came of them (`commands.finished.Finished`).  A job
+    that failed, or a pool that broke down, is exit status 1.
+    """
+    with _guarded():
+        from ..execution.dask import check_choice  # lazily (module docstring)
+        from ..execution.jobs import Execution
+
+        check_choice(execution.get("workers"), execution.get("scheduler"))
+        if execution.get("workers"):
+            from ..execution.pool import warm_up
+
+            warm_up()  # the fork server imports the solver while this process imports it and validates
+        job = load()
+        with progress.jobs(job.title, quiet, job.noun) as notify:
+            finished = job.run(Execution(notify=notify, **execution))
+        if finished.table:
+            typer.echo(finished.table)
+        for warning in finished.warnings:
+            typer.echo(f"warning: {warning}", err=True)
+        progress.err().print(finished.summary)
+        if finished.failures:
+            raise _fail(finished.failure_line(), 1)
+
+
+@app.command()
+def sweep(
+    study: Annotated[str, typer.Argument(metavar="STUDY", help="study file (TOML), or the name of a bundled study")],
+    output: Directory = None,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    overrides: CaseOverrides = [],
+    retry_failed: RetryFailed = False,
+    force: Force = False,
+    rerun_all: RerunAll = False,
+    quiet: Quiet = False,
+):
+    """Run every case of a study; re-running skips finished cases."""
+    def load():
+        from ..commands import sweep as command  # lazily (module docstring)
+
+        return command.load(study, output=output, overrides=overrides)
+
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, retry_failed=retry_failed, force=force,
+                 rerun_all=rerun_all)
+
+
+@app.command()
+def scenes():
+    """List the bundled scenes and studies with their descriptions."""
+    from rich.table import Table
+
+    directory = bundled.studies_dir()
+    table = Table(title=f"bundled scenes and studies in {directory}", show_edge=False)
+    table.add_column("file", no_wrap=True)
+    table.add_column("kind", no_wrap=True)
+    table.add_column("description")
+    for entry in bundled.entries(directory):
+        table.add_row(entry.path.name, entry.kind, entry.description)
+    progress.out().print(table)
+
+
+@app.command()
+def show(path: Annotated[Path, typer.Argument(metavar="FILE", help="dataset written by run or sweep (a case file, "
+                                                                   "study.nc, or a sweep's directory), or a scene "
+                                                                   "or study file (TOML)")]):
+    """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
+    running it needs (memory, disk)."""
+    with _guarded():
+        if path.suffix == ".toml" or (not path.exists() and not path.suffix):
+            from ..reports.needs import needs  # lazily (module docstring)
+
+            typer.echo(needs(bundled.resolve(path)))
+            return
+        from ..data.store import open_result  # lazily (module docstring)
+        from ..reports.show import summarize
+
+        summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
+                              "study.nc"), progress.out())
+
+
+@app.command()
+def plot(
+    path: Annotated[Path, typer.Argument(metavar="FILE.nc", help="dataset written by run or sweep (a sweep's "
+                                                                 "directory means its study.nc)")],
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="FIG.png",
+                                                   help="picture (PNG); several figures get _series, _cut, ... "
+                                                        "suffixes (default: beside the dataset)")] = None,
+    variable: Annotated[Optional[str], typer.Option("--variable", metavar="V",
+                                                    help="one field (phi, c, alpha, p) or, for a sweep, one output "
+                                                         "(phi_mean, c_mean, biofilm_volume)")] = None,
+    time: Annotated[Optional[float], typer.Option("--time", metavar="T",
+                                                  help="draw the output nearest to this T*")] = None,
+    cut: Annotated[Optional[str], typer.Option("--cut", metavar="C",
+                                               help="3-D: 'diagonal' (toward the nutrient, default), 'xy-diagonal', "
+                                                    "or a plane such as 'x=10' or 'z=5.5' (µm)")] = None,
+    warp: Annotated[Optional[float], typer.Option("--warp", metavar="FACTOR",
+                                                  help="also draw the deformed body with the displacement magnified "
+                                                       "by this factor (e.g. 500, paper Fig. 13)")] = None,
+):
+    """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
+    with _guarded():
+        from ..data.store import open_result  # lazily (module docstring)
+        from ..plots import plot as draw
+
+        source = path / "study.nc" if path.is_dir() else path
+        ds = open_result(source, ("run", "study"), "nothing to plot")
+        try:
+            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut, warp=warp)
+        except ValueError as error:
+            raise BadInput(str(error), source) from None
+        for picture in written:
+            progress.out().print(f"wrote {picture}")
+
+
+@app.command()
+def analyze(
+    path: Annotated[Path, typer.Argument(metavar="DIR", help="a study's directory (or its study.nc), written by "
+                                                             "sweep")],
+    outputs: Annotated[List[str], typer.Option("--output", metavar="NAME",
+                                               help="observable or study.nc variable to analyse; repeatable "
+                                                    "(default: every observable the study has)")] = [],
+    times: Annotated[List[float], typer.Option("--time", metavar="T",
+                                               help="analyse at the output nearest this T*; repeatable (default: "
+                                                    "the last output)")] = [],
+):
+    """Which parameter matters: Sobol' or Morris indices of a sampled study, rank correlations of any study."""
+    with _guarded():
+        from ..commands.analyze import analyze as command  # lazily (module docstring)
+
+        written, table = command(path, outputs=outputs, times=times)
+        typer.echo(table)
+        progress.err().print("wrote " + ", ".join(str(p) for p in written))
+
+
+@app.command()
+def export(
+    path: Annotated[Path, typer.Argument(metavar="FILE.nc", help="dataset written by run (or one case of a sweep)")],
+    directory: Annotated[Path, typer.Argument(metavar="DIR", help="directory for snapshot_NNNN.vtu files and "
+                                                                  "series.pvd")],
+):
+    """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
+    with _guarded():
+        from ..data.export import export as write  # lazily (module docstring)
+        from ..data.store import open_result
+
+        ds = open_result(path, ("run",), "export writes one run's fields")
+        try:
+            written = write(ds, directory)
+        except ValueError as error:
+            raise BadInput(str(error), path) from None
+        progress.out().print(f"wrote {len(written)} files to {directory} (open {directory / 'series.pvd'} in "
+                             "ParaView)")
+
+
+@app.command()
+def convergence(
+    scene: SceneArgument,
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
+                                                   help="directory for cases/, convergence.nc, convergence.md, "
+                                                        "work_precision.png")] = None,
+    levels: Annotated[int, typer.Option("--levels", min=2, metavar="N",
+                                        help="levels per series; the finest is the reference")] = 3,
+    series: Annotated[str, typer.Option("--series", metavar="S",
+                                        help="comma-separated refinement series: space, time, both, "
+                                             "adaptive")] = "space,time,both,adaptive",
+    tolerance: Annotated[float, typer.Option("--tolerance", min=0.0, metavar="TOL",
+                                             help="time_tolerance of adaptive level 0 (divided by 4 per "
+                                                  "level)")] = 1e-2,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    overrides: Annotated[List[str], overrides("level 0")] = [],
+    force: Force = False,
+    rerun_all: RerunAll = False,
+    reference: Annotated[Optional[Path], typer.Option("--reference", metavar="RUN.nc",
+                                                      help="measure every level against this run of the same scene "
+                                                           "(e.g. refined, another scheme) instead of the finest "
+                                                           "level")] = None,
+    time: Annotated[Optional[float], typer.Option("--time", metavar="T",
+                                                  help="compare at the output nearest this T* (default: the "
+                                                       "last)")] = None,
+    quiet: Quiet = False,
+):
+    """Refine grid, time step and both; measure each level's error and cost (work-precision)."""
+    def load():
+        from ..commands import convergence as command  # lazily (module docstring)
+
+        return command.load(scene, output=output, levels=levels, series=series, tolerance=tolerance,
+                            overrides=overrides, reference=reference, time=time)
+
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)
+
+
+@app.command()
+def stability(
+    catalogue: Annotated[str, typer.Argument(metavar="CATALOGUE", help="stability catalogue (TOML), or the name of "
+                                                                       "a bundled one")],
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
+                                                   help="directory for cases/, stability.nc, stability.md")] = None,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    overrides: CaseOverrides = [],
+    force: Force = False,
+    rerun_all: RerunAll = False,
+    quiet: Quiet = False,
+):
+    """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
+    def load():
+        from ..commands import stability as command  # lazily (module docstring)
+
+        return command.load(catalogue, output=output, overrides=overrides)
+
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)

@@ -1,0 +1,41 @@
+"""The options several commands share, declared once (typer `Annotated` aliases), with one help text each."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, List, Optional
+
+import typer
+
+SET = "KEY=VALUE"  # metavars: what an option takes
+FLAG = ""  # a flag takes nothing (typer would show <bool>)
+SET_HELP = "override a scene key, KEY=VALUE with the value as TOML (params.g=1e10, grid.shape=[40,40,40]); repeatable"
+
+
+def overrides(applied: str = "") -> typer.models.OptionInfo:
+    """--set, saying what it applies to (a run's scene, every case, level 0)."""
+    return typer.Option("--set", metavar=SET, help=SET_HELP + (f"; applied to {applied}" if applied else ""))
+
+
+Workers = Annotated[Optional[int], typer.Option("--workers", min=1, metavar="N",
+                                                help="run the cases on N local processes")]
+Scheduler = Annotated[Optional[str], typer.Option("--scheduler", metavar="ADDRESS",
+                                                  help="address of a running Dask scheduler, e.g. "
+                                                       "tcp://10.0.0.5:8786 or tls://... (README: 'Sweeps on a "
+                                                       "Dask cluster')")]
+Force = Annotated[bool, typer.Option("--force", metavar=FLAG,
+                                     help="use the output directory even if it belongs to another study or holds "
+                                          "files no biostudy run recorded (cases of the same ids are replaced)")]
+RerunAll = Annotated[bool, typer.Option("--rerun-all", metavar=FLAG,
+                                        help="run every case again, also those finished before (e.g. after a "
+                                             "software upgrade)")]
+RetryFailed = Annotated[bool, typer.Option("--retry-failed", metavar=FLAG,
+                                           help="run failed cases again (finished ones are skipped unless "
+                                                "--rerun-all)")]
+Quiet = Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG, help="no progress bar or lines")]
+Directory = Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
+                                                   help="directory for cases/ and the results (default: from "
+                                                        "the file's name)")]
+SceneArgument = Annotated[str, typer.Argument(metavar="SCENE", help="scene file (TOML), or the name of a "
+                                                                     "bundled scene")]
+Overrides = Annotated[List[str], overrides()]
+CaseOverrides = Annotated[List[str], overrides("every case")]

@@ -1,0 +1,126 @@
+"""Progress on stderr: a rich bar on a terminal, plain lines where stderr is a file or a pipe.
+
+A batch job, a cluster log or `| tee` gets one plain line each time another
+tenth of the work is done or 30 s have passed, with no escape codes (`Lines`).
+The consoles are made when first used, not at import: a test (or a notebook)
+that redirects stderr gets what it redirected to.
+"""
+from __future__ import annotations
+
+import contextlib
+import sys
+import time as clock
+from functools import lru_cache
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+
+@lru_cache(maxsize=None)
+def _console(stderr: bool, stream_id: int) -> Console:
+    return Console(stderr=stderr, soft_wrap=True)  # soft_wrap: a long message stays one line in a log
+
+
+def err() -> Console:
+    """The console on this process's stderr (a new one when stderr was replaced)."""
+    return _console(True, id(sys.stderr))
+
+
+def out() -> Console:
+    return _console(False, id(sys.stdout))
+
+
+class Lines:
+    """Progress for a log: one plain line each time another `EVERY` of the work is done or `SECONDS` have
+    passed since the last line: what is done, the counts, the time elapsed and the time left at this pace."""
+
+    EVERY = 0.1
+    SECONDS = 30.0
+
+    def __init__(self, title: str, total: float):
+        self.title, self.total = title, total
+        self.began = self.last_time = clock.monotonic()
+        self.last_done = 0.0
+
+    def update(self, done: float, position: str, counts: str, force: bool = False) -> None:
+        now = clock.monotonic()
+        fraction = done / self.total if self.total else 1.0
+        if not (force or fraction - self.last_done >= self.EVERY - 1e-12 or now - self.last_time >= self.SECONDS
+                or (fraction >= 1.0 > self.last_done)):
+            return
+        self.last_done, self.last_time = fraction, now
+        elapsed = now - self.began
+        left = f", left ~{duration(elapsed * (1 - fraction) / fraction)}" if 0 < fraction < 1 else ""
+        print(f"{self.title}: {position} ({fraction:.0%}), {counts}, elapsed {duration(elapsed)}{left}",
+              file=sys.stderr, flush=True)
+
+
+def duration(seconds: float) -> str:
+    """12.3 s, 4 min 05 s, 2 h 03 min."""
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    minutes = int(seconds // 60)
+    if minutes < 60:
+        return f"{minutes} min {int(seconds % 60):02d} s"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+@contextlib.contextmanager
+def simulation(name: str, t_end: float, quiet: bool):
+    """Progress of one simulation: simulated time, steps and bisections; yields the solver's callback."""
+    console = err()
+    if not quiet and not console.is_terminal:
+        lines = Lines(name, t_end)
+        yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
+                                     f"steps {p.steps}, bisections {p.bisections}")
+        return
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(),
+               TextColumn("T* = {task.completed:.4g} / {task.total:g}"), TextColumn("steps {task.fields[steps]}"),
+               TextColumn("bisections {task.fields[bisections]}"), TimeElapsedColumn())
+    with Progress(*columns, console=console, disable=quiet) as progress:
+        task = progress.add_task(name, total=t_end, steps=0, bisections=0)
+        yield lambda p: progress.update(task, completed=p.time, steps=p.steps, bisections=p.bisections)
+
+
+@contextlib.contextmanager
+def jobs(title: str, quiet: bool, noun: str = "cases"):
+    """Progress over the jobs of a sweep, convergence, stability or calibration run; yields `run_jobs`'
+    notify.  A job that fails is told at once (also with --quiet): the others go on.  The bar shows from the
+    first job on: input found bad before (an output directory in use, say) is told on its own line.  When
+    every job had finished before, it says so instead of showing an empty bar."""
+    console = err()
+    counts = {"start": 0, "skip": 0, "failed before": 0, "finished": 0, "failed": 0}
+    lines = None if quiet or console.is_terminal else Lines(title, 0)
+    progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                        TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=console,
+                        disable=quiet or lines is not None)
+    task = progress.add_task(title, total=0, last="", visible=False)
+    try:
+        def notify(event: str, job_id: str, message: str):
+            if not progress.live.is_started:
+                progress.start()
+            if event == "skip":
+                counts["skip"] += 1
+                counts["failed before"] += message == "failed"
+            elif event == "start":
+                counts["start"] += 1
+                progress.update(task, total=counts["start"], visible=True)
+            elif event in ("done", "failed"):
+                counts["finished"] += 1
+                counts["failed"] += event == "failed"
+                progress.update(task, advance=1, last=f"{job_id} {event}")
+                if event == "failed":
+                    progress.console.print(f"{job_id} failed: {message}", markup=False, highlight=False)
+                if lines is not None:
+                    lines.total = counts["start"]
+                    lines.update(counts["finished"], f"{counts['finished']}/{counts['start']} {noun}",
+                                 f"{counts['failed']} failed, last {job_id} {event}", force=event == "failed")
+
+        yield notify
+    finally:
+        if progress.live.is_started:
+            progress.stop()
+    if counts["start"] == 0 and counts["skip"]:
+        again = (f", {counts['failed before']} of them failed (--retry-failed runs them again)"
+                 if counts["failed before"] else "")
+        console.print(f"nothing to run: all {counts['skip']} {noun} finished before{again}")

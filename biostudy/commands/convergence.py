@@ -1,0 +1,94 @@
+"""`biostudy convergence SCENE`: the scene refined in space, time, both and with error-controlled steps.
+
+Each level is one job (`execution.jobs`: workers, a Dask cluster, resume;
+identical runs, level 0 of three series, run once), measured by
+`reports.convergence` into DIR/convergence.nc, convergence.md and the
+work-precision picture (error against wall time).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+
+import xarray as xr
+
+from ..data import store
+from ..errors import BadInput
+from ..execution.jobs import Execution, Job, SweepReport, run_jobs
+from ..execution.ownership import Owner
+from ..execution.targets import owned
+from ..inputs import bundled
+from ..inputs.keys import apply_overrides, given_by
+from ..inputs.scene import Scene, overrides_text, read_scene_data, scene_from_data
+from ..plans.refinement import FIRST_TOLERANCE, SERIES, check_refinable, chosen_series, plan, refined
+from ..plots.accuracy import work_precision
+from ..reports.convergence import load_reference, measure, table_text
+from .finished import Finished
+
+
+@dataclass
+class Convergence:
+    """A scene's refinement plan, validated, nothing run yet."""
+
+    path: Path
+    data: dict  # the scene's raw data with the overrides applied
+    base: Scene
+    levels: int
+    series: tuple[str, ...]
+    tolerance: float
+    common: dict  # the overrides (level 0 and every level)
+    directory: Path
+    reference: Path | None = None  # a run every level is measured against
+    given: dict | None = None  # its final state (`reports.convergence.final_state`)
+    time: float | None = None
+    noun: str = "runs"
+
+    @property
+    def title(self) -> str:
+        return f"convergence {self.path.stem}"
+
+    def run(self, execution: Execution) -> Finished:
+        ds, report = self.measure(execution)
+        table = table_text(ds)
+        store.write_text(self.directory / "convergence.md", table)
+        work_precision(ds, self.directory / "work_precision.png")
+        return Finished(f"wrote {self.directory / 'convergence.nc'}, convergence.md, work_precision.png "
+                        f"({len(report.ran)} runs, {len(report.skipped)} finished before)", report.failed,
+                        len(report.ran) + len(report.skipped), table, "runs", report.warnings(), result=ds)
+
+    def measure(self, execution: Execution = Execution()) -> tuple[xr.Dataset, SweepReport]:
+        """Run every level (skipping finished ones), measure, write DIR/convergence.nc; DIR belongs to this
+        scene's convergence runs (`targets.owned`; `execution.force` takes over another's)."""
+        given = self.given
+        wanted = plan(self.base, self.levels, self.series, self.tolerance)
+        scenes = {level.job_id: refined(self.data, self.path, level) for level in wanted}
+        text = overrides_text(self.common)
+        jobs = [Job(job_id, scene, self.path, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
+        owner = Owner("convergence", self.path.stem, str(self.path.resolve()))
+        with owned(self.directory, owner, "convergence.nc", execution.force):
+            report = run_jobs(jobs, self.directory, execution)
+            ds = measure(wanted, self.directory, self.levels, self.series, self.base, given, self.time)
+            if self.reference is not None:
+                ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()} (T* = {given['time']:g})"
+            ds.attrs = store.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
+                                              "scene_file": str(self.path.resolve()), "overrides": text})
+            store.write_atomic(ds, self.directory / "convergence.nc")
+        return ds, report
+
+
+def load(scene: str | Path, *, output: Path | None = None, levels: int = 3, series: str | tuple[str, ...] = SERIES,
+         tolerance: float = FIRST_TOLERANCE, overrides: tuple[str, ...] | list[str] = (),
+         reference: Path | None = None, time: float | None = None) -> Convergence:
+    """Read and validate the scene and the plan; bad input is `BadInput`."""
+    chosen = chosen_series(series) if isinstance(series, str) else tuple(series)
+    if levels < 2:
+        raise BadInput("needs at least 2 levels (the finest is the reference)", None, "--levels")
+    path = bundled.resolve(scene)
+    data = read_scene_data(path)
+    common = dict(apply_overrides(data, overrides))
+    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"))
+    check_refinable(base, path)
+    directory = Path(output) if output is not None else Path(f"{path.stem}-convergence")
+    given = None if reference is None else load_reference(reference, base, time)
+    return Convergence(path, data, base, levels, chosen, tolerance, common, directory, reference, given, time)

@@ -1,0 +1,62 @@
+"""`biostudy stability CATALOGUE`: stiff and extreme cases, each judged (`reports.stability`).
+
+Writes DIR/cases/, DIR/stability.nc and DIR/stability.md; a case that neither
+completes within its bounds nor stops with the mechanics' diagnosis fails.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import xarray as xr
+
+from ..data import store
+from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
+from ..execution.targets import owned
+from ..inputs import bundled
+from ..plans import catalogue
+from ..plans.cases import Plan
+from ..reports.stability import table_text, verdicts
+from .finished import Finished
+
+
+def run_catalogue(plan: Plan, directory: Path, execution: Execution = Execution()) -> tuple[xr.Dataset, SweepReport]:
+    """Run a loaded catalogue, judge every case, write DIR/stability.nc (DIR: `targets.owned`)."""
+    jobs = plan_jobs(plan, catalogue_file=str(plan.file.resolve()))
+    with owned(directory, plan_owner(plan, "catalogue"), "stability.nc", execution.force):
+        report = run_jobs(jobs, directory, execution)
+        ds = verdicts(jobs, directory)
+        ds.attrs = store.with_provenance({
+            "Conventions": "CF-1.10", "title": f"stability catalogue: {plan.spec.name}",
+            "catalogue": plan.file.read_text(encoding="utf-8"), "catalogue_file": str(plan.file.resolve()),
+            "scene_file": str(plan.scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
+        store.write_atomic(ds, Path(directory) / "stability.nc")
+    return ds, report
+
+
+@dataclass
+class Stability:
+    plan: Plan
+    path: Path
+    directory: Path
+    noun: str = "cases"
+
+    @property
+    def title(self) -> str:
+        return f"stability {self.path.stem}"
+
+    def run(self, execution: Execution) -> Finished:
+        ds, report = run_catalogue(self.plan, self.directory, execution)
+        table = table_text(ds)
+        store.write_text(self.directory / "stability.md", table)
+        failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}
+        return Finished(f"wrote {self.directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of "
+                        f"{ds.sizes['case']} cases completed within bounds or stopped with a diagnosis",
+                        failed, ds.sizes["case"], table, warnings=report.warnings(), result=ds)
+
+
+def load(path: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> Stability:
+    """Read and validate a catalogue (a path or a bundled name) and every case; bad input is `BadInput`."""
+    path = bundled.resolve(path)
+    return Stability(catalogue.load(path, overrides), path,
+                     Path(output) if output is not None else Path(f"{path.stem}-results"))

@@ -1,0 +1,235 @@
+"""Jobs: simulations recorded under DIR/cases/, run here, on N local processes or on a Dask cluster.
+
+A job is one simulation of a sweep, a convergence level, a stability case or
+a calibration's evaluation: a validated scene and where it came from.
+`run_jobs` runs those not recorded yet and records each one (its dataset or
+its failure); what is recorded is reused by its fingerprint.
+
+Workers only simulate: they receive a compiled `solver.Problem` (plain
+arrays, no files) and send back the dataset or the reason it failed.  This
+process alone writes files, each atomically (`store.write_atomic`), so a
+cluster needs no shared filesystem and an interruption (Ctrl-C, SIGTERM, a
+kill) never leaves a half-written file under a final name.
+
+A case that fails (the solver's `SimulationError`, or any other exception
+inside the simulation) is recorded as failed and the others go on.  Local
+worker processes start with ``OMP_NUM_THREADS=1`` (one simulation per core;
+FiPy's suite ran 40x slower with unrestricted threads) and
+``FIPY_SOLVERS=scipy``; Dask's nanny sets the thread variables for its
+workers itself.  What runs in a worker is in `worker`, where cases run in
+`backends` (`pool`: local processes, a worker that dies takes only its own
+case with it; `dask`: a cluster).  The caller claims the directory first
+(`targets.owned`): locked for this process, owned by one study.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from solver.output import versions
+
+from ..data import combine, store
+from ..errors import BadInput, Failed
+from ..inputs import resources
+from ..inputs.scene import Scene, overrides_text
+from ..plans.cases import Plan
+from . import ownership, pool
+from .backends import Here, windowed
+from .dask import DaskCluster
+from .pool import LocalPool
+from .worker import Outcome
+
+if TYPE_CHECKING:
+    import solver
+
+
+
+class SweepError(Failed):
+    """The sweep cannot go on (its workers are gone, a file cannot be written); cases finished so far are kept."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Execution:
+    """How a job command (sweep, convergence, stability, calibrate) runs its cases: here, on `workers` local
+    processes or on the Dask `scheduler`; which finished cases it runs again; whether it may take over a
+    directory of another study (`force`); notify(event, case id, message) hears of every case (see
+    `run_jobs`)."""
+
+    workers: int | None = None
+    scheduler: str | None = None
+    retry_failed: bool = False
+    rerun_all: bool = False
+    force: bool = False
+    notify: Callable[[str, str, str], None] | None = None
+
+
+@dataclass
+class SweepReport:
+    """What a sweep did; `study` is the combined dataset's path."""
+
+    study: Path
+    ran: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+    removed: list[Path] = field(default_factory=list)
+    damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
+    outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+    def warnings(self) -> list[str]:
+        """What a user should know besides the counts: damaged files computed again, outdated cases kept."""
+        said = []
+        if self.damaged:
+            said.append(f"{len(self.damaged)} finished case files were damaged (their checksums or data did not "
+                        f"read back) and were computed again: {', '.join(self.damaged[:3])}"
+                        f"{', ...' if len(self.damaged) > 3 else ''}")
+        if self.outdated:
+            versions = sorted(set(self.outdated.values()))
+            said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
+                        f"({'; '.join(versions[:2])}{'; ...' if len(versions) > 2 else ''}) and were reused; "
+                        "--rerun-all computes every case again")
+        return said
+
+
+@dataclass(frozen=True)
+class Job:
+    """One simulation to run and record under DIR/cases/<id>.nc: a validated scene and where it came from."""
+
+    id: str
+    scene: Scene
+    scene_file: Path
+    overrides: str  # the overrides as TOML text, for the record
+    attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
+    layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
+
+
+def fingerprint(problem: "solver.Problem") -> str:
+    """sha256 of everything that determines a run's result (not its name).  The software's versions are not
+    in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
+    digest = hashlib.sha256()
+    for part in fields(problem):  # every field, so that a new one cannot be forgotten
+        if part.name == "name":
+            continue
+        value = getattr(problem, part.name)
+        digest.update(part.name.encode())
+        digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
+    return digest.hexdigest()
+
+
+NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a result's numbers depend on
+
+
+def software_versions() -> dict[str, str]:
+    """The versions a case file records (`biostudy_version`, `version_<package>`) that its numbers depend on."""
+    return {"biostudy_version": store.version(), **versions(NUMERIC_PACKAGES, python=False)}
+
+
+def _outdated(record: dict) -> str:
+    """'' if a case file was made by the software running now, else which versions differ, e.g.
+    'biostudy 0.0.1 (now 0.1.0), scipy 1.11.4 (now 1.12.0)'."""
+    now = software_versions()
+    return ", ".join(f"{k.removeprefix('version_').removesuffix('_version').replace('_', '-')} {record[k]} "
+                     f"(now {v})" for k, v in now.items() if k in record and str(record[k]) != v)
+
+
+def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execution()) -> SweepReport:
+    """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
+
+    A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
+    recorded failure too, unless `execution.retry_failed`) once its data read back with their checksums (a
+    damaged file is run again); `execution.rerun_all` runs every job again.  notify(event, id, message) is
+    called with event "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without
+    workers or a scheduler jobs run here, one after another.  The caller holds the directory
+    (`targets.owned`).
+    """
+    workers, scheduler = execution.workers, execution.scheduler
+    if workers and not scheduler:
+        pool.warm_up()  # the workers' imports overlap the checks below
+    out_dir = Path(out_dir)
+    cases_dir = out_dir / "cases"
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    report = SweepReport(out_dir / "study.nc")
+    report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
+    notify = execution.notify or (lambda *args: None)
+    by_id = {job.id: job for job in jobs}
+
+    ids, prints, events = [], {}, []
+    for job in jobs:
+        prints[job.id] = fingerprint(job.scene.problem())
+        path = store.case_file(out_dir, job.id)
+        record = None if execution.rerun_all else store.recorded(path)
+        if record and record.get("fingerprint") == prints[job.id] and (
+                record.get("status") == "done" or (record.get("status") == "failed" and not execution.retry_failed)):
+            if store.intact(path):
+                report.skipped.append(job.id)
+                if record.get("status") == "failed":
+                    report.failed[job.id] = str(record.get("message", ""))
+                outdated = _outdated(record)
+                if outdated:
+                    report.outdated[job.id] = outdated
+                events.append(("skip", job.id, str(record.get("status"))))
+                continue
+            report.damaged.append(job.id)
+        ids.append(job.id)
+        events.append(("start", job.id, ""))
+
+    estimates = {i: resources.estimate(by_id[i].scene) for i in ids}
+    too_big = resources.run_problem(estimates, 0 if scheduler else (workers or 1), out_dir,
+                                    2 * sum(e.disk for e in estimates.values()))
+    if too_big:  # before any case runs; on disk: the case files and the summary stacking them
+        raise BadInput(too_big, out_dir)
+    for event in events:
+        notify(*event)
+
+    def compile_(job_id: str) -> "solver.Problem":
+        return by_id[job_id].scene.problem()
+
+    backend = Here() if not ids else DaskCluster(scheduler) if scheduler else LocalPool(workers) if workers else Here()
+    with contextlib.closing(windowed(ids, compile_, backend)) as results:
+        for job_id, outcome in results:
+            _record(by_id[job_id], out_dir, outcome, prints[job_id])
+            report.ran.append(job_id)
+            if outcome.status != "done":
+                report.failed[job_id] = outcome.message
+            notify(outcome.status, job_id, outcome.message)
+    return report
+
+
+def plan_jobs(plan: Plan, **attrs) -> list[Job]:
+    """One job per case of a study or catalogue; each case file records the case's id and its own
+    attributes, the overrides that made it and `attrs` (e.g. the study file)."""
+    return [Job(case.id, plan.scenes[case.id], plan.scene_file, overrides_text({**plan.common, **case.overrides()}),
+                {"case_id": case.id, **attrs, **case.attrs})
+            for case in plan.cases]
+
+
+def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
+    """Who a study's or catalogue's directory belongs to: its kind, name, base scene and swept keys."""
+    keys = tuple(plan.keys) if kind == "study" else ()
+    return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
+
+
+def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None:
+    """Write one case's file: its dataset, or the failure record.  A file that cannot be written stops the
+    sweep (`SweepError`): the cases recorded so far are kept."""
+    extra = {**job.attrs, "fingerprint": fingerprint}
+    if outcome.status == "done":
+        ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
+                         message="", **extra)
+    else:
+        ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
+                                  job.scene_file, job.overrides, error=outcome.error, **extra)
+    path = store.case_file(out_dir, job.id)
+    try:
+        store.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
+    except OSError as error:
+        raise SweepError(f"cannot write {path} ({error.strerror or error}); the cases recorded so far are kept, "
+                         "run again to resume") from None

@@ -1,0 +1,196 @@
+"""Local worker processes of a sweep: one case each at a time, replaced when one dies, ended with the sweep.
+
+Workers are forked from a fork server that imported the solver once (start-up ~0.1 s instead of ~1.2 s of
+imports per worker), fresh interpreters (spawn) where there is no fork server; they start with
+``OMP_NUM_THREADS=1`` (one simulation per core; FiPy's suite ran 40x slower with unrestricted threads) and
+``FIPY_SOLVERS=scipy``.  What a worker runs is `worker.serve`; the loop that hands cases out is `backends.windowed`.
+
+Each worker has a pipe of its own for problems and outcomes, so a worker that dies (SIGKILL, the kernel's
+out-of-memory killer, a crash in a library) takes only its own case with it: that case is recorded as
+failed ("worker died: signal 9 ..."), a new worker takes its place and the others compute on.  Every worker
+also holds the reading end of a "lifeline" pipe whose only writer is this process: when this process ends,
+however it ends, the workers end too (`worker.serve`), and the fork server and the resource tracker after
+them.
+
+This module imports nothing heavy (no solver, no xarray): `warm_up` can start the fork server before the
+command line has imported the rest, so the two import at once.
+"""
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import multiprocessing.connection
+import os
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from . import worker
+from .worker import Outcome
+
+if TYPE_CHECKING:
+    import solver
+
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", **worker.SOLVER_ENV}
+
+
+@contextlib.contextmanager
+def _environment(values: dict[str, str]):
+    """Set environment variables for processes started inside the block (the parent's own libraries
+    are already loaded, so this changes nothing for this process)."""
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+@contextlib.contextmanager
+def _interruptions_deferred():
+    """Ctrl-C and SIGTERM wait until the block is done, then act as they would have.
+
+    Around the start of a worker process: a process the fork server is still starting when its parent
+    goes away dies with a traceback (it cannot read its start-up data), and one that started but is not
+    yet registered with the pool would never be ended.  Signal handlers exist in the main thread only.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    previous = {number: signal.signal(number, lambda signum, frame: received.append(signum))
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        if received:
+            signal.raise_signal(received[0])
+
+
+def _context():
+    """Workers forked from a fork server that imported the solver once (start-up ~0.1 s instead of ~1.2 s of
+    imports per worker); fresh interpreters (spawn) where there is no fork server."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["biostudy.execution.worker", "solver.output", "fipy"])
+        return context
+    return multiprocessing.get_context("spawn")
+
+
+def warm_up() -> None:
+    """Start the fork server now, so that its imports (~1 s) overlap this process's own work (validating,
+    fingerprinting, checking finished cases) instead of delaying the first case.  Idempotent."""
+    context = _context()
+    if context.get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        with _environment(WORKER_ENV):
+            forkserver.ensure_running()
+
+
+@dataclass
+class _Worker:
+    process: multiprocessing.Process
+    tasks: multiprocessing.connection.Connection  # problems out, outcomes back
+    case_id: str | None = None  # the case it is solving
+    began: float = 0.0
+
+
+def _death(exitcode: int | None) -> str:
+    """Why a worker process ended without an answer, for the case's record."""
+    if exitcode is None:
+        return "worker died: it stopped answering and did not end"
+    if exitcode == -signal.SIGKILL:  # what the kernel's out-of-memory killer sends, too
+        return "worker died: signal 9 (SIGKILL: killed from outside, or out of memory)"
+    if exitcode < 0:
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = "unknown signal"
+        return f"worker died: signal {-exitcode} ({name})"
+    return f"worker died: exit status {exitcode}"
+
+
+class LocalPool:
+    """Local worker processes, one case each at a time; started as cases need them, replaced when one dies.
+    A `backends.Backend`: `submit` hands a case to an idle worker (a new one if none is idle), `finished`
+    waits for answers and deaths, `close` ends every worker."""
+
+    def __init__(self, size: int):
+        self.context = _context()
+        self.capacity = size
+        self.workers: list[_Worker] = []
+        # every worker holds the reading end; the writing end exists only in this process (see worker.serve)
+        self.lifeline, self._lifeline_writer = self.context.Pipe(duplex=False)
+
+    @property
+    def busy(self) -> int:
+        return sum(w.case_id is not None for w in self.workers)
+
+    def _start(self) -> _Worker:
+        ours, theirs = self.context.Pipe()
+        process = self.context.Process(target=worker.serve, args=(theirs, self.lifeline), daemon=True,
+                                       name=f"biostudy-worker-{len(self.workers)}")
+        with _environment(WORKER_ENV), _interruptions_deferred():
+            process.start()
+        theirs.close()  # only the worker holds its end: a worker that dies closes the pipe
+        self.workers.append(_Worker(process, ours))
+        return self.workers[-1]
+
+    def submit(self, case_id: str, problem: "solver.Problem") -> None:
+        idle = next((w for w in self.workers if w.case_id is None), None) or self._start()
+        try:
+            idle.tasks.send(problem)
+        except (BrokenPipeError, OSError):  # it died while idle: a fresh one takes the case
+            self._drop(idle)
+            idle = self._start()
+            idle.tasks.send(problem)
+        idle.case_id, idle.began = case_id, time.perf_counter()
+
+    def _drop(self, gone: _Worker) -> None:
+        self.workers.remove(gone)
+        gone.tasks.close()
+        gone.process.join(5)
+
+    def finished(self) -> list[tuple[str, Outcome]]:
+        """Wait until at least one busy worker has answered or died; (case id, Outcome) of each."""
+        busy = [w for w in self.workers if w.case_id is not None]
+        ready = set(multiprocessing.connection.wait([w.tasks for w in busy] + [w.process.sentinel for w in busy]))
+        done = []
+        for w in busy:
+            if w.tasks not in ready and w.process.sentinel not in ready:
+                continue
+            case_id, w.case_id = w.case_id, None
+            try:
+                if w.tasks.poll():
+                    done.append((case_id, w.tasks.recv()))
+                    continue
+            except (EOFError, OSError):
+                pass
+            self._drop(w)
+            done.append((case_id, Outcome("failed", None, _death(w.process.exitcode),
+                                          time.perf_counter() - w.began, "WorkerDied")))
+        return done
+
+    def close(self, completed: bool) -> None:
+        """Done: workers end when their task pipe closes.  Interrupted: running simulations cannot be
+        cancelled, only ended."""
+        for w in self.workers:
+            if not completed:
+                w.process.terminate()
+            w.tasks.close()
+        for w in self.workers:
+            w.process.join(10)
+            if w.process.exitcode is None:
+                w.process.kill()
+                w.process.join(5)
+        self._lifeline_writer.close()
+        self.lifeline.close()

@@ -1,0 +1,56 @@
+"""Where results go, claimed before anything is computed: a run's output file, a job's directory.
+
+A result is never lost to an unwritable path after hours of computing, and
+never overwrites an input or a file biostudy did not write: `check_run`
+looks at one run's output before it starts; `owned` claims a sweep's (a
+convergence, stability or calibration run's) directory: locked for this
+process, owned by one study (`ownership`).
+"""
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+from typing import Iterator
+
+from ..data import store
+from ..errors import BadInput
+from ..inputs import resources
+from ..inputs.scene import Scene
+from . import ownership
+
+
+@contextlib.contextmanager
+def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False) -> Iterator[Path]:
+    """Claim a sweep's directory for `owner` (`ownership.claimed`) and check, before anything runs, that its
+    summary file (study.nc, ...) may be replaced."""
+    with ownership.claimed(out_dir, owner, force) as directory:
+        store.replaceable(directory / summary)
+        yield directory
+
+
+def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False) -> str:
+    """Before one run computes anything: `BadInput` unless its dataset can be written to `target` and the
+    run fits in memory; returns what the final message adds when `target` is replaced.
+
+    `target` is never an input (the scene file, a mask) nor a file biostudy did not write; an earlier result
+    of the same scene is replaced, anything else biostudy wrote (another scene's result, a sweep's file)
+    only with `force`.
+    """
+    store.writable(target)
+    masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
+             if getattr(r, "shape", None) == "mask"]
+    previous = store.replaceable(target, [scene_file, *masks])
+    too_big = resources.run_problem({scene.name: resources.estimate(scene)}, 1, target)
+    if too_big:
+        raise BadInput(too_big, scene_file)
+    if previous is None:
+        return ""
+    if "case_id" in previous or "sweep_mode" in previous:
+        what = "a file of a sweep"
+    elif previous.get("scene_file") != str(Path(scene_file).resolve()):
+        what = f"the result of another scene ({previous.get('scene_file', 'unknown')})"
+    else:
+        return "; it replaces the earlier result of the same scene"
+    if not force:
+        raise BadInput(f"holds {what}; give --force to replace it, or choose another output", target)
+    return f"; it replaces {what} (--force)"

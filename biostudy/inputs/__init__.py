@@ -1,0 +1,1 @@
+"""Stage 1, inputs: scene files read and validated (the schema, shapes, dotted keys, bundled files, resources)."""

@@ -1,0 +1,65 @@
+"""The bundled scenes and studies in `studies/`, and finding a scene by name.
+
+The directory is `$BIOSTUDY_STUDIES` if set, else `studies/` beside the
+package (a checkout or an editable install), else `./studies`.  A file
+with a ``[grid]`` table is a scene, one with ``scene = ...`` a study.
+"""
+from __future__ import annotations
+
+import difflib
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import BadInput, first_line
+
+
+def studies_dir() -> Path:
+    if os.environ.get("BIOSTUDY_STUDIES"):
+        return Path(os.environ["BIOSTUDY_STUDIES"])
+    beside = Path(__file__).resolve().parents[2] / "studies"  # biostudy/inputs/bundled.py -> the checkout
+    return beside if beside.is_dir() else Path("studies")
+
+
+@dataclass(frozen=True)
+class Entry:
+    path: Path
+    kind: str  # "scene", "study", "stability" (a catalogue of cases) or "unreadable"
+    description: str
+
+
+def kind(data: dict) -> str:
+    """What a TOML file's table is: "scene", "study", "stability" (a catalogue) or "other"."""
+    return "scene" if "grid" in data else "stability" if "case" in data else "study" if "scene" in data else "other"
+
+
+def entries(directory: Path | None = None) -> list[Entry]:
+    """Every TOML file in the studies directory, scenes first, each with its description."""
+    directory = directory or studies_dir()
+    found = []
+    for path in sorted(directory.glob("*.toml")):
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+            found.append(Entry(path, "unreadable", first_line(error)))
+            continue
+        found.append(Entry(path, kind(data), str(data.get("description", ""))))
+    order = {"scene": 0, "study": 1, "stability": 2}
+    return sorted(found, key=lambda e: (order.get(e.kind, 3), e.path.name))
+
+
+def resolve(name: str | Path) -> Path:
+    """A path as given if it exists; else a bundled file of that name ('directional' or 'directional.toml').
+    A bare name that is neither is bad input, with the closest bundled name if one is close."""
+    path = Path(name)
+    if path.exists() or path.is_absolute() or len(path.parts) > 1:
+        return path
+    for candidate in (studies_dir() / path, studies_dir() / f"{path}.toml"):
+        if candidate.is_file():
+            return candidate
+    names = sorted(p.stem for p in studies_dir().glob("*.toml"))
+    close = difflib.get_close_matches(path.name.removesuffix(".toml"), names, n=1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    raise BadInput(f"no such file, and no bundled scene or study of that name ({hint}`biostudy scenes` lists "
+                   "them)", path)

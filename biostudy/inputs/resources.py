@@ -1,0 +1,152 @@
+"""How much memory and disk a scene needs, known before anything is allocated.
+
+A grid of 2000³ cells, or a million outputs, must be refused at once with the
+estimate ("needs ~X GB of memory, Y GB available"), not end in a MemoryError
+or an exhausted machine.  The estimate is a sum of parts, each measured on
+this solver (peak resident memory of a run above a worker with the solver
+imported, 2-D 100²-400², 3-D 20³-50³, mechanics 10³-32³ and 100²-200²;
+docs/mechanics.md for the 3-D multigrid and smoothed-aggregation figures):
+
+- transport: per cell (matrices, the AMG hierarchy, Krylov vectors, FiPy's
+  mesh): ~2.4 kB in 3-D, ~1.6 kB in 2-D;
+- mechanics: per grid node, by preconditioner (the direct factorisation is
+  the larger; "auto" means what it means to the solver:
+  `solver.mechanics.linear_solver_for`);
+- outputs: every snapshot's fields (phi, c, alpha; p and u with mechanics),
+  held about three times over (the run's snapshots, the dataset, its
+  encoding or transfer);
+- a process: ~0.2 GB for an interpreter with the solver imported (each local
+  worker is one).
+
+The parts are estimates within a factor of ~1.5, not bounds: a run is
+refused when its estimate exceeds the memory available (psutil), so a run
+that is refused would certainly not have fit.  Disk: a run's dataset is
+about its outputs once over (checked against the free space of the target's
+file system).
+"""
+from __future__ import annotations
+
+import math
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import psutil
+
+from solver.mechanics import linear_solver_for
+
+PROCESS = 0.2e9  # bytes: an interpreter with the solver imported
+TRANSPORT_PER_CELL = {2: 1.6e3, 3: 2.4e3}
+# 3-D multigrid: peak 0.77 GB at 40³, 2.0 GB at 60³ per snapshot, 2.8 GB for a one-shot growth to alpha = 0.2
+# at 60³ (docs/mechanics.md): 8-12 kB per node.  2-D multigrid: the first version's figure, not measured again.
+# Smoothed aggregation ("amg"): the multigrid's figures times 1.1, its ratio on one 40³ tangent (0.84 GB against
+# 0.76 GB, benchmarks/mechanics_linear.py).
+MECHANICS_PER_NODE = {("direct", 2): 7.5e3, ("direct", 3): 55e3, ("multigrid", 2): 4e3, ("multigrid", 3): 12e3,
+                      ("amg", 2): 4.4e3, ("amg", 3): 13.2e3}
+COPIES = 3  # how many times the outputs are held at once
+PER_OUTPUT = 2e3  # bytes of bookkeeping per snapshot and copy (objects, scalars), whatever the grid
+VALIDATION_PER_CELL = 64  # the masks and initial fields validating a scene builds (bytes per cell)
+DEFAULT_OUTPUTS = 11  # snapshots of a scene that names neither outputs nor output_times
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Bytes a run needs: memory by part, and the dataset on disk."""
+
+    cells: int
+    outputs: int
+    transport: float
+    mechanics: float
+    snapshots: float
+    disk: float
+
+    @property
+    def memory(self) -> float:
+        return PROCESS + self.transport + self.mechanics + self.snapshots
+
+    @property
+    def validation(self) -> float:
+        return VALIDATION_PER_CELL * self.cells
+
+    def parts(self) -> str:
+        parts = [("transport", self.transport), ("mechanics", self.mechanics), ("outputs", self.snapshots)]
+        return ", ".join(f"{name} {size(value)}" for name, value in parts if value)
+
+
+def size(value: float) -> str:
+    """Bytes for people: '~3.2 GB', '~180 MB'."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if value >= scale:
+            return f"~{value / scale:.3g} {unit}"
+    return f"~{value / 1e3:.3g} kB"
+
+
+def estimate(scene) -> Estimate:
+    """What running `scene` (a validated `Scene`, or one being validated) needs."""
+    shape = list(scene.grid.shape)
+    ndim = len(shape)
+    cells = math.prod(shape)
+    nodes = math.prod(n + 1 for n in shape)
+    outputs = scene.time.count()
+    mechanics = 0.0
+    per_output = 3 * cells  # phi, c, alpha
+    if scene.mechanics is not None and scene.mechanics.enabled:
+        method = linear_solver_for(scene.mechanics.linear_solver, ndim * nodes)
+        mechanics = MECHANICS_PER_NODE[(method, ndim)] * nodes
+        per_output += cells + ndim * nodes  # p, u
+    written = 8.0 * per_output * outputs
+    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics,
+                    COPIES * (written + PER_OUTPUT * outputs), written)
+
+
+def available_memory() -> float:
+    return float(psutil.virtual_memory().available)
+
+
+def free_disk(path: str | Path) -> float:
+    """Free bytes on the file system that would hold `path` (its nearest existing ancestor's)."""
+    existing = Path(path).absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    return float(shutil.disk_usage(existing if existing.is_dir() else existing.parent).free)
+
+
+def too_big(need: float, what: str = "needs") -> str:
+    """'' if `need` bytes of memory are available, else the one-line reason."""
+    available = available_memory()
+    if need <= available:
+        return ""
+    return f"{what} {size(need)} of memory, {size(available).lstrip('~')} available"
+
+
+def validation_problem(scene) -> str:
+    """'' unless validating `scene` (its masks and initial fields) could not fit in memory; then why, with the
+    run's own estimate.  Called before any array of the grid's size is made."""
+    found = estimate(scene)
+    problem = too_big(found.validation, f"{found.cells:,} cells: validating alone needs")
+    return f"{problem}; running would need {size(found.memory)} ({found.parts()})" if problem else ""
+
+
+def run_problem(estimates: dict[str, Estimate], at_once: int, target: str | Path | None = None,
+                disk: float | None = None) -> str:
+    """'' if runs of these estimates (by name) fit in memory, `at_once` of them at a time (0: not here, e.g. on
+    a Dask cluster), and `disk` bytes (default: their datasets) fit on the file system of `target`; else the
+    one-line reason, naming the largest run."""
+    if not estimates:
+        return ""
+    ranked = sorted(estimates.items(), key=lambda item: item[1].memory, reverse=True)
+    name, one = ranked[0]
+    if at_once:
+        together = ranked[:at_once]
+        problem = too_big(sum(e.memory for _, e in together),
+                          f"{len(together)} runs at once need" if len(together) > 1 else "needs")
+        if problem and len(together) > 1:
+            return f"{problem} (the largest, {name}: {size(one.memory)}, {one.parts()}); use fewer workers"
+        if problem:
+            return f"{problem} ({name}: {one.parts()})"
+    if target is not None:
+        written = sum(e.disk for e in estimates.values()) if disk is None else disk
+        free = free_disk(target)
+        if written > free:
+            return f"needs {size(written)} of disk for its datasets, {size(free).lstrip('~')} free"
+    return ""

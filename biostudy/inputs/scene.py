@@ -1,0 +1,346 @@
+"""A scene file (README, "Scene and study files"): one simulation, validated, then compiled to a `solver.Problem`.
+
+The pydantic models below are the schema: every key, its unit and meaning,
+its allowed range (the parameters' from `solver.Parameters`, docs/model.md), and the cross-field
+rules (shapes inside the grid, nutrient sources not inside obstacles, output
+times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
+``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
+validates; `Scene.problem()` builds the solver's plain description.
+
+Besides the model's keys, ``[numerics]`` (advection, time_tolerance,
+gradient_floor, max_substeps), ``[mechanics]`` residual_stiffness, every,
+linear_solver and pressure, and ``[time] output_times`` (an explicit list instead of
+``outputs = N``) map onto the solver's own settings.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
+
+import solver
+from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
+
+from ..errors import BadInput, InvalidAt, from_validation_error
+from ..formatting import units_text, value_text
+from .files import read_toml
+from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
+from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
+from .resources import DEFAULT_OUTPUTS, validation_problem
+from .tomltext import dumps as toml_dumps
+
+CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
+_NUMERICS = solver.Numerics()
+_MECHANICS = solver.MechanicsSetup()
+
+
+def _field(default, description: str, units: str = "1", **kw):
+    return Field(default, description=description, json_schema_extra={"units": units}, **kw)
+
+
+class GridSpec(BaseModel):
+    """Structured grid of cubic cells, origin at 0."""
+
+    model_config = CONFIG
+    shape: list[Annotated[int, Field(ge=1)]] = Field(
+        min_length=2, max_length=3, description="cells along x, y[, z]; two entries make a 2-D scene")
+    spacing: float = _field(1.0, "edge of the cubic cells, µm", "um", gt=0)
+
+    def solver_grid(self) -> solver.Grid:
+        return solver.Grid(tuple(self.shape), self.spacing)
+
+
+def _parameters_model() -> type[BaseModel]:
+    """The [params] table, derived from the declarations of `solver.Parameters`: each parameter's
+    default, units, meaning and allowed range (`solver.problem.parameter`)."""
+    fields = {}
+    for info in parameter_infos():
+        shown = units_text(info.units)
+        fields[info.name] = (float, _field(info.default, f"{info.long_name}{', ' + shown if shown else ''}",
+                                           info.units, **info.bounds))
+    return create_model("Params", __config__=CONFIG, __doc__="Model parameters (paper Table 2 by default; "
+                        "docs/model.md); unspecified keys take their defaults.", **fields)
+
+
+Params = _parameters_model()
+
+
+class Model(BaseModel):
+    """Which form of the model's laws."""
+
+    model_config = CONFIG
+    consumption: Literal["first-order", "zero-order"] = Field(
+        "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
+                                   "Eq. 35, with c held >= 0")
+
+
+class Time(BaseModel):
+    """The model clock (steps) and the output clock (snapshots)."""
+
+    model_config = CONFIG
+    t_end: float = _field(1.0, "end time, normalised time T*", "1", gt=0)
+    steps: int = _field(1000, "nominal steps over [0, t_end]; failed steps are bisected", "1", ge=1)
+    outputs: int | None = _field(None, f"evenly spaced snapshots, t = 0 and t_end included "
+                                       f"(default {DEFAULT_OUTPUTS})", "1", ge=2)
+    output_times: list[float] | None = _field(None, "explicit snapshot times within [0, t_end], increasing "
+                                                    "(t_end is added if missing); instead of outputs", "1",
+                                              min_length=1)
+
+    @model_validator(mode="after")
+    def _clock(self):
+        if self.outputs is not None and self.output_times is not None:
+            raise InvalidAt("output_times", "give either outputs or output_times, not both")
+        for i, t in enumerate(self.output_times or ()):
+            if not 0 <= t <= self.t_end:
+                raise InvalidAt(f"output_times[{i}]", f"{t:g} lies outside [0, t_end = {self.t_end:g}]")
+            if i and t <= self.output_times[i - 1]:
+                raise InvalidAt(f"output_times[{i}]", f"{t:g} does not come after {self.output_times[i - 1]:g}")
+        return self
+
+    def count(self) -> int:
+        """How many snapshots, counted without building the list of times (a million outputs is bad input,
+        not a million floats)."""
+        if self.output_times is not None:
+            return len(self.output_times) + (self.output_times[-1] != self.t_end)
+        return self.outputs or DEFAULT_OUTPUTS
+
+    def times(self) -> np.ndarray:
+        if self.output_times is None:
+            return np.linspace(0.0, self.t_end, self.outputs or DEFAULT_OUTPUTS)
+        times = list(self.output_times)
+        return np.array(times if times[-1] == self.t_end else [*times, self.t_end])
+
+
+class NumericsSpec(BaseModel):
+    """How the equations are discretised (solver.Numerics); the defaults are the robust choice."""
+
+    model_config = CONFIG
+    advection: Literal["upwind", "tvd"] = Field(
+        _NUMERICS.advection, description="upwind: monotone, first order; tvd: van Leer limited, second order "
+                                         "where smooth")
+    time_tolerance: float | None = _field(None, "adaptive steps: local error in phi per step kept below this "
+                                                "(absent: fixed nominal steps, bisected on failure)", "1", gt=0)
+    gradient_floor: float = _field(_NUMERICS.gradient_floor, "the nutrient direction grad c/|grad c| fades out "
+                                                             "where |grad c| < gradient_floor * max|grad c|",
+                                   "1", gt=0, lt=1)
+    max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
+                                                       "a run needing less stops with a diagnosis", "1", ge=1)
+    growth_velocity: Literal["front", "pointwise"] = Field(
+        _NUMERICS.growth_velocity, description="pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
+                                               "written; keeps dense biofilm dense only on cells of ~1/8 µm); "
+                                               "front: the growth speed taken at the phi = 1/2 front and carried "
+                                               "along its normals: the sharp-interface limit, dense biofilm stays "
+                                               "dense on 1 µm cells (docs/paper.md)")
+    front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
+                                                     "the front take the front's speed", "1", ge=1, le=10)
+
+    def solver_numerics(self) -> solver.Numerics:
+        return solver.Numerics(advection=self.advection, gradient_floor=self.gradient_floor,
+                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance,
+                               growth_velocity=self.growth_velocity, front_band=self.front_band)
+
+
+Face = Literal[FACES]
+
+
+class MechanicsSpec(BaseModel):
+    """Growth mechanics (paper 2.1, 2.3.1, 3), solved at output times; absent table = off."""
+
+    model_config = CONFIG
+    enabled: bool = Field(True, description="solve the growth mechanics (u and p in the dataset)")
+    clamp: list[Face] = Field([], description="faces (x-, x+, y-, y+, z-, z+) with all displacement zero")
+    slide: list[Face] = Field([], description="faces with zero normal displacement")
+    residual_stiffness: float = _field(_MECHANICS.residual_stiffness, "relative stiffness of void cells "
+                                                                      "(phi = 0)", "1", gt=0, lt=1)
+    every: int = _field(_MECHANICS.every, "solve at every n-th output time (and the last)", "1", ge=1)
+    linear_solver: Literal[LINEAR_SOLVERS] = Field(
+        _MECHANICS.linear_solver,
+        description="preconditioner of the Newton steps' Krylov solves: multigrid (geometric), direct "
+                    "(factorisation), amg (pyamg smoothed aggregation), or auto (direct for small problems, "
+                    "multigrid beyond; docs/mechanics.md)")
+    pressure: Literal[tuple(PRESSURES)] = Field(
+        _MECHANICS.pressure,
+        description="the p in the dataset: recovered (Q1/P0's element pressure with its checkerboard modes "
+                    "filtered out at interior nodes) or element (the paper's Q1/P0 element pressure); "
+                    "docs/mechanics.md")
+
+    @model_validator(mode="after")
+    def _faces(self):
+        for name in ("clamp", "slide"):
+            faces = getattr(self, name)
+            if len(set(faces)) != len(faces):
+                raise InvalidAt(name, f"lists a face twice ({value_text(faces)})")
+        both = sorted(set(self.clamp) & set(self.slide))
+        if both:
+            raise InvalidAt("slide", f"{value_text(both)} already clamped")
+        return self
+
+    def solver_setup(self) -> solver.MechanicsSetup | None:
+        if not self.enabled:
+            return None
+        return solver.MechanicsSetup(clamp=tuple(self.clamp), slide=tuple(self.slide),
+                                     residual_stiffness=self.residual_stiffness, every=self.every,
+                                     linear_solver=self.linear_solver, pressure=self.pressure)
+
+
+def _valued(role: str, description: str, shapes=SHAPES, **extra):
+    """The shape union with a `value` key (0..1, default 1) for one kind of region."""
+    members = tuple(create_model(f"{role}{shape.__name__}", __base__=shape,
+                                 value=(float, Field(1.0, ge=0, le=1, description=description)), **extra)
+                    for shape in shapes)
+    return Annotated[Union[members], Field(discriminator="shape")]
+
+
+BiofilmRegion = _valued("Biofilm", "initial phi inside the shape, 0..1", edge=(float, Field(
+    0.0, ge=0, description="width of a smooth edge, µm: phi = value (1 - tanh(distance / edge)) / 2 across the "
+                           "surface instead of a step (0: a step); smooth data show the schemes' asymptotic "
+                           "convergence orders", json_schema_extra={"units": "um"})))
+NutrientRegion = _valued("Nutrient", "nutrient c held inside the shape (or on the face) at all times, 0..1",
+                         shapes=(*SHAPES, BoundaryFace))
+
+
+def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
+    """phi at t = 0: a step region sets its cells (later regions win); a smooth one raises phi to its profile."""
+    phi0 = np.zeros(grid.cells_shape)
+    for region in regions:
+        if region.edge > 0:
+            profile = 0.5 * region.value * (1.0 - np.tanh(region.distance(grid) / region.edge))
+            np.maximum(phi0, profile, out=phi0)
+        else:
+            phi0[region.cells(grid)] = region.value
+    return phi0
+
+
+class Scene(BaseModel):
+    """One simulation: grid, parameters, laws, clocks, regions, numerics, mechanics."""
+
+    model_config = CONFIG
+    name: str = Field("", description="short name (default: the file's name without .toml)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    grid: GridSpec
+    params: Params = Field(default_factory=Params)
+    model: Model = Field(default_factory=Model)
+    time: Time = Field(default_factory=Time)
+    biofilm: list[BiofilmRegion] = Field([], description="regions of initial phi (later regions win)")
+    nutrient: list[NutrientRegion] = Field([], description="nutrient sources: c held at value at all times")
+    obstacle: list[AnyShape] = Field([], description="rigid solids: no phi, no c, no flux")
+    numerics: NumericsSpec = Field(default_factory=NumericsSpec)
+    mechanics: MechanicsSpec | None = Field(None, description="growth mechanics; absent = off")
+
+    @model_validator(mode="after")
+    def _fits_the_grid(self):
+        too_big = validation_problem(self)  # before any array of the grid's size is made
+        if too_big:
+            raise InvalidAt("grid.shape", too_big)
+        grid = self.grid.solver_grid()
+        for kind in ("biofilm", "nutrient", "obstacle"):
+            for i, region in enumerate(getattr(self, kind)):
+                try:
+                    region.check(grid)
+                except InvalidAt as error:
+                    raise InvalidAt(".".join(filter(None, (f"{kind}[{i}]", error.key))), error.problem) from None
+        blocked = self._union(self.obstacle, grid)
+        if blocked.all():
+            raise InvalidAt("obstacle", "covers every cell of the grid")
+        held = {}
+        for i, source in enumerate(self.nutrient):
+            if isinstance(source, BoundaryFace):
+                if source.face in held:
+                    raise InvalidAt(f"nutrient[{i}].face", f"'{source.face}' is held by nutrient[{held[source.face]}] "
+                                                           "already")
+                held[source.face] = i
+            for j, solid in enumerate(self.obstacle):
+                overlap = np.count_nonzero(source.cells(grid) & solid.cells(grid))
+                if overlap:
+                    raise InvalidAt(f"nutrient[{i}]", f"lies inside obstacle[{j}] ({overlap} cells in common)")
+        if self.numerics.max_substeps < self.time.steps:
+            raise InvalidAt("numerics.max_substeps", f"must be >= time.steps = {self.time.steps} "
+                                                     f"(got {self.numerics.max_substeps})")
+        if self.mechanics is not None:
+            for name in ("clamp", "slide"):
+                for face in getattr(self.mechanics, name):
+                    if face[0] not in grid.axes:
+                        raise InvalidAt(f"mechanics.{name}", f"face '{face}' does not exist in a 2-D grid")
+        return self
+
+    @staticmethod
+    def _union(regions: list[Shape], grid: solver.Grid) -> np.ndarray:
+        cells = np.zeros(grid.cells_shape, bool)
+        for region in regions:
+            cells |= region.cells(grid)
+        return cells
+
+    def problem(self) -> solver.Problem:
+        """The solver's plain description of this scene (masks in the solver's (z, y, x) order)."""
+        grid = self.grid.solver_grid()
+        phi0 = initial_biofilm(self.biofilm, grid)
+        held = np.zeros(grid.cells_shape, bool)
+        value = np.ones(grid.cells_shape)
+        faces = tuple((region.face, region.value) for region in self.nutrient if isinstance(region, BoundaryFace))
+        for region in self.nutrient:
+            cells = region.cells(grid)
+            held |= cells
+            value[cells] = region.value
+        blocked = self._union(self.obstacle, grid)
+        phi0[blocked] = 0.0  # biofilm does not live inside a solid
+        mechanics = self.mechanics.solver_setup() if self.mechanics is not None else None
+        return solver.Problem(
+            grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
+            t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
+            params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
+            numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)
+
+    def to_toml(self) -> str:
+        """The scene as TOML text (every key, defaults filled in): what the dataset records."""
+        return toml_dumps(self.model_dump(mode="json", exclude_none=True))
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading
+
+
+SCENE_KEYS = frozenset(all_keys(Scene))
+
+
+def key_info(key: str) -> tuple[str, str]:
+    """(long_name, units) of a dotted scene key, from the schema; for sweep coordinates."""
+    found = field_of(Scene, key)
+    if found is None or not found.description:
+        return f"scene key {key}", "1"
+    return found.description, str((found.json_schema_extra or {}).get("units", "1"))
+
+
+def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None) -> Scene:
+    """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
+    value that an override gave names that override instead (`origins`)."""
+    file = Path(file)
+    data = copy.deepcopy(data)
+    if isinstance(data.get("name", ""), str) and not data.get("name"):
+        data["name"] = file.stem
+    try:
+        return Scene.model_validate(data, context={"base": file.parent})
+    except ValidationError as error:
+        raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS), origins) from None
+
+
+def read_scene_data(path: str | Path) -> dict:
+    """Raw TOML data of a scene file; a study file given here is bad input."""
+    data = read_toml(path)
+    if "scene" in data and "grid" not in data:
+        raise BadInput("this is a study file (it has scene = ...); run it with `biostudy sweep`", path)
+    return data
+
+
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    """Read, override and validate a scene file: the only way a scene file becomes a `Scene`."""
+    data = read_scene_data(path)
+    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"))
+
+
+def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:
+    """Overrides as TOML text ('"params.g" = 1e10' lines) for the dataset's attributes."""
+    items = dict(pairs)
+    return toml_dumps(items).strip() if items else ""

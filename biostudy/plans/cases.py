@@ -1,0 +1,162 @@
+"""Many cases of one base scene: what studies, stability catalogues and calibrations share.
+
+A file of this kind names a base scene (relative to the file), overrides for
+every case (`[set]`, like `--set`) and its cases, each a set of overrides.
+`load_plan` reads the file, the base scene and every case and validates each
+case as a scene before anything runs, so a bad value in the fourth case stops
+the whole at once (exit 2) instead of after hours.  The result is a `Plan`:
+every case compiled to a `Scene`, nothing run yet.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from ..errors import BadInput, from_validation_error
+from ..inputs.files import read_toml
+from ..inputs.keys import Origins, apply_overrides, flatten, given_by, parse_override, set_key
+from ..inputs.scene import Scene, read_scene_data, scene_from_data
+
+
+class FlatSet(BaseModel):
+    """A model with a `set` table of overrides, which may be written as nested tables: read as dotted keys."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _flatten_set(cls, data: Any):
+        if isinstance(data, dict) and isinstance(data.get("set"), dict):
+            data = {**data, "set": flatten(data["set"])}
+        return data
+
+
+@dataclass(frozen=True)
+class Case:
+    """One simulation of a study or catalogue: its id, its overrides of the base scene, its position.
+
+    attrs: what its case file records about it besides the id (a catalogue case: its name and why).
+    """
+
+    id: str
+    values: dict[str, Any]
+    index: tuple[int, ...]
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    def overrides(self) -> dict[str, Any]:
+        return dict(self.values)
+
+
+class ManyCases(FlatSet):
+    """What study files and stability catalogues share: many cases of one base scene."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field("", description="short name (default: the file's name without .toml)")
+    description: str = Field("", description="one line shown by `biostudy scenes`")
+    scene: str = Field(description="base scene file, relative to this file")
+    set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
+
+    def varied_keys(self) -> list[str]:
+        """The keys that vary from case to case."""
+        return []
+
+    def layout(self) -> str:
+        return "list"
+
+    def cases(self) -> list[Case]:
+        """Every case, in the order they run and are recorded."""
+        raise NotImplementedError
+
+    def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
+        """Checks against the base scene that the schema alone cannot make (bad input: `BadInput`); they
+        change nothing, so `cases()` gives the same cases whether or not they were made."""
+
+    def case_noun(self) -> str:
+        """What this file's cases are called in its errors: the key a repeated case id is blamed on."""
+        return "case"
+
+
+@dataclass
+class Plan:
+    """A validated study or catalogue: every case compiled to a `Scene`, nothing run yet."""
+
+    file: Path
+    spec: ManyCases  # the Study or Catalogue as read
+    scene_file: Path
+    base: Scene
+    cases: list[Case]
+    scenes: dict[str, Scene]
+    common: dict[str, Any]  # [set] and --set overrides applied to every case
+
+    @property
+    def keys(self) -> list[str]:
+        """The keys that vary from case to case (a study's swept or sampled keys)."""
+        return self.spec.varied_keys()
+
+    @property
+    def mode(self) -> str:
+        """How the cases are laid out: grid, zip, sample (a study) or list."""
+        return self.spec.layout()
+
+
+def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
+    """The raw data of the base scene a study or catalogue file names, with its [set] and the --set
+    overrides applied; returns (scene file, data, the overrides applied to every case)."""
+    scene_file = path.parent / scene
+    if not scene_file.is_file():
+        raise BadInput(f"scene file {scene!r} not found (looked for {scene_file})", path, "scene")
+    data = read_scene_data(scene_file)
+    for key, value in given_set.items():
+        try:
+            set_key(data, key, value)
+        except BadInput as error:
+            raise BadInput(error.problem, path, f"set.{key}") from None
+    return scene_file, data, {**given_set, **dict(apply_overrides(data, overrides))}
+
+
+def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
+               origins: Origins | None = None) -> Scene:
+    """One case's validated scene: the base data with the case's values; errors name the case, and the
+    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault."""
+    data = copy.deepcopy(base_data)
+    try:
+        for key, value in values.items():
+            set_key(data, key, value)
+        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)})
+    except BadInput as error:
+        raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
+                              lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
+
+
+def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
+              wrong_kind: Callable[[dict], str] = lambda data: "") -> Plan:
+    """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
+
+    wrong_kind(data) says why the file is not of this kind ("" if it is), before it is validated.
+    """
+    path = Path(path)
+    data = read_toml(path)
+    problem = wrong_kind(data)
+    if problem:
+        raise BadInput(problem, path)
+    data.setdefault("name", path.stem)
+    try:
+        spec = model.model_validate(data)
+    except ValidationError as error:
+        raise from_validation_error(error, path, known_keys=model.model_fields) from None
+    scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
+    origins = {**given_by(spec.set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
+    base = scene_from_data(base_data, scene_file, origins)
+    spec.check(base_data, scene_file, path)
+    cases = spec.cases()
+    ids = [case.id for case in cases]
+    repeated = next((i for i in ids if ids.count(i) > 1), None)
+    if repeated:
+        raise BadInput(f"case {repeated} comes twice", path, spec.case_noun())
+    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.attrs.get("case_id", case.id),
+                                  origins) for case in cases}
+    return Plan(path, spec, scene_file, base, cases, scenes, common)
+
+

@@ -1,0 +1,130 @@
+"""Observables: named scalar quantities of a run at every output time, defined once.
+
+Each has a name, units and a long_name, and is computed from a run's fields
+by `biostudy.measures` (one definition per quantity).  `show` prints them,
+`plot` draws them against the swept or sampled parameters, `convergence`
+measures their errors, `analyze` their sensitivity to the parameters, and
+`study.nc` carries them per case and time.
+
+=================  =====  =========================================================
+name               units  what
+=================  =====  =========================================================
+biofilm_volume     µm³    volume of cells with phi >= 0.5 (2-D: per µm of thickness)
+dense_volume       µm³    volume of cells with phi >= 0.8 (the paper's isosurface)
+phi_mean           1      mean phi over open cells
+phi_max            1      largest phi
+c_mean             1      mean c over open cells
+nutrient_minimum   1      smallest c
+height             µm     top of phi >= 0.5 along the vertical axis (z in 3-D, y in 2-D);
+                          height_x, height_y, height_z along another axis
+front_advance      µm     how far the phi >= 0.5 front moved toward the nutrient source
+compression_max    Pa     largest compression, -min p (with mechanics; NaN where unsolved)
+tension_max        Pa     largest tension, max p (with mechanics)
+=================  =====  =========================================================
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import xarray as xr
+
+from . import measures
+
+CELL_DIMS = ("z", "y", "x")
+TWO_D = " (2-D: per µm of thickness)"
+
+
+@dataclass(frozen=True)
+class Observable:
+    """One named quantity: compute(run dataset) -> one value per output time."""
+
+    name: str
+    units: str
+    long_name: str
+    compute: Callable[[xr.Dataset], np.ndarray]
+    needs: tuple[str, ...] = ("phi",)
+
+    def attrs(self, ds: xr.Dataset | None = None) -> dict:
+        volume = self.units == "um3" and ds is not None and "z" not in ds.dims
+        return {"units": self.units, "long_name": self.long_name + (TWO_D if volume else "")}
+
+
+def _vertical(ds: xr.Dataset) -> str:
+    return "z" if "z" in ds.dims else "y"
+
+
+def _height(axis: str | None) -> Observable:
+    where = f"along {axis}" if axis else "along the vertical axis (z in 3-D, y in 2-D)"
+    return Observable(f"height_{axis}" if axis else "height", "um", f"top of phi >= 0.5 {where}",
+                      lambda ds: measures.height(ds, axis or _vertical(ds)))
+
+
+REGISTRY: dict[str, Observable] = {o.name: o for o in (
+    Observable("biofilm_volume", "um3", "volume of cells with phi >= 0.5",
+               lambda ds: measures.volume(ds, measures.THRESHOLD)),
+    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume),
+    Observable("phi_mean", "1", "mean biofilm density over non-obstacle cells",
+               lambda ds: measures.field_mean(ds, "phi")),
+    Observable("phi_max", "1", "largest biofilm density", measures.phi_max),
+    Observable("c_mean", "1", "mean nutrient concentration over non-obstacle cells",
+               lambda ds: measures.field_mean(ds, "c"), ("c",)),
+    Observable("nutrient_minimum", "1", "smallest nutrient concentration",
+               lambda ds: measures.nutrient_minimum(ds)["c"], ("c", "phi")),
+    _height(None),
+    Observable("front_advance", "um", "advance of the phi >= 0.5 front toward the nutrient source since the "
+               "first output", measures.front_advance, ("phi", "nutrient_source")),
+    Observable("compression_max", "Pa", "largest compression of the biofilm: -min p (hydrostatic stress)",
+               lambda ds: measures.stress_extremes(ds)[0], ("p",)),
+    Observable("tension_max", "Pa", "largest tension of the biofilm: max p (hydrostatic stress)",
+               lambda ds: measures.stress_extremes(ds)[1], ("p",)),
+)}
+
+# The columns `show` gives each case of a study, and the outputs a sweep's picture draws by default.
+SUMMARY = ("biofilm_volume", "dense_volume", "height", "c_mean", "compression_max")
+
+
+def get(name: str) -> Observable:
+    """The observable of that name (height_x, height_y, height_z too); ValueError names the known ones."""
+    if name in REGISTRY:
+        return REGISTRY[name]
+    axis = re.fullmatch(r"height_([xyz])", name)
+    if axis:
+        return _height(axis.group(1))
+    raise ValueError(f"unknown observable {name!r}; observables are {', '.join(REGISTRY)} (height_x, height_y, "
+                     f"height_z along an axis)")
+
+
+def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
+    """The observable over time (and over a study's case dimensions) from the dataset's fields."""
+    observable = get(name)
+    if name == "height" or name.startswith("height_"):
+        axis = name.removeprefix("height_") if name != "height" else _vertical(ds)
+        if axis not in ds.dims:
+            raise ValueError(f"{name}: the dataset has no axis {axis}")
+    missing = [v for v in observable.needs if v not in ds]
+    if missing:
+        raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
+    extra = [d for d in ds[observable.needs[0]].dims if d not in ("time", "time_mechanics", *CELL_DIMS)]
+    if not extra:
+        values = observable.compute(ds)
+        return xr.DataArray(values, dims=("time",), coords={"time": ds["time"]}, name=name,
+                            attrs=observable.attrs(ds))
+    stacked = ds.stack(_case=extra)
+    parts = [observable.compute(stacked.isel(_case=i)) for i in range(stacked.sizes["_case"])]
+    out = xr.DataArray(np.stack(parts), dims=("_case", "time"),
+                       coords={"_case": stacked["_case"], "time": ds["time"]}, name=name)
+    return out.unstack("_case").transpose(*extra, "time").assign_attrs(observable.attrs(ds))
+
+
+def variables(ds: xr.Dataset) -> dict[str, xr.DataArray]:
+    """Every observable this run's fields give, as time series with units and long_name (for study.nc)."""
+    fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})].load()  # each read once
+    return {n: evaluate(fields, n) for n, o in REGISTRY.items() if all(v in ds for v in o.needs)}
+
+
+def value(ds: xr.Dataset, name: str, index: int = -1) -> float:
+    """One observable of one run at one output (default the last)."""
+    return float(evaluate(ds, name).values[index])

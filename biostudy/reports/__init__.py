@@ -1,0 +1,1 @@
+"""Stage 6, reports: verdicts and tables (convergence, stability, sensitivity, show, needs)."""

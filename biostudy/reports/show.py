@@ -1,0 +1,157 @@
+"""`biostudy show`: a readable summary of a run's dataset, a failed case's record or a study.nc.
+
+Everything shown comes from the file itself (attributes and time series),
+so a result can be understood without the scene file that produced it.
+"""
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import xarray as xr
+from rich.console import Console, Group
+from rich.table import Table
+from rich.text import Text
+
+from solver.problem import parameter_infos
+
+from ..quantities import observables
+from ..formatting import number, units_text
+
+AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")  # what a study.nc written before observables has
+
+
+def _rows(rows: list[tuple[str, str]]) -> Table:
+    table = Table.grid(padding=(0, 2))
+    table.add_column(style="bold")
+    table.add_column()
+    for name, value in rows:
+        if value:
+            table.add_row(name, value)
+    return table
+
+
+def _scene_title(attrs: dict) -> tuple[str, str]:
+    try:
+        scene = tomllib.loads(str(attrs.get("scene", "")))
+    except tomllib.TOMLDecodeError:
+        scene = {}
+    return str(scene.get("name", "?")), str(scene.get("description", ""))
+
+
+def _from_scene(attrs: dict) -> dict:
+    """Grid, model and parameters from the recorded scene text, where the run left none (a failed case)."""
+    try:
+        scene = tomllib.loads(str(attrs.get("scene", "")))
+    except tomllib.TOMLDecodeError:
+        return {}
+    grid = scene.get("grid", {})
+    found = {"grid_shape": grid.get("shape"), "grid_spacing": grid.get("spacing"),
+             "consumption": scene.get("model", {}).get("consumption"),
+             "advection": scene.get("numerics", {}).get("advection"),
+             "growth_velocity": scene.get("numerics", {}).get("growth_velocity"), **scene.get("params", {})}
+    return {k: v for k, v in found.items() if v is not None}
+
+
+def _header(attrs: dict) -> list[tuple[str, str]]:
+    attrs = {**_from_scene(attrs), **attrs} if "grid_shape" not in attrs else attrs
+    shape = np.atleast_1d(attrs.get("grid_shape", []))
+    grid = " × ".join(str(int(n)) for n in shape)
+    rows = [
+        ("scene file", str(attrs.get("scene_file", ""))),
+        ("overrides", str(attrs.get("overrides", "")).replace("\n", "; ")),
+    ]
+    if grid:
+        rows.append(("grid", f"{grid} cells of {number(attrs.get('grid_spacing'))} µm"))
+    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "advection", "growth_velocity", "mechanics")
+             if k in attrs]
+    if "nutrient_faces" in attrs:
+        model.append(f"nutrient held on {attrs['nutrient_faces']}")
+    rows.append(("model", ", ".join(model)))
+    params = [f"{p.name} = {number(attrs[p.name])}{' ' + units_text(p.units) if units_text(p.units) else ''}"
+              for p in parameter_infos() if p.name in attrs]
+    rows.append(("parameters", ", ".join(params)))
+    return rows
+
+
+def _software(attrs: dict) -> str:
+    versions = [f"{k.removeprefix('version_').replace('_', '-')} {v}" for k, v in attrs.items()
+                if k.startswith("version_")]
+    return ", ".join([f"biostudy {attrs.get('biostudy_version', '?')}", *versions])
+
+
+def run_summary(ds: xr.Dataset) -> Group:
+    """One run: scene, parameters, cost, and the averages at the start and the end."""
+    attrs = ds.attrs
+    name, description = _scene_title(attrs)
+    status = str(attrs.get("status", "done"))
+    rows = _header(attrs)
+    if status != "done":
+        rows.append(("status", f"[red]{status}[/red]: {attrs.get('message', '')}"))
+    rows += [
+        ("run", f"wall time {number(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
+                f"{attrs.get('steps_bisected', '-')} bisected" if "steps_taken" in attrs
+         else f"wall time {number(attrs.get('wall_time'))} s"),
+        ("created", str(attrs.get("created", ""))),
+        ("software", _software(attrs)),
+    ]
+    parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
+    if "time" in ds.dims and "phi" in ds:
+        table = Table(title=None, show_edge=False)
+        table.add_column("observable")
+        table.add_column(f"T* = {number(ds.time.values[0])}", justify="right")
+        table.add_column(f"T* = {number(ds.time.values[-1])}", justify="right")
+        table.add_column("units")
+        table.add_column("meaning")
+        for name, values in observables.variables(ds).items():
+            table.add_row(name, number(values.values[0]), number(values.values[-1]),
+                          units_text(values.attrs["units"]), values.attrs["long_name"])
+        parts.append(table)
+    return Group(*parts)
+
+
+def study_summary(ds: xr.Dataset) -> Group:
+    """A study.nc: what was swept, how many cases finished, one row per case."""
+    attrs = ds.attrs
+    dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
+    rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
+    names = [n.strip() for n in str(attrs.get("sweep_keys", "")).split(",") if n.strip()]
+    swept = [c for c in ds.coords if ds[c].dims and set(ds[c].dims) <= set(dims) and c != "case"]
+    values = [f"{c} = " + ", ".join(number(v) for v in np.unique(ds[c].values)) for c in swept]
+    rows += [
+        ("sweep", f"{attrs.get('sweep_mode')} over {', '.join(names)}"),
+        ("values", "; ".join(values)),
+        ("cases", f"{attrs.get('cases')} cases: {attrs.get('cases_done')} done, {attrs.get('cases_failed')} "
+                  f"failed, {attrs.get('cases_missing')} missing"),
+        ("created", str(attrs.get("created", ""))),
+        ("software", _software(attrs)),
+    ]
+    name = str(attrs.get("title", "study")).removeprefix("biofilm growth study: ")
+    shown = [n for n in observables.SUMMARY if n in ds] or [n for n in AVERAGES if n in ds]
+    table = Table(show_edge=False, caption="observables at the last output time (" + ", ".join(
+        f"{n} {units_text(ds[n].attrs.get('units', '1')) or '1'}" for n in shown) + "; `biostudy analyze` for all)")
+    table.add_column("case", no_wrap=True)
+    table.add_column("status", no_wrap=True)
+    for column in ("wall s", "steps", *shown):
+        table.add_column(column, justify="right")
+    table.add_column("message")
+
+    def flat(var: str) -> np.ndarray:
+        values = ds[var]
+        if "time" in values.dims:
+            values = values.isel(time=-1)
+        return values.transpose(*dims, ...).values.ravel()
+
+    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps_taken", "message", *shown) if v in ds}
+    for i, case in enumerate(columns["case_id"]):
+        status = str(columns["status"][i])
+        colour = {"done": "green", "failed": "red"}.get(status, "yellow")
+        table.add_row(str(case), f"[{colour}]{status}[/{colour}]", number(columns["wall_time"][i]),
+                      number(columns["steps_taken"][i]),
+                      *(number(columns[v][i]) if v in columns else "-" for v in shown),
+                      str(columns["message"][i]))
+    return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
+
+
+def summarize(ds: xr.Dataset, console: Console) -> None:
+    console.print(study_summary(ds) if "sweep_mode" in ds.attrs else run_summary(ds))
