@@ -115,9 +115,10 @@ def thickness_profile(phi: np.ndarray, h: float, face: str, threshold: float = T
     One value per column normal to the substratum (an array of the face's shape).  Along the column phi is
     interpolated linearly between cell centres and continued linearly to the two faces; the topmost point is the
     crossing of the threshold above the topmost node with phi >= threshold (as `biostudy.measures.top`, which
-    holds phi constant over the half cell next to a face instead), at most the opposite face.  0 where the column has no biofilm.  COMSTAT counts whole voxels; this is sub-cell along
-    the column (a slab whose phi crosses 0.5 at 3.3 µm is 3.3 µm thick), but a column whose phi is uniform along
-    it joins or leaves at once when that value crosses the threshold."""
+    holds phi constant over the half cell next to a face instead), at most the opposite face.  0 where the column
+    has no biofilm.  COMSTAT counts whole voxels; this is sub-cell along the column (a slab whose phi crosses 0.5
+    at 3.3 µm is 3.3 µm thick), but a column whose phi is uniform along it joins or leaves at once when that
+    value crosses the threshold."""
     field = on_substratum(phi, face)
     n = field.shape[0]
     values = _continued(field)
@@ -332,7 +333,7 @@ def surface_area(phi: np.ndarray, h: float, face: str, threshold: float = THRESH
 
 
 def surface_to_biovolume(phi: np.ndarray, h: float, face: str, threshold: float = THRESHOLD) -> float:
-    """COMSTAT's surface to biovolume ratio (µm²/µm³ = µm⁻¹; 2-D: µm/µm² = µm⁻¹): `surface_area` over `biovolume`.
+    """COMSTAT's surface to biovolume ratio (µm²/µm³ = µm⁻¹; 2-D: µm/µm² = µm⁻¹): surface_area/biovolume.
 
     COMSTAT counts exposed voxel faces (a staircase, which overestimates a smooth surface's area); here the
     level set's area, so a hemisphere of radius r on the substratum tends to 3/r.  NaN without biofilm; 0 when
@@ -372,7 +373,7 @@ class Quantity:
     compute: Callable[..., float]
 
 
-# units reduced: µm³/µm² (2-D µm²/µm) is "um", µm²/µm³ (2-D µm/µm²) is "um-1"; both parse in udunits (cf_units)
+# units reduced: µm³/µm² (2-D µm²/µm) is "um", µm²/µm³ (2-D µm/µm²) is "um-1"; both parse in udunits
 QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
     Quantity("biomass", "um", "biovolume per substratum area (COMSTAT biomass; 2-D: biofilm area per substratum "
              "width)", biomass),
