@@ -60,7 +60,8 @@ def main() -> None:
     parser.add_argument("--advection", choices=["upwind", "tvd"], help="default: the scene's")
     parser.add_argument("--reference-steps", type=int, default=8000)
     args = parser.parse_args()
-    common = ["time.outputs=11", "mechanics.enabled=false"] + ([f"numerics.advection=\"{args.advection}\""] if args.advection else [])
+    common = ["time.outputs=11", "mechanics.enabled=false"]
+    common += [f"numerics.advection=\"{args.advection}\""] if args.advection else []
     reference, seconds = run(common + [f"time.steps={args.reference_steps}"])
     scheme = reference.attrs["advection"]
     print(f"directional scene 20^3, T* = 1, advection = {scheme}; reference: {args.reference_steps} fixed steps "
@@ -68,7 +69,8 @@ def main() -> None:
     rows = []
     for steps in (50, 100, 200, 400, 1000, 2000):
         ds, wall = run(common + [f"time.steps={steps}"])
-        rows.append({"kind": "fixed", "setting": f"{steps} steps", "steps": steps, "wall": wall, **errors(ds, reference)})
+        rows.append({"kind": "fixed", "setting": f"{steps} steps", "steps": steps, "wall": wall,
+                     **errors(ds, reference)})
     for tolerance in (3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4):
         ds, wall = run(common + ["time.steps=20", f"numerics.time_tolerance={tolerance}"])
         rows.append({"kind": "adaptive", "setting": f"tol {tolerance:g}", "steps": int(ds.attrs["steps_taken"]),

@@ -20,8 +20,8 @@ from pathlib import Path  # noqa: E402
 
 import xarray as xr  # noqa: E402
 
-from biostudy.inputs import bundled
 from biostudy.data import netcdf  # noqa: E402
+from biostudy.inputs import bundled
 from biostudy.inputs.scene import load_scene  # noqa: E402
 from solver import simulate  # noqa: E402
 

@@ -28,8 +28,8 @@ os.environ.setdefault("FIPY_SOLVERS", "scipy")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from biostudy.quantities import measures  # noqa: E402
 from biostudy.inputs.scene import load_scene  # noqa: E402
+from biostudy.quantities import measures  # noqa: E402
 from solver import simulate  # noqa: E402
 
 SCENES = ("agar2d", "agar2d-g1e10", "agar2d-thin", "directional2d")

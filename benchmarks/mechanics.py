@@ -155,11 +155,13 @@ def in_run_table(args):
         if "error" in r:
             print(f"{label} version (load {r['load']:.1f}): {r['error']}")
             continue
-        print(f"{label} version (load {r['load']:.1f}, {r['snapshots'][-1]['solver']}): mechanics {r['mechanics_s']:.2f} s "
+        print(f"{label} version (load {r['load']:.1f}, {r['snapshots'][-1]['solver']}): "
+              f"mechanics {r['mechanics_s']:.2f} s "
               f"(cpu {r['mechanics_cpu']:.2f} s) of {r['wall_s']:.1f} s, peak {r['peak_gb']:.2f} GB")
         print(f"  {'T*':>4} {'seconds':>8} {'cpu':>6} {'newton':>6} {'krylov':>6}")
         for row in r["snapshots"]:
-            print(f"  {row['time']:>4.1f} {row['seconds']:>8.2f} {row['cpu']:>6.2f} {row['newton']:>6} {row['krylov']:>6}")
+            print(f"  {row['time']:>4.1f} {row['seconds']:>8.2f} {row['cpu']:>6.2f} {row['newton']:>6} "
+                  f"{row['krylov']:>6}")
 
 
 def main():

@@ -123,14 +123,14 @@ def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
     write = time.perf_counter() - began
     began = time.perf_counter()
     combine.write_study(plan, out)
-    combine = time.perf_counter() - began
+    combined = time.perf_counter() - began
     n = len(plan.cases)
     return [("cases", n), ("sweep wall time (s)", total), ("simulations' own wall time (s)", simulated),
             ("overhead per case (s)", (total - simulated) / n),
             ("  validate the study, per case (s)", validate / n),
             ("  compile + fingerprint, per case (s)", compile_ / n),
             ("  write one case file, per case (s)", write / n),
-            ("  combine study.nc, per case (s)", combine / n)]
+            ("  combine study.nc, per case (s)", combined / n)]
 
 
 POOL_START = """

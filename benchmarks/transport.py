@@ -138,7 +138,8 @@ def main() -> None:
         if len(mine) > 1:
             (n0, *_, f0, _, _), (n1, *_, f1, _, _) = mine[0], mine[-1]
             exponent = np.log(f1["per_step_ms"]["total"] / f0["per_step_ms"]["total"]) / np.log((n1 / n0) ** 3)
-            print(f"\n{velocity}: cost per step grows as N^{exponent:.2f} in the cell count N between {n0}^3 and {n1}^3")
+            print(f"\n{velocity}: cost per step grows as N^{exponent:.2f} in the cell count N "
+                  f"between {n0}^3 and {n1}^3")
 
 
 if __name__ == "__main__":

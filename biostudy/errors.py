@@ -111,7 +111,8 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         return "", f"unknown shape {value_text(ctx.get('tag'))}; shapes are {ctx.get('expected_tags')}"
     if kind in ("too_short", "too_long"):
         bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
-        return "", f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} entries (got {value_text(given)})"
+        least = "at least" if kind == "too_short" else "at most"
+        return "", f"must have {least} {bound} entries (got {value_text(given)})"
     if kind == "union_tag_not_found":
         return "", "needs a 'shape' key (box, sphere, cylinder or mask; obstacles also maze or grate)"
     message = error["msg"]

@@ -40,7 +40,8 @@ def stresses(ds: xr.Dataset) -> str:
     scale = np.nanmax(np.abs(p))
     inside, edge, outside = phi >= DENSE, (phi > 0.1) & (phi < DENSE), phi < 0.01
     parts = [f"T* = {ds['time'].values[i]:g}: |p| up to {scale:.2g} Pa",
-             f"dense biofilm: mean p {np.nanmean(p[inside]):.2g} Pa, {np.mean(p[inside] < 0):.0%} of its cells compressed"
+             f"dense biofilm: mean p {np.nanmean(p[inside]):.2g} Pa, "
+             f"{np.mean(p[inside] < 0):.0%} of its cells compressed"
              if inside.any() else "no dense biofilm",
              f"edge (0.1 < phi < 0.8): largest tension {np.nanmax(p[edge]):.2g} Pa" if edge.any() else "no edge",
              f"void (phi < 0.01): |p| <= {np.nanmax(np.abs(p[outside])) / scale:.1%} of the largest" if outside.any()
@@ -63,8 +64,10 @@ def directional(ds, scene):
     t, c, m = ds.time.values, ds.c_mean.values, ds.phi_mean.values
     dirs = {"toward": (1, 1, 1), "back": (-1, -1, -1), "side": (1, -1, 0)}
     return [
-        ("mean c settles around 10 %", "c_mean at T* = 0.2, 0.5, 1", f"{c[at(ds, .2)]:.3f}, {c[at(ds, .5)]:.3f}, {c[-1]:.3f}"),
-        ("phi still filling at T* = 1", "phi_mean at T* = 0.8, 0.9, 1", f"{m[at(ds, .8)]:.3f}, {m[at(ds, .9)]:.3f}, {m[-1]:.3f}"),
+        ("mean c settles around 10 %", "c_mean at T* = 0.2, 0.5, 1",
+         f"{c[at(ds, .2)]:.3f}, {c[at(ds, .5)]:.3f}, {c[-1]:.3f}"),
+        ("phi still filling at T* = 1", "phi_mean at T* = 0.8, 0.9, 1",
+         f"{m[at(ds, .8)]:.3f}, {m[at(ds, .9)]:.3f}, {m[-1]:.3f}"),
         ("the sphere's volume increases", "dense volume (µm³)", series(measures.volume(ds), t, digits=4)),
         ("egg-shaped toward the source, slightly backward, little to the sides",
          "advance by T* = 1 of phi >= 0.5 / phi >= 0.8 along the diagonal",
@@ -103,7 +106,9 @@ def _cap_and_stem(ds):
     top = measures.height(ds, "z", EXTENT)
     for i in (at(ds, .2), at(ds, .3), at(ds, .5), at(ds, 1.0)):
         phi = ds.phi.values[i] >= EXTENT
-        width = lambda sel: 2 * np.sqrt(phi[sel].sum(axis=(1, 2)).max() / np.pi)  # disc of the largest layer
+        def width(sel, phi=phi):  # the disc of the largest layer
+            return 2 * np.sqrt(phi[sel].sum(axis=(1, 2)).max() / np.pi)
+
         cap = (z > top[i] - 3) & (z <= top[i])
         stem = (z > 1) & (z < 3)
         out.append(f"T* = {ds.time.values[i]:g}: {width(cap):.1f} / {width(stem):.1f}")

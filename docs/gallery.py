@@ -78,7 +78,8 @@ def write_tables(table: Path, rows: dict[str, str], findings: Path, found: dict[
     ordered = [rows[n] for n in SCENES if n in rows] + [r for n, r in rows.items() if n not in SCENES]
     table.write_text(header + "\n" + "\n".join(ordered) + "\n")
     ordered = [found[n] for n in SCENES if n in found]
-    findings.write_text("| scene | the paper says | measured | value |\n|---|---|---|---|\n" + "\n".join(ordered) + "\n")
+    head = "| scene | the paper says | measured | value |\n|---|---|---|---|\n"
+    findings.write_text(head + "\n".join(ordered) + "\n")
 
 
 if __name__ == "__main__":

@@ -17,8 +17,8 @@ import platform
 import numpy as np
 import xarray as xr
 
-from .transport.bounds import ROUNDOFF
 from .problem import AXES, PRESSURES, Problem, parameter_infos
+from .transport.bounds import ROUNDOFF
 
 BIOFILM_THRESHOLD = 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size

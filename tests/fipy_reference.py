@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver.transport.finite_volume import fipy_mesh
 from solver.problem import Problem
+from solver.transport.finite_volume import fipy_mesh
 
 HOLD = 1e12  # held cells: implicit source this many times stiffer than diffusion
 

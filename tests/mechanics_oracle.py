@@ -45,8 +45,20 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import (Basis, BilinearForm, ElementHex0, ElementHex1, ElementQuad0, ElementQuad1, ElementVector,
-                   Functional, LinearForm, MeshHex, MeshQuad, asm)
+from skfem import (
+    Basis,
+    BilinearForm,
+    ElementHex0,
+    ElementHex1,
+    ElementQuad0,
+    ElementQuad1,
+    ElementVector,
+    Functional,
+    LinearForm,
+    MeshHex,
+    MeshQuad,
+    asm,
+)
 from skfem.helpers import ddot, det, grad, inv, transpose
 
 from solver.problem import AXES

@@ -4,10 +4,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from test_cli import invoke
 
 from biostudy.reports import stability
 from solver.transport.bounds import ROUNDOFF
-from test_cli import invoke
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
@@ -15,8 +15,8 @@ STUDIES = Path(__file__).resolve().parents[1] / "studies"
 def test_convergence_of_the_front_scene(tmp_path):
     """Time refinement of the front scene: implicit Euler's first order, errors falling as cost rises."""
     out = tmp_path / "conv"
-    result = invoke("convergence", STUDIES / "front.toml", "-o", out, "--levels", "4", "--series", "time,adaptive,space",
-                    "-q", "--set", "time.t_end=0.1", "--set", "time.steps=20")
+    result = invoke("convergence", STUDIES / "front.toml", "-o", out, "--levels", "4",
+                    "--series", "time,adaptive,space", "-q", "--set", "time.t_end=0.1", "--set", "time.steps=20")
     assert result.exit_code == 0, result.output
     ds = xr.open_dataset(out / "convergence.nc")
     assert ds.error_phi_L1.dims == ("series", "level") and list(ds.series.values) == ["time", "adaptive", "space"]
@@ -127,7 +127,8 @@ def test_stability_bad_catalogue_is_one_line(write_toml):
         name = "a"
         """)
     result = invoke("stability", path)
-    assert result.exit_code == 2 and result.stderr.count("\\n") <= 1 and "scene file 'nowhere.toml' not found" in result.stderr
+    assert result.exit_code == 2 and result.stderr.count("\\n") <= 1
+    assert "scene file 'nowhere.toml' not found" in result.stderr
 
 
 def test_convergence_against_a_given_reference_run(tmp_path):
@@ -145,13 +146,15 @@ def test_convergence_against_a_given_reference_run(tmp_path):
             above = np.flatnonzero(column >= 0.5)
             if above.size:
                 j = above[-1]
-                best = max(best, y[j] + (0.5 * h if j == y.size - 1 else (column[j] - 0.5) / (column[j] - column[j + 1]) * h))
+                above = 0.5 * h if j == y.size - 1 else (column[j] - 0.5) / (column[j] - column[j + 1]) * h
+                best = max(best, y[j] + above)
         return best
 
     common = ["--set", "time.t_end=0.1", "--set", "time.outputs=3"]
     reference = tmp_path / "fine.nc"
     made = invoke("run", STUDIES / "agar2d.toml", "-o", reference, "-q", *common, "--set", "grid.shape=[40,40]",
-                  "--set", "grid.spacing=0.5", "--set", "time.steps=200", "--set", 'numerics.growth_velocity="pointwise"')
+                  "--set", "grid.spacing=0.5", "--set", "time.steps=200",
+                  "--set", 'numerics.growth_velocity="pointwise"')
     assert made.exit_code == 0, made.output
     out = tmp_path / "conv"
     result = invoke("convergence", STUDIES / "agar2d.toml", "-o", out, "--levels", "2", "--series", "space", "-q",

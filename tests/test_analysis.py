@@ -1,11 +1,11 @@
-"""Designs and sensitivity analysis (`biostudy.plans.designs`, `biostudy.reports.sensitivity`) against functions whose indices are
+"""Designs and sensitivity analysis (`biostudy.plans.designs`, `biostudy.reports.sensitivity`) against functions whose
+indices are
 known exactly: Ishigami (Sobol'), linear and logarithmic functions (Morris), and a matrix-inverse formula (PRCC)."""
 import numpy as np
-import pytest
 import xarray as xr
 
-from biostudy.reports import sensitivity as analysis
 from biostudy.plans.designs import Sample
+from biostudy.reports import sensitivity as analysis
 
 PI = np.pi
 # Ishigami, a = 7, b = 0.1: V = a²/8 + b pi⁴/5 + b² pi⁸/18 + 1/2; V1 = (1 + b pi⁴/5)²/2, V2 = a²/8,

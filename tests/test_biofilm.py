@@ -5,10 +5,10 @@ import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
 from solver import Grid, Numerics, Parameters, Problem, evolve, simulate
-from solver.transport.finite_volume import fipy_mesh
 from solver.errors import StepFailure
 from solver.timeloop import Clock
 from solver.transport import Transport
+from solver.transport.finite_volume import fipy_mesh
 
 
 def problem_on(grid, phi0, held=None, value=None, obstacle=None, t_end=1.0, steps=100, outputs=None, **kw):
@@ -269,7 +269,7 @@ def characteristic_solution(x, t, phi_initial, r, k, c_slope, c_offset):
         if travel(lowest, xi) <= t:
             exact[i] = phi_initial(lowest)
         else:
-            exact[i] = phi_initial(brentq(lambda start: travel(start, xi) - t, lowest, xi))
+            exact[i] = phi_initial(brentq(lambda start, xi=xi: travel(start, xi) - t, lowest, xi))
     return exact
 
 

@@ -13,10 +13,10 @@ import netCDF4
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import CUBE_SCENE, TINY_SCENE
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from conftest import CUBE_SCENE, TINY_SCENE
 
 pytestmark = [pytest.mark.filterwarnings("ignore:In a future version of xarray the default value:FutureWarning"),
               pytest.mark.filterwarnings("ignore:The ioos_sos checker is deprecated:DeprecationWarning")]
@@ -50,7 +50,8 @@ def made(tmp_path_factory):
         beta = [1.0, 2.0, 3.0]
         """))
     cli = CliRunner()
-    for args in (["run", root / "cube.toml", "-o", root / "run3d.nc"], ["run", root / "tiny.toml", "-o", root / "run2d.nc"],
+    for args in (["run", root / "cube.toml", "-o", root / "run3d.nc"],
+                 ["run", root / "tiny.toml", "-o", root / "run2d.nc"],
                  ["sweep", root / "grid.toml", "-o", root / "grid"], ["sweep", root / "zip.toml", "-o", root / "zip"],
                  ["analyze", root / "grid", "--output", "biofilm_volume"]):
         result = cli.invoke(app, [str(a) for a in args] + (["-q"] if args[0] in ("run", "sweep") else []))
@@ -70,7 +71,8 @@ def high_priority_failures(path: Path, tmp_path: Path) -> set[tuple[str, str]]:
             for message in check["msgs"]}
 
 
-@pytest.mark.parametrize("name", ["run3d.nc", "run2d.nc", "grid/study.nc", "zip/study.nc", "grid/cases/g=1e+08_r=50.nc"])
+@pytest.mark.parametrize("name", ["run3d.nc", "run2d.nc", "grid/study.nc", "zip/study.nc",
+                                  "grid/cases/g=1e+08_r=50.nc"])
 def test_the_cf_checker_finds_no_high_priority_failure_but_the_accepted_one(made, tmp_path, name):
     failures = high_priority_failures(made / name, tmp_path)
     assert failures <= ACCEPTED, failures - ACCEPTED
@@ -109,10 +111,9 @@ def test_the_declared_units_of_every_other_dataset_parse_too():
     """stability.nc, convergence.nc and the observables, whose datasets cost too much to make here."""
     import cf_xarray.units
 
-    from biostudy.reports import convergence
-    from biostudy.quantities import observables
-    from biostudy.reports import stability
     from biostudy.inputs.scene import SCENE_KEYS, key_info  # noqa: F401
+    from biostudy.quantities import observables
+    from biostudy.reports import convergence, stability
     from solver.output import cf_units
     from solver.problem import parameter_infos
 
@@ -183,7 +184,8 @@ def test_masks_keep_their_int8_flags_and_no_study_dimensions(made):
 
 
 def test_masks_that_differ_between_cases_are_stacked_with_flags_of_their_type(tmp_path, tiny_scene):
-    (tmp_path / "walls.toml").write_text('scene = "tiny.toml"\n[sweep]\n"obstacle.0.upper" = [[3.0, 16.0], [4.0, 16.0]]\n')
+    (tmp_path / "walls.toml").write_text('scene = "tiny.toml"\n[sweep]\n'
+                                         '"obstacle.0.upper" = [[3.0, 16.0], [4.0, 16.0]]\n')
     result = CliRunner().invoke(app, ["sweep", str(tmp_path / "walls.toml"), "-o", str(tmp_path / "out"), "-q",
                                       "--set", "time.steps=4"])
     assert result.exit_code == 0, result.output
@@ -216,9 +218,7 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
 def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
     """A case file read as one run (show, plot, export) is squeezed; an old run's steps_bisections is
     steps_bisected; combine reads both."""
-    from biostudy.data import combine
-    from biostudy.data import netcdf
-    from biostudy.data import store
+    from biostudy.data import combine, netcdf, store
     from biostudy.plans.study import load_study
 
     case = store.open_dataset(made / "grid" / "cases" / "g=1e+08_r=50.nc")

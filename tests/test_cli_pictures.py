@@ -4,7 +4,6 @@ import xml.etree.ElementTree as ET
 import meshio
 import numpy as np
 import xarray as xr
-
 from test_cli import invoke
 from test_plot import check_series, rows
 

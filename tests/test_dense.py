@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from biostudy.quantities import measures
 from biostudy.inputs.scene import load_scene
+from biostudy.quantities import measures
 from solver import simulate
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"

@@ -108,7 +108,8 @@ def test_every_file_has_the_same_arrays_its_time_and_u_as_active_vectors(run3d, 
     meshes = read_series(paths)
     times = ds.time.values.tolist()
     for mesh in meshes:
-        assert sorted(mesh.cell_data) == ["alpha", "c", "nutrient_source", "p", "phi"] and list(mesh.point_data) == ["u"]
+        assert sorted(mesh.cell_data) == ["alpha", "c", "nutrient_source", "p", "phi"]
+        assert list(mesh.point_data) == ["u"]
     assert [float(m.field_data["TimeValue"][0]) for m in meshes] == times
     assert [float(m.field_data["mechanics_time"][0]) for m in meshes] == [times[0], times[0], times[2]]
     np.testing.assert_array_equal(meshes[1].point_data["u"], meshes[0].point_data["u"])  # held, not undeformed

@@ -24,20 +24,18 @@ import numpy as np
 import psutil
 import pytest
 import xarray as xr
+from test_sweep import _wait_for as wait_for
 from typer.testing import CliRunner
 
 import solver
-from biostudy.execution import ownership
-from biostudy.execution import pool
-from biostudy.inputs import resources
-from biostudy.execution import jobs as runner
-from biostudy.data import store
 from biostudy.cli import app
-from biostudy.plans.study import load_study
 from biostudy.commands.sweep import run_study
-from biostudy.execution import backends, dask
-from biostudy.execution.jobs import Execution, fingerprint
-from test_sweep import _wait_for as wait_for
+from biostudy.data import store
+from biostudy.execution import backends, ownership, pool
+from biostudy.execution import jobs as runner
+from biostudy.execution.jobs import Execution
+from biostudy.inputs import resources
+from biostudy.plans.study import load_study
 
 cli = CliRunner()
 

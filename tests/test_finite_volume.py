@@ -1,11 +1,11 @@
 """The cached operators against FiPy's own, and the plain FiPy run against the fast path."""
 import numpy as np
 import scipy.sparse as sp
+from fipy_reference import FipyTransport
 
 from solver import Grid, Numerics, Parameters, Problem
-from solver.transport.finite_volume import FiniteVolumeGrid
-from fipy_reference import FipyTransport
 from solver.transport import Transport
+from solver.transport.finite_volume import FiniteVolumeGrid
 
 
 def second_difference(n, h):

@@ -1,4 +1,5 @@
-"""The front velocity (`solver.transport.front`): the growth speed taken at the phi = 1/2 front and carried along its normals.
+"""The front velocity (`solver.transport.front`): the growth speed taken at the phi = 1/2 front, carried along
+its normals.
 
 Checked against what it is built to do, with the nutrient prescribed (no consumption feedback) so that the
 answers are exact: the speed at the front is r c/(k+c) N.n_c at the interpolated crossing; cells beyond the band
@@ -9,10 +10,10 @@ docs/paper.md); and the front moves at the speed the model gives it.
 import numpy as np
 import pytest
 
+from solver.problem import Grid, Numerics, Parameters
 from solver.transport.biofilm import Biofilm, Velocity
 from solver.transport.finite_volume import FiniteVolumeGrid
 from solver.transport.front import FrontVelocity
-from solver.problem import Grid, Numerics, Parameters
 
 R, K = 100.0, 1.0
 

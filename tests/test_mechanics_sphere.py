@@ -7,7 +7,6 @@ z-: the same problem as the whole cube, at an eighth of the cost.
 """
 import numpy as np
 import pytest
-
 from scipy.optimize import brentq
 
 from solver import Grid, MechanicsSetup, Parameters

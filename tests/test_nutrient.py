@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
+from solver.problem import Grid, Parameters
 from solver.transport.finite_volume import FiniteVolumeGrid
 from solver.transport.nutrient import Nutrient
-from solver.problem import Grid, Parameters
 
 LENGTH = 16.0  # µm; c = 1 held in the first column of cells, zero flux at x = LENGTH
 

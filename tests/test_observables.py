@@ -1,4 +1,5 @@
-"""Observables (`biostudy.quantities.observables`) against values computed by hand on small fields, and a run's own series."""
+"""Observables (`biostudy.quantities.observables`) against values computed by hand on small fields, and a run's own
+series."""
 import numpy as np
 import pytest
 import xarray as xr

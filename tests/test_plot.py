@@ -389,7 +389,8 @@ def test_warped_three_dimensional_surface_moves_with_u(run3d, with_mechanics, tm
     from biostudy.plots import warped
 
     ds = with_mechanics(run3d)
-    nodes = np.stack(np.meshgrid(ds.z_node, ds.y_node, ds.x_node, indexing="ij")[::-1], axis=-1)  # (z, y, x, 3): x, y, z
+    # (z, y, x, 3): x, y, z
+    nodes = np.stack(np.meshgrid(ds.z_node, ds.y_node, ds.x_node, indexing="ij")[::-1], axis=-1)
     ds["u"][:] = 0.01 * nodes
     vertices = np.array([[0.3, 1.7, 2.2], [5.9, 4.1, 0.0], [8.0, 8.0, 8.0]])
     assert np.allclose(warped.displaced_vertices(on_output_times(ds), 0, vertices, 500.0), vertices * (1 + 500 * 0.01))

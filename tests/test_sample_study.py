@@ -58,7 +58,8 @@ def test_a_sampled_study_runs_resumes_grows_and_is_analysed(write_toml, tiny_sce
     unfinished = invoke("analyze", out, "--output", "biofilm_volume")  # what is there, and says so
     assert unfinished.exit_code == 0, unfinished.output
     assert study_nc() == before  # the directory is the sweep's: analyze combines in memory, writes no study.nc
-    assert "Unfinished study: 11 of 16 cases have not run yet; the analysis uses the 5 that are done" in unfinished.stdout
+    said = "Unfinished study: 11 of 16 cases have not run yet; the analysis uses the 5 that are done"
+    assert said in unfinished.stdout
 
     result = invoke("sweep", study, "-o", out, "-q")  # resumes: 4 (2 + 2) = 16 cases, 5 done before
     assert result.exit_code == 0, result.output

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 import solver
-from biostudy.inputs import bundled
-from biostudy.plans import catalogue
 from biostudy.errors import BadInput
+from biostudy.inputs import bundled
 from biostudy.inputs.keys import parse_override
 from biostudy.inputs.scene import Scene, key_info, load_scene
-from biostudy.plans.study import load_study
 from biostudy.inputs.tomltext import dumps
+from biostudy.plans import catalogue
+from biostudy.plans.study import load_study
 
 
 def test_defaults_are_the_solvers_and_the_papers(tiny_scene):

@@ -11,8 +11,8 @@ import pytest
 from scipy import ndimage
 
 from biostudy.inputs import bundled
-from biostudy.quantities import measures
 from biostudy.inputs.scene import load_scene
+from biostudy.quantities import measures
 from solver import simulate
 
 DENSE, EXTENT = measures.DENSE, measures.THRESHOLD
@@ -72,7 +72,7 @@ def test_agar_high_consumption_stays_low_and_spreads_into_a_layer(agar):
     """4.2, g = 1e10: "grows only to a certain height, after which the biofilm fills out the edges ... forming
     a biofilm layer at the bottom": lower than the g = 1e8 colony at every output, no higher at the end than
     at T* = 0.5 (within a cell), wider than tall, and dense; its nutrient plateau "significantly" below."""
-    (tall_scene, tall), (scene, low) = agar["1e8"], agar["1e10"]
+    (_, tall), (scene, low) = agar["1e8"], agar["1e10"]
     top, tall_top = measures.height(low, "z", EXTENT), measures.height(tall, "z", EXTENT)
     assert np.all(top[1:] < tall_top[1:]), (top, tall_top)
     half = int(np.argmin(np.abs(low.time.values - 0.5)))

@@ -6,10 +6,10 @@ import tomllib
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import CUBE_SCENE
 
 from biostudy.data import store
 from biostudy.inputs.scene import load_scene
-from conftest import CUBE_SCENE
 from solver import simulate
 
 

@@ -10,16 +10,14 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from biostudy.inputs import bundled
-from biostudy.data import combine
-from biostudy.execution import jobs as runner
-from biostudy.data import store
 from biostudy.cli import app
+from biostudy.commands.sweep import run_study
+from biostudy.data import combine, store
+from biostudy.execution import dask
+from biostudy.execution.jobs import Execution, fingerprint
+from biostudy.inputs import bundled
 from biostudy.inputs.scene import load_scene
 from biostudy.plans.study import load_study
-from biostudy.commands.sweep import run_study
-from biostudy.execution import backends, dask
-from biostudy.execution.jobs import Execution, fingerprint
 
 cli = CliRunner()
 

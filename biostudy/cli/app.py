@@ -21,8 +21,20 @@ from ..errors import BadInput, Failed
 from ..execution import worker
 from ..inputs import bundled
 from . import progress
-from .options import (FLAG, CaseOverrides, Directory, Force, Overrides, Quiet, RerunAll, RetryFailed, SceneArgument,
-                      Scheduler, Workers, overrides)
+from .options import (
+    FLAG,
+    CaseOverrides,
+    Directory,
+    Force,
+    Overrides,
+    Quiet,
+    RerunAll,
+    RetryFailed,
+    SceneArgument,
+    Scheduler,
+    Workers,
+    overrides,
+)
 
 app = typer.Typer(name="biostudy", no_args_is_help=True, pretty_exceptions_enable=False,
                   context_settings={"help_option_names": ["-h", "--help"]},
@@ -75,8 +87,8 @@ def _guarded():
 @app.command()
 def run(
     scene: SceneArgument,
-    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="OUT.nc",
-                                                   help="dataset to write (default: NAME.nc, the scene's name)")] = None,
+    output: Annotated[Optional[Path], typer.Option(
+        "-o", "--output", metavar="OUT.nc", help="dataset to write (default: NAME.nc, the scene's name)")] = None,
     overrides: Overrides = [],
     force: Annotated[bool, typer.Option("--force", metavar=FLAG,
                                         help="replace OUT.nc even if it holds the result of another scene or a "

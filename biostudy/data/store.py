@@ -39,8 +39,8 @@ from typing import Any, Callable, Iterable
 import numpy as np
 import xarray as xr
 
-from . import netcdf
 from ..errors import BadInput, first_line
+from . import netcdf
 
 TMP_GLOB = ".*.tmp"
 TEMPORARY = re.compile(r"^\..+\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")  # .NAME.PID.TOKEN.tmp, see `temporary_name`

@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING
 from ..errors import first_line
 
 if TYPE_CHECKING:
-    import solver
     import xarray as xr
+
+    import solver
 
 
 # FiPy picks its solver suite once, when it is first imported; the solver reads FiPy's matrices as scipy

@@ -30,9 +30,9 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, 
 from solver import Grid
 from solver.problem import FACES
 
-from . import structures
 from ..errors import InvalidAt, first_line
 from ..formatting import value_text
+from . import structures
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
 EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)

@@ -49,7 +49,8 @@ def chosen_series(text: str) -> tuple[str, ...]:
     return chosen
 
 
-def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES, tolerance: float = FIRST_TOLERANCE) -> list[Refinement]:
+def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES,
+         tolerance: float = FIRST_TOLERANCE) -> list[Refinement]:
     """The levels of every requested series (plus the fixed-step reference the adaptive series needs)."""
     steps = base.time.steps
     out = []

@@ -11,9 +11,9 @@ import math
 from pathlib import Path
 
 import matplotlib.pyplot as plt
-from matplotlib.ticker import NullFormatter
 import numpy as np
 import xarray as xr
+from matplotlib.ticker import NullFormatter
 
 from ..formatting import number
 from .style import save

@@ -18,8 +18,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from ..formatting import number, shown_units
 from ..data.store import atomic
+from ..formatting import number, shown_units
 
 OBSTACLE_GREY = "0.6"
 SOURCE_GREEN = "#2ca02c"

@@ -1,1 +1,4 @@
-"""Stage 5, quantities: what is measured on a run's fields (observables, dense volumes, fronts, norms, the substratum's COMSTAT quantities)."""
+"""Stage 5, quantities: what is measured on a run's fields.
+
+Observables, dense volumes, fronts, norms, and the substratum's quantities as COMSTAT measures them.
+"""

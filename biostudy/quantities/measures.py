@@ -77,7 +77,8 @@ def front_position(ds: xr.Dataset, time_index: int = -1) -> float:
     high = np.array([c[-1] for c in centres])
     # the ray until it leaves the box of cell centres
     with np.errstate(divide="ignore", invalid="ignore"):
-        exits = np.where(direction > 0, (high - start) / direction, np.where(direction < 0, (low - start) / direction, np.inf))
+        backward = np.where(direction < 0, (low - start) / direction, np.inf)
+        exits = np.where(direction > 0, (high - start) / direction, backward)
     length = float(np.min(exits))
     s = np.arange(0.0, length + 1e-12, h / 8.0)
     points = start[:, None] + direction[:, None] * s[None, :]

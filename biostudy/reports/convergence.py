@@ -202,7 +202,8 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
         "tolerance": (("series", "level"), table["tolerance"],
                       {"units": "1", "long_name": "time_tolerance of the error-controlled steps"}),
         "wall_time": (("series", "level"), table["wall_time"], {"units": "s", "long_name": "wall time of the run"}),
-        "steps_taken": (("series", "level"), table["steps_taken"], {"units": "1", "long_name": MEANINGS["steps_taken"]}),
+        "steps_taken": (("series", "level"), table["steps_taken"],
+                        {"units": "1", "long_name": MEANINGS["steps_taken"]}),
         **{f"error_{c.name}": (("series", "level"), errors[c.name], {"units": c.units, "long_name": c.long_name})
            for c in COMPARED},
     }

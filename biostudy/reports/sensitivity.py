@@ -180,7 +180,7 @@ def analyze(ds: xr.Dataset, outputs: list[str] | None = None, times: list[float]
     unit = np.column_stack([flat.unit[p] for p in params]) if design is not None else None
     done = flat.status == "done"
     seed = design.seed if design is not None else 0
-    k, shape = len(params), (len(indices), len(names))
+    shape = (len(indices), len(names))
     data: dict[str, np.ndarray] = {}
 
     def put(name: str, t: int, o: int, values: np.ndarray):

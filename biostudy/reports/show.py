@@ -15,8 +15,8 @@ from rich.text import Text
 
 from solver.problem import parameter_infos
 
-from ..quantities import observables
 from ..formatting import number, units_text
+from ..quantities import observables
 
 AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")  # what a study.nc written before observables has
 

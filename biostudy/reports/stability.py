@@ -42,7 +42,6 @@ from ..execution.jobs import Job
 from ..formatting import number
 
 
-
 def examine(ds: xr.Dataset) -> dict:
     """Independent checks of a finished run: extremes, bounds, non-finite values."""
     ds = on_output_times(ds)

@@ -24,9 +24,8 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import MechanicsError, describe_cell
 from ..problem import Grid, MechanicsSetup, Parameters
-from . import material, preconditioners
+from . import constraints, material, preconditioners
 from .assembly import Assembler
-from . import constraints
 from .constraints import boundary_held, pin_rigid_modes, rigid_modes
 from .linear import TangentSolver
 from .loading import Attempts, Refused, step_load

@@ -43,6 +43,7 @@ import numpy as np
 
 from .mesh import StructuredMesh
 
+
 def spurious_patterns(ndim: int) -> tuple[list[tuple[int, ...]], np.ndarray]:
     """The 2^ndim cell offsets around a node and the signs (patterns, offsets) of the spurious modes."""
     offsets = list(itertools.product((0, 1), repeat=ndim))

@@ -34,11 +34,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..counters import Counters
+from ..problem import Numerics, Parameters
 from .bounds import Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
 from .linear import jacobi_bicgstab
-from ..problem import Numerics, Parameters
 
 
 class Velocity:

@@ -30,12 +30,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .bounds import ROUNDOFF, Projection
 from ..counters import Counters
 from ..errors import StepFailure
+from ..problem import Consumption, Parameters
+from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .linear import ReusedAMG
-from ..problem import Consumption, Parameters
 
 MAX_ACTIVE_SET_ITERATIONS = 100
 

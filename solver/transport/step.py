@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..counters import Counters
+from ..problem import Problem
 from .biofilm import Biofilm
 from .expansion import grow
 from .finite_volume import FiniteVolumeGrid
 from .nutrient import Nutrient
-from ..problem import Problem
 
 
 @dataclass(frozen=True)
