@@ -144,7 +144,7 @@ class Clock:
 def _mechanics(problem: Problem):
     if problem.mechanics is None:
         return None
-    from .mechanics import GrowthMechanics
+    from .mechanics import GrowthMechanics  # lazily: a scene without mechanics never imports scikit-fem
 
     return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle)
 
@@ -196,7 +196,7 @@ def evolve(problem: Problem, progress: Callable[[Progress], None] | None = None)
 
 def simulate(problem: Problem, progress: Callable[[Progress], None] | None = None):
     """Run `problem` to t_end and return its dataset (see `output.to_dataset`)."""
-    from .output import to_dataset
+    from .output import to_dataset  # lazily: xarray only where a dataset is made (tests step `evolve`)
 
     simulation = Simulation(problem, progress)
     snapshots = list(simulation)

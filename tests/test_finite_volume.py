@@ -72,3 +72,13 @@ def test_plain_fipy_run_agrees_with_the_fast_path():
     assert initial_c < 1e-10
     assert coarse["phi"] < 0.05
     assert 3.0 < coarse["phi"] / fine["phi"] < 5.0, (coarse, fine)  # O(dt): 4x the steps, 1/4 the gap
+
+
+def test_a_failed_step_names_its_cell_in_grid_coordinates_past_the_obstacles():
+    """An active cell's index skips obstacle cells; the message names the grid cell and its centre (µm)."""
+    grid = Grid((4, 3), 2.0)
+    obstacle = np.zeros(grid.cells_shape, bool)
+    obstacle[0, :2] = True  # (y, x): the first two cells of the bottom row
+    fv = FiniteVolumeGrid(grid, obstacle)
+    assert fv.describe(0) == "cell (y, x) = (0, 2) (y = 1 µm, x = 5 µm)"
+    assert fv.describe(fv.n - 1) == "cell (y, x) = (2, 3) (y = 5 µm, x = 7 µm)"

@@ -114,11 +114,11 @@ def _job_command(quiet: bool, load: Callable, **execution) -> None:
     """
     with _guarded():
         from ..execution.dask import check_choice  # lazily (module docstring)
-        from ..execution.jobs import Execution
+        from ..execution.jobs import Execution  # lazily
 
         check_choice(execution.get("workers"), execution.get("scheduler"))
         if execution.get("workers"):
-            from ..execution.pool import warm_up
+            from ..execution.pool import warm_up  # lazily
 
             warm_up()  # the fork server imports the solver while this process imports it and validates
         job = load()
@@ -183,7 +183,7 @@ def show(path: Annotated[Path, typer.Argument(metavar="FILE", help="dataset writ
             typer.echo(needs(bundled.resolve(path)))
             return
         from ..data.store import open_result  # lazily (module docstring)
-        from ..reports.show import summarize
+        from ..reports.show import summarize  # lazily
 
         summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
                               "study.nc"), progress.out())
@@ -211,7 +211,7 @@ def plot(
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with _guarded():
         from ..data.store import open_result  # lazily (module docstring)
-        from ..plots import plot as draw
+        from ..plots import plot as draw  # lazily
 
         source = path / "study.nc" if path.is_dir() else path
         ds = open_result(source, ("run", "study"), "nothing to plot")
@@ -252,7 +252,7 @@ def export(
     """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
     with _guarded():
         from ..data.export import export as write  # lazily (module docstring)
-        from ..data.store import open_result
+        from ..data.store import open_result  # lazily
 
         ds = open_result(path, ("run",), "export writes one run's fields")
         try:

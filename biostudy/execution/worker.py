@@ -93,7 +93,7 @@ def provenance() -> dict[str, str]:
 def solve(problem: "solver.Problem") -> Outcome:
     """Simulate one problem; a failure becomes an `Outcome`, never an exception."""
     pin_solvers()  # a Dask worker's process was not started by biostudy: before FiPy is first imported
-    from solver import SimulationError, simulate
+    from solver import SimulationError, simulate  # lazily: after pin_solvers, before FiPy is first imported
 
     began = time.perf_counter()
     try:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import describe_cell
 from ..problem import Grid
 
 
@@ -145,7 +146,5 @@ class FiniteVolumeGrid:
 
     def describe(self, active_index: int) -> str:
         """Human-readable place of an active cell, for error messages."""
-        from .errors import describe_cell
-
         full = int(self.cells[active_index])
         return describe_cell(np.unravel_index(full, self.grid.cells_shape), self.grid.spacing)
