@@ -7,10 +7,10 @@ times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
 ``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
 validates; `Scene.problem()` builds the solver's plain description.
 
-Besides the model's keys, ``[numerics]`` (advection, time_tolerance,
-gradient_floor, max_substeps), ``[mechanics]`` residual_stiffness, every,
-linear_solver and pressure, and ``[time] output_times`` (an explicit list instead of
-``outputs = N``) map onto the solver's own settings.
+Besides the model's own keys, the ``[numerics]`` and ``[mechanics]`` tables and
+``[time] output_times`` map onto the solver's settings (`NumericsSpec`,
+`MechanicsSpec`, `Time`: each field says what it does; the README lists them
+all, and `tests/test_docs.py` checks that it does).
 """
 from __future__ import annotations
 

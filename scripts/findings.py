@@ -1,7 +1,7 @@
 """The paper's section-4 statements measured on a run's dataset: what docs/paper.md sets beside the paper.
 
 `FINDINGS[scene](ds, scene)` returns rows (statement, what is measured, value) for one bundled scene's
-full-length run; `docs/gallery.py` calls it for every scene it runs and writes docs/gallery/findings.md.
+full-length run; `scripts/gallery.py` calls it for every scene it runs and writes docs/gallery/findings.md.
 Quantities come from `biostudy.quantities.measures` (dense = phi >= 0.8, the paper's isosurface level; extent =
 phi >= 0.5); stresses at the last output where the mechanics was solved.
 """

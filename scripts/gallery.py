@@ -1,7 +1,7 @@
 """Run the bundled paper scenes at paper size, draw them and measure the paper's statements on them.
 
-    python docs/gallery.py                       # every scene of paper section 4 (~10 min on 2 cores)
-    python docs/gallery.py maze grate            # some of them
+    python scripts/gallery.py                       # every scene of paper section 4 (~10 min on 2 cores)
+    python scripts/gallery.py maze grate            # some of them
 
 Each scene runs exactly as a user would run it, one after another (so each
 run time is its own): `biostudy run studies/NAME.toml -o docs/gallery/NAME.nc`,
@@ -10,7 +10,7 @@ The datasets are deleted afterwards (they are large and reproducible); the
 table `docs/gallery/runs.md` records each run's wall time, steps, bisections
 and where the time went, read from the dataset's attributes, and
 `docs/gallery/findings.md` the paper's statements measured on it
-(`docs/findings.py`), which docs/paper.md sets beside the paper.
+(`scripts/findings.py`), which docs/paper.md sets beside the paper.
 """
 from __future__ import annotations
 

@@ -1,0 +1,93 @@
+"""Measured numbers live in one generated table each; the README includes them, never copies them by hand.
+
+    python scripts/docs_sync.py           # rewrite the generated blocks of README.md from the tables
+    python scripts/docs_sync.py --check   # exit 1 and name each block that disagrees (tests/test_docs.py)
+
+A generated block in README.md is marked
+
+    <!-- generated: NAME -->
+    ...
+    <!-- end: NAME -->
+
+and its text comes from `BLOCKS[NAME]()`, which reads a table that a measuring
+script wrote: `docs/gallery/runs.md` (`scripts/gallery.py`: the bundled scenes
+at paper size) and `docs/measured/suite.md` (`scripts/suite_time.py`: the test
+suite on this machine).
+"""
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+RUNS = ROOT / "docs" / "gallery" / "runs.md"
+SUITE = ROOT / "docs" / "measured" / "suite.md"
+BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
+
+
+def table_rows(path: Path) -> dict[str, dict[str, str]]:
+    """A markdown table as {first column: {header: cell}}."""
+    lines = [line for line in path.read_text(encoding="utf-8").splitlines() if line.startswith("|")]
+    header = [cell.strip() for cell in lines[0].strip("|").split("|")]
+    rows = {}
+    for line in lines[2:]:
+        cells = [cell.strip() for cell in line.strip("|").split("|")]
+        rows[cells[0]] = dict(zip(header, cells))
+    return rows
+
+
+def gallery_runs() -> str:
+    return RUNS.read_text(encoding="utf-8")
+
+
+def setup_time() -> str:
+    row = table_rows(RUNS)["directional"]
+    return (f"the paper's directional-growth scene ({row['run s']} s on 2 cores, of which the mechanics "
+            f"{row['of which mechanics s']} s: `docs/gallery/runs.md`):\n")
+
+
+def suite_time() -> str:
+    facts = dict(line.split(": ", 1) for line in SUITE.read_text(encoding="utf-8").splitlines()
+                 if ": " in line and not line.startswith(("|", "#")))
+    return (f"Run the tests ({facts['tests']} tests in {facts['wall time']} on 2 cores, load average "
+            f"{facts['load average']}: `docs/measured/suite.md`; `-m \"not slow\"` leaves out the longest checks):\n")
+
+
+BLOCKS = {"gallery-runs": gallery_runs, "setup-time": setup_time, "suite-time": suite_time}
+
+
+def synced(text: str) -> tuple[str, list[str]]:
+    """`text` with every generated block rewritten, and the names of the blocks that changed."""
+    changed = []
+
+    def rewrite(match: re.Match) -> str:
+        name = match["name"]
+        if name not in BLOCKS:
+            raise SystemExit(f"README.md: unknown generated block {name!r}")
+        body = BLOCKS[name]()
+        if body != match["body"]:
+            changed.append(name)
+        return match.group(1) + body + match.group(4)
+
+    return BLOCK.sub(rewrite, text), changed
+
+
+def main(argv: list[str]) -> int:
+    text = README.read_text(encoding="utf-8")
+    new, changed = synced(text)
+    missing = sorted(set(BLOCKS) - {m["name"] for m in BLOCK.finditer(text)})
+    if "--check" in argv:
+        for name in changed:
+            print(f"README.md: block {name} disagrees with its table; run python scripts/docs_sync.py")
+        for name in missing:
+            print(f"README.md: block {name} is missing")
+        return 1 if changed or missing else 0
+    README.write_text(new, encoding="utf-8")
+    print(f"rewrote {', '.join(changed) or 'nothing'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
