@@ -7,6 +7,9 @@ import os
 # before FiPy is first imported, and pictures drawn to files only.
 os.environ.setdefault("FIPY_SOLVERS", "scipy")
 os.environ["MPLBACKEND"] = "Agg"
+# The memory a run may use, fixed for every test and the processes it starts: refusals must not depend on what
+# else the machine is doing (a test of a refusal sets its own figure).
+os.environ["BIOSTUDY_MEMORY"] = "16 GB"
 
 import textwrap
 from pathlib import Path

@@ -94,3 +94,19 @@ def test_scene_and_study_files_are_told_apart(tiny_scene, tiny_study):
     from biostudy.inputs.scene import load_scene
     with pytest.raises(BadInput, match="this is a study file"):
         load_scene(tiny_study)
+
+
+def test_a_designs_cases_are_the_same_before_and_after_its_checks(tiny_scene, write_toml):
+    """No hidden state: the cases of a sampled study round integer keys (time.steps) whether or not the checks
+    against the base scene ran first (they only validate)."""
+    from biostudy.plans.study import Study
+
+    data = {"name": "s", "scene": str(tiny_scene), "sample": {"method": "lhs", "n": 6, "seed": 3,
+                                                               "ranges": {"time": {"steps": [10, 40]}, "g": [1e7, 1e9]}}}
+    before = Study.model_validate(data).cases()
+    checked = Study.model_validate(data)
+    checked.check({"grid": {"shape": [16, 16]}}, tiny_scene, tiny_scene)
+    after = checked.cases()
+    assert [c.values for c in before] == [c.values for c in after]
+    steps = [c.values["time.steps"] for c in before]
+    assert all(isinstance(s, int) and 10 <= s <= 40 for s in steps) and len(set(steps)) > 1

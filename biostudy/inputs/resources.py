@@ -27,6 +27,8 @@ file system).
 from __future__ import annotations
 
 import math
+import os
+import re
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +36,8 @@ from pathlib import Path
 import psutil
 
 from solver.mechanics import linear_solver_for
+
+from ..errors import BadInput
 
 PROCESS = 0.2e9  # bytes: an interpreter with the solver imported
 TRANSPORT_PER_CELL = {2: 1.6e3, 3: 2.4e3}
@@ -99,8 +103,44 @@ def estimate(scene) -> Estimate:
                     COPIES * (written + PER_OUTPUT * outputs), written)
 
 
+MEMORY_VARIABLE = "BIOSTUDY_MEMORY"  # e.g. "16 GB": the memory this process may use, instead of the machine's
+CGROUP = Path("/sys/fs/cgroup")
+
+
+def _cgroup_room() -> float:
+    """Bytes left under this process's cgroup (v2) memory limit (a batch job's allocation), inf if none."""
+    try:
+        limit = (CGROUP / "memory.max").read_text().strip()
+        if limit == "max":
+            return float("inf")
+        return max(0.0, float(limit) - float((CGROUP / "memory.current").read_text()))
+    except (OSError, ValueError):
+        return float("inf")
+
+
+SIZE = re.compile(r"^\s*(?P<number>[0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*(?P<unit>[KMGT]?B)?\s*$", re.IGNORECASE)
+SCALES = {"": 1.0, "B": 1.0, "KB": 1e3, "MB": 1e6, "GB": 1e9, "TB": 1e12}
+
+
+def parse_size(text: str) -> float:
+    """'16 GB', '512MB', '2.5e9' -> bytes; ValueError for anything else."""
+    found = SIZE.match(text)
+    if not found:
+        raise ValueError(f"{text!r} is not a size such as '16 GB'")
+    return float(found["number"]) * SCALES[(found["unit"] or "").upper()]
+
+
 def available_memory() -> float:
-    return float(psutil.virtual_memory().available)
+    """Bytes a run may use here: what the machine has available, within a batch job's cgroup limit; the
+    variable BIOSTUDY_MEMORY (e.g. "16 GB") says it instead, for a scheduler's allocation the machine
+    cannot see.  A run is refused when its estimate exceeds it."""
+    given = os.environ.get(MEMORY_VARIABLE)
+    if given:
+        try:
+            return parse_size(given)
+        except ValueError as error:
+            raise BadInput(f"{error}", MEMORY_VARIABLE) from None
+    return min(float(psutil.virtual_memory().available), _cgroup_room())
 
 
 def free_disk(path: str | Path) -> float:

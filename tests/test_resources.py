@@ -1,0 +1,60 @@
+"""The memory estimate (`biostudy.inputs.resources`) against a measured peak, and where the available memory
+comes from."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from biostudy.errors import BadInput
+from biostudy.inputs import resources
+
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
+PEAK = """\
+import resource, sys
+from biostudy.inputs import resources
+from biostudy.inputs.scene import load_scene
+import solver
+scene = load_scene(sys.argv[1], sys.argv[2:])
+solver.simulate(scene.problem())
+print(resources.estimate(scene).memory, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+"""
+
+
+@pytest.mark.parametrize("overrides", [
+    ["grid.shape=[40,40,40]", "grid.spacing=0.5", "time.steps=10", "mechanics.enabled=false"],  # transport
+    ["grid.shape=[24,24,24]", "grid.spacing=0.8333333333333334", "time.steps=10", "time.outputs=2"],  # mechanics
+])
+def test_the_memory_estimate_is_within_its_stated_factor_of_a_measured_peak(overrides):
+    """resources' docstring: each part measured on this solver, the sum within a factor of ~1.5 of a run's peak
+    resident memory (a fresh interpreter, as a worker is)."""
+    done = subprocess.run([sys.executable, "-c", PEAK, str(STUDIES / "directional.toml"), *overrides],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    estimate, peak = map(float, done.stdout.split())
+    assert 1 / 1.5 <= peak / estimate <= 1.5, (estimate, peak)
+
+
+def test_the_available_memory_is_the_machines_within_its_cgroup_or_as_given(monkeypatch, tmp_path):
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "3.5 GB")
+    assert resources.available_memory() == 3.5e9
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "lots")
+    with pytest.raises(BadInput, match="BIOSTUDY_MEMORY: 'lots' is not a size"):
+        resources.available_memory()
+    monkeypatch.delenv("BIOSTUDY_MEMORY")
+    (tmp_path / "memory.max").write_text("2000000000\n")
+    (tmp_path / "memory.current").write_text("500000000\n")
+    monkeypatch.setattr(resources, "CGROUP", tmp_path)
+    assert resources.available_memory() == pytest.approx(1.5e9)  # a batch job's limit, below the machine's
+    (tmp_path / "memory.max").write_text("max\n")
+    assert resources.available_memory() > 1.5e9
+
+
+@pytest.mark.parametrize("text, size", [("16 GB", 16e9), ("512MB", 512e6), ("2.5e9", 2.5e9), (".5 gb", 0.5e9)])
+def test_sizes_read_as_people_write_them(text, size):
+    assert resources.parse_size(text) == size
+
+
+def test_a_size_in_other_units_is_refused():
+    with pytest.raises(ValueError):
+        resources.parse_size("3 GiB")
