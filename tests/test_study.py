@@ -101,8 +101,8 @@ def test_a_designs_cases_are_the_same_before_and_after_its_checks(tiny_scene, wr
     against the base scene ran first (they only validate)."""
     from biostudy.plans.study import Study
 
-    data = {"name": "s", "scene": str(tiny_scene), "sample": {"method": "lhs", "n": 6, "seed": 3,
-                                                               "ranges": {"time": {"steps": [10, 40]}, "g": [1e7, 1e9]}}}
+    ranges = {"time": {"steps": [10, 40]}, "g": [1e7, 1e9]}
+    data = {"name": "s", "scene": str(tiny_scene), "sample": {"method": "lhs", "n": 6, "seed": 3, "ranges": ranges}}
     before = Study.model_validate(data).cases()
     checked = Study.model_validate(data)
     checked.check({"grid": {"shape": [16, 16]}}, tiny_scene, tiny_scene)
