@@ -32,6 +32,7 @@ from .options import (
     RetryFailed,
     SceneArgument,
     Scheduler,
+    SchedulerFile,
     Workers,
     overrides,
 )
@@ -94,12 +95,16 @@ def run(
                                         help="replace OUT.nc even if it holds the result of another scene or a "
                                              "sweep's file (never an input or a file biostudy did not write)")] = False,
     quiet: Quiet = False,
+    continue_from: Annotated[Optional[Path], typer.Option(
+        "--continue", metavar="RUN.nc", help="go on from the last state of this finished run of the same scene "
+                                              "(give a later --set time.t_end=...); writes the whole history "
+                                              "(default: RUN-tT_END.nc beside it)")] = None,
 ):
     """Run one simulation and write its dataset (netCDF)."""
     with _guarded():
         from ..commands import run as command  # lazily (module docstring)
 
-        loaded = command.load(scene, overrides=overrides, output=output, force=force)
+        loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from)
         with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
             result = command.compute(loaded, progress=report)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
@@ -116,7 +121,7 @@ def _job_command(quiet: bool, load: Callable, **execution) -> None:
         from ..execution.dask import check_choice  # lazily (module docstring)
         from ..execution.jobs import Execution
 
-        check_choice(execution.get("workers"), execution.get("scheduler"))
+        check_choice(execution.get("workers"), execution.get("scheduler"), execution.get("scheduler_file"))
         if execution.get("workers"):
             from ..execution.pool import warm_up
 
@@ -139,20 +144,32 @@ def sweep(
     output: Directory = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
     overrides: CaseOverrides = [],
     retry_failed: RetryFailed = False,
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    cases: Annotated[List[str], typer.Option(
+        "--case", metavar="ID", help="run only this case (an array task; repeatable): its file goes into DIR "
+                                     "beside those of other such tasks; study.nc is left to --combine")] = [],
+    task: Annotated[Optional[int], typer.Option(
+        "--task", metavar="N", help="an array task: run share N (0..M-1) of --tasks M (cases N, N+M, ...)")] = None,
+    tasks: Annotated[Optional[int], typer.Option("--tasks", metavar="M", help="how many array tasks share the "
+                                                                             "study")] = None,
+    combine_only: Annotated[bool, typer.Option(
+        "--combine", metavar=FLAG, help="run nothing: write DIR/study.nc from the case files there (after array "
+                                        "tasks)")] = False,
 ):
     """Run every case of a study; re-running skips finished cases."""
     def load():
         from ..commands import sweep as command  # lazily (module docstring)
 
-        return command.load(study, output=output, overrides=overrides)
+        return command.load(study, output=output, overrides=overrides, cases=cases, task=task, tasks=tasks,
+                            combine_only=combine_only)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, retry_failed=retry_failed, force=force,
-                 rerun_all=rerun_all)
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+                 retry_failed=retry_failed, force=force, rerun_all=rerun_all)
 
 
 @app.command()
@@ -279,6 +296,7 @@ def convergence(
                                                   "level)")] = 1e-2,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
     overrides: Annotated[List[str], overrides("level 0")] = [],
     force: Force = False,
     rerun_all: RerunAll = False,
@@ -298,7 +316,8 @@ def convergence(
         return command.load(scene, output=output, levels=levels, series=series, tolerance=tolerance,
                             overrides=overrides, reference=reference, time=time)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
+                 rerun_all=rerun_all)
 
 
 @app.command()
@@ -309,6 +328,7 @@ def stability(
                                                    help="directory for cases/, stability.nc, stability.md")] = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
     overrides: CaseOverrides = [],
     force: Force = False,
     rerun_all: RerunAll = False,
@@ -320,4 +340,5 @@ def stability(
 
         return command.load(catalogue, output=output, overrides=overrides)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
+                 rerun_all=rerun_all)

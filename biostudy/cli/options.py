@@ -22,6 +22,10 @@ Scheduler = Annotated[Optional[str], typer.Option("--scheduler", metavar="ADDRES
                                                   help="address of a running Dask scheduler, e.g. "
                                                        "tcp://10.0.0.5:8786 or tls://... (README: 'Sweeps on a "
                                                        "Dask cluster')")]
+SchedulerFile = Annotated[Optional[Path], typer.Option(
+    "--scheduler-file", metavar="FILE", help="the file a Dask scheduler wrote (`dask scheduler --scheduler-file "
+                                             "FILE`): how a batch job finds the cluster it started (README: "
+                                             "'Batch clusters')")]
 Force = Annotated[bool, typer.Option("--force", metavar=FLAG,
                                      help="use the output directory even if it belongs to another study or holds "
                                           "files no biostudy run recorded (cases of the same ids are replaced)")]

@@ -86,7 +86,8 @@ def legal_attrs(attrs: dict) -> dict:
 def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
     """The run's dataset with what produced it: the scene as TOML text, its file, the overrides."""
     ds = ds.copy()
-    ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve()),
+    ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve())
+                                if scene_file else "",
                                 "overrides": overrides, **extra})
     return ds
 
