@@ -10,6 +10,7 @@ and `-h` do not pay for numpy, xarray and FiPy.
 from __future__ import annotations
 
 import contextlib
+import enum
 import os
 import signal
 from pathlib import Path
@@ -188,11 +189,22 @@ def scenes():
 
 
 @app.command()
-def show(path: Annotated[Path, typer.Argument(metavar="FILE", help="dataset written by run or sweep (a case file, "
-                                                                   "study.nc, or a sweep's directory), or a scene "
-                                                                   "or study file (TOML)")]):
+def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="dataset written by run or sweep (a "
+                                                                           "case file, study.nc, or a sweep's "
+                                                                           "directory), or a scene or study file "
+                                                                           "(TOML); several runs: side by side")]):
     """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
-    running it needs (memory, disk)."""
+    running it needs (memory, disk); for several runs, how they differ (scenes, parameters, observables at their
+    common times, the largest field differences)."""
+    if len(paths) > 1:
+        with _guarded():
+            from ..data.store import open_result  # lazily (module docstring)
+            from ..reports.compare import show_compared
+
+            runs = [open_result(p, ("run",), "show of several files sets runs side by side") for p in paths]
+            show_compared(runs, paths, progress.out())
+        return
+    path = paths[0]
     with _guarded():
         if path.suffix == ".toml" or (not path.exists() and not path.suffix):
             from ..reports.needs import needs  # lazily (module docstring)
@@ -260,24 +272,39 @@ def analyze(
         progress.err().print("wrote " + ", ".join(str(p) for p in written))
 
 
+class ExportFormat(str, enum.Enum):
+    vtu = "vtu"
+    tiff = "tiff"
+
+
 @app.command()
 def export(
     path: Annotated[Path, typer.Argument(metavar="FILE.nc", help="dataset written by run (or one case of a sweep)")],
     directory: Annotated[Path, typer.Argument(metavar="DIR", help="directory for snapshot_NNNN.vtu files and "
-                                                                  "series.pvd")],
+                                                                  "series.pvd (tiff: phi.tif, c.tif)")],
+    format: Annotated[ExportFormat, typer.Option("--format", metavar="F",
+                                        help="vtu: ParaView (default); tiff: ImageJ hyperstacks of phi and c at "
+                                             "scale (µm) with the time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vtu,
 ):
-    """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
+    """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
     with _guarded():
-        from ..data.export import export as write  # lazily (module docstring)
-        from ..data.store import open_result
+        from ..data.store import open_result  # lazily (module docstring)
 
         ds = open_result(path, ("run",), "export writes one run's fields")
         try:
-            written = write(ds, directory)
+            if format is ExportFormat.tiff:
+                from ..data.tiff import export_tiff
+
+                written = export_tiff(ds, directory, str(path))
+            else:
+                from ..data.export import export as write
+
+                written = write(ds, directory)
         except ValueError as error:
             raise BadInput(str(error), path) from None
-        progress.out().print(f"wrote {len(written)} files to {directory} (open {directory / 'series.pvd'} in "
-                             "ParaView)")
+        opened = "in Fiji (File > Open: at scale, in µm)" if format is ExportFormat.tiff else \
+            f"{directory / 'series.pvd'} in ParaView"
+        progress.out().print(f"wrote {len(written)} files to {directory} (open {opened})")
 
 
 @app.command()

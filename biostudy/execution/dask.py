@@ -49,8 +49,8 @@ def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str
     given = [name for name, value in (("--workers", workers), ("--scheduler", scheduler),
                                       ("--scheduler-file", scheduler_file)) if value]
     if len(given) > 1:
-        raise BadInput(f"give one of --workers, --scheduler and --scheduler-file, not {' and '.join(given)}",
-                       given[0])
+        raise BadInput(f"give {given[0]} or {given[1]}, not both" if len(given) == 2 else
+                       "give one of --workers, --scheduler and --scheduler-file", given[0])
     if scheduler_file:
         scheduler = scheduler_address(scheduler_file)
     if scheduler and scheduler.startswith("tls://"):

@@ -206,7 +206,10 @@ def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
     """phi at t = 0: a step region sets its cells (later regions win); a smooth one raises phi to its profile."""
     phi0 = np.zeros(grid.cells_shape)
     for region in regions:
-        if region.edge > 0:
+        if getattr(region, "scale", None) is not None:  # an image's grey values are phi
+            cells = region.cells(grid)
+            phi0[cells] = region.density(grid)[cells]
+        elif region.edge > 0:
             profile = 0.5 * region.value * (1.0 - np.tanh(region.distance(grid) / region.edge))
             np.maximum(phi0, profile, out=phi0)
         else:
@@ -242,6 +245,11 @@ class Scene(BaseModel):
                     region.check(grid)
                 except InvalidAt as error:
                     raise InvalidAt(".".join(filter(None, (f"{kind}[{i}]", error.key))), error.problem) from None
+        for kind in ("nutrient", "obstacle"):
+            for i, region in enumerate(getattr(self, kind)):
+                if getattr(region, "scale", None) is not None:
+                    raise InvalidAt(f"{kind}[{i}].scale", "only a biofilm region takes phi from an image's grey "
+                                                          "values; give threshold (or a segmented image)")
         blocked = self._union(self.obstacle, grid)
         if blocked.all():
             raise InvalidAt("obstacle", "covers every cell of the grid")
