@@ -282,9 +282,9 @@ def export(
     path: Annotated[Path, typer.Argument(metavar="FILE.nc", help="dataset written by run (or one case of a sweep)")],
     directory: Annotated[Path, typer.Argument(metavar="DIR", help="directory for snapshot_NNNN.vtu files and "
                                                                   "series.pvd (tiff: phi.tif, c.tif)")],
-    format: Annotated[ExportFormat, typer.Option("--format", metavar="F",
-                                        help="vtu: ParaView (default); tiff: ImageJ hyperstacks of phi and c at "
-                                             "scale (µm) with the time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vtu,
+    format: Annotated[ExportFormat, typer.Option(
+        "--format", metavar="F", help="vtu: ParaView (default); tiff: ImageJ hyperstacks of phi and c at scale (µm) "
+                                      "with the time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vtu,
 ):
     """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
     with _guarded():

@@ -1,4 +1,4 @@
-"""TIFF files of a run (`biostudy export RUN.nc DIR --format tiff`): phi and c as ImageJ hyperstacks Fiji opens at scale.
+"""TIFF files of a run (`biostudy export RUN.nc DIR --format tiff`): phi and c as ImageJ hyperstacks, at scale.
 
 One file per field, ``phi.tif`` and ``c.tif``: float32, axes TZYX (a 2-D run:
 TYX), every output time a frame.  The calibration is ImageJ's: x and y
@@ -75,6 +75,6 @@ def export_tiff(ds: xr.Dataset, directory: str | Path, source: str = "") -> list
         interval = _even(times)
         if interval:
             meta["finterval"] = interval
-        written.append(atomic(target, lambda path: tifffile.imwrite(  # noqa: B023 (called at once)
+        written.append(atomic(target, lambda path, values=values, meta=meta: tifffile.imwrite(
             path, values, imagej=True, resolution=(1.0 / h, 1.0 / h), metadata=meta)))
     return written

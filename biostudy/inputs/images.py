@@ -39,7 +39,7 @@ from ..formatting import value_text
 
 TIFF = (".tif", ".tiff")
 PICTURES = (".png", *TIFF)
-MICRONS = {"um": 1.0, "µm": 1.0, "\u00b5m": 1.0, "micron": 1.0, "microns": 1.0, "micrometer": 1.0,
+MICRONS = {"um": 1.0, "\u00b5m": 1.0, "\u03bcm": 1.0, "micron": 1.0, "microns": 1.0, "micrometer": 1.0,
            "nm": 1e-3, "nanometer": 1e-3, "mm": 1e3, "millimeter": 1e3}
 STACK_AXES = {"Z", "I", "Q"}  # tifffile's names for the axis of a page stack (Z, or image/unknown sequence)
 MEMORY_SHARE = 0.5  # an image may take at most this share of the available memory, as float32
