@@ -14,11 +14,12 @@ from __future__ import annotations
 import difflib
 import tomllib
 from pathlib import Path
-from typing import Iterable
-
-from pydantic import ValidationError
+from typing import TYPE_CHECKING, Iterable
 
 from .formatting import value_text
+
+if TYPE_CHECKING:
+    from pydantic import ValidationError  # pydantic when a scene is validated, not when the CLI starts
 
 # Tags of the shape union: pydantic puts them into error locations
 # (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.

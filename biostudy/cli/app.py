@@ -45,9 +45,12 @@ app = typer.Typer(name="biostudy", no_args_is_help=True, pretty_exceptions_enabl
 
 def _version(value: bool) -> None:
     if value:
-        from ..data.store import version  # lazily: the version alone imports nothing heavy
+        import importlib.metadata
 
-        typer.echo(f"biostudy {version()}")
+        try:
+            typer.echo(f"biostudy {importlib.metadata.version('biostudy')}")
+        except importlib.metadata.PackageNotFoundError:
+            typer.echo("biostudy unknown")
         raise typer.Exit()
 
 
@@ -211,7 +214,13 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
 
             typer.echo(needs(bundled.resolve(path)))
             return
-        from ..data.store import open_result  # lazily (module docstring)
+        from ..reports.glance import glance  # lazily (module docstring)
+
+        at_a_glance = glance(path) if path.is_file() else None  # a run's file: netCDF4 alone, no xarray
+        if at_a_glance is not None:
+            progress.out().print(at_a_glance)
+            return
+        from ..data.store import open_result
         from ..reports.show import summarize
 
         summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "

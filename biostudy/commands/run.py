@@ -29,7 +29,6 @@ from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import key_parts, parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
-from ..quantities import observables
 
 
 @dataclass(frozen=True)
@@ -102,7 +101,7 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
     if loaded.previous is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
-    ds = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
+    ds = store.with_observables(ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
     ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance())
     if loaded.previous is not None:

@@ -30,14 +30,16 @@ import shlex
 import sys
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
-import xarray as xr
+if TYPE_CHECKING:
+    import xarray as xr  # the functions here take datasets; importing this module costs nothing (`show`)
 
 COMPRESSION = {"zlib": True, "complevel": 4, "shuffle": True}
 # Dimensions a snapshot spans whole; every other dimension (time, time_mechanics, a study's) is cut in 1s.
 SNAPSHOT_DIMS = frozenset({"x", "y", "z", "x_node", "y_node", "z_node", "component", "bounds"})
 CASE_DIMENSIONS = "case_dimensions"  # attribute of a case file: its study dimensions (length 1)
+OBSERVABLES = "observables"  # attribute of a run's or case's file: the observables it holds, in order
 OLD_NAMES = {"steps_bisections": "steps_bisected"}  # a run's variables as named before issue 11
 
 

@@ -227,8 +227,8 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     sweep (`SweepError`): the cases recorded so far are kept."""
     extra = {**job.attrs, "fingerprint": fingerprint}
     if outcome.status == "done":
-        ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
-                         message="", **extra)
+        ds = store.stamp(store.with_observables(outcome.dataset), job.scene.to_toml(), job.scene_file, job.overrides,
+                         status="done", message="", **extra)
     else:
         ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
                                   job.scene_file, job.overrides, error=outcome.error, **extra)

@@ -6,9 +6,9 @@ so a result can be understood without the scene file that produced it.
 from __future__ import annotations
 
 import tomllib
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 from rich.console import Console, Group
 from rich.table import Table
 from rich.text import Text
@@ -16,7 +16,9 @@ from rich.text import Text
 from solver.problem import parameter_infos
 
 from ..formatting import number, units_text
-from ..quantities import observables
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")  # what a study.nc written before observables has
 
@@ -81,8 +83,18 @@ def _software(attrs: dict) -> str:
 
 
 def run_summary(ds: xr.Dataset) -> Group:
-    """One run: scene, parameters, cost, and the averages at the start and the end."""
-    attrs = ds.attrs
+    """One run: scene, parameters, cost, and the observables at the start and the end."""
+    if "time" not in ds.dims or "phi" not in ds:
+        return summary_of(ds.attrs, None, [])
+    from ..quantities import observables  # lazily: a file that holds its observables needs none of this
+
+    series = [(name, values.values, values.attrs["units"], values.attrs["long_name"])
+              for name, values in observables.variables(ds).items()]
+    return summary_of(ds.attrs, ds.time.values, series)
+
+
+def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np.ndarray, str, str]]) -> Group:
+    """One run from its attributes, output times and observables (name, values over time, units, long name)."""
     name, description = _scene_title(attrs)
     status = str(attrs.get("status", "done"))
     rows = _header(attrs)
@@ -96,22 +108,23 @@ def run_summary(ds: xr.Dataset) -> Group:
         ("software", _software(attrs)),
     ]
     parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
-    if "time" in ds.dims and "phi" in ds:
+    if times is not None:
         table = Table(title=None, show_edge=False)
         table.add_column("observable")
-        table.add_column(f"T* = {number(ds.time.values[0])}", justify="right")
-        table.add_column(f"T* = {number(ds.time.values[-1])}", justify="right")
+        table.add_column(f"T* = {number(times[0])}", justify="right")
+        table.add_column(f"T* = {number(times[-1])}", justify="right")
         table.add_column("units")
         table.add_column("meaning")
-        for name, values in observables.variables(ds).items():
-            table.add_row(name, number(values.values[0]), number(values.values[-1]),
-                          units_text(values.attrs["units"]), values.attrs["long_name"])
+        for name, values, units, long_name in series:
+            table.add_row(name, number(values[0]), number(values[-1]), units_text(units), long_name)
         parts.append(table)
     return Group(*parts)
 
 
 def study_summary(ds: xr.Dataset) -> Group:
     """A study.nc: what was swept, how many cases finished, one row per case."""
+    from ..quantities import observables
+
     attrs = ds.attrs
     dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
     rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
