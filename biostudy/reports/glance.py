@@ -43,7 +43,7 @@ def glance(path: str | Path) -> Group | None:
                 values = np.asarray(var[:], dtype=float).reshape(-1)
                 if values.shape != times.shape:
                     return None
-                series.append((name, values, str(var.getncattr("units")), str(var.getncattr("long_name"))))
+                series.append((name, values, {key: var.getncattr(key) for key in var.ncattrs()}))
     except (OSError, RuntimeError, ValueError, KeyError, AttributeError):
         return None
     return summary_of(attrs, times, series) if intact(path) else None

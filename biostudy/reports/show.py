@@ -16,6 +16,7 @@ from rich.text import Text
 from solver.problem import parameter_infos
 
 from ..formatting import number, units_text
+from ..quantities.saturation import SATURATION, saturated
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -88,13 +89,18 @@ def run_summary(ds: xr.Dataset) -> Group:
         return summary_of(ds.attrs, None, [])
     from ..quantities import observables  # lazily: a file that holds its observables needs none of this
 
-    series = [(name, values.values, values.attrs["units"], values.attrs["long_name"])
-              for name, values in observables.variables(ds).items()]
+    series = [(name, values.values, values.attrs) for name, values in observables.variables(ds).items()]
     return summary_of(ds.attrs, ds.time.values, series)
 
 
-def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np.ndarray, str, str]]) -> Group:
-    """One run from its attributes, output times and observables (name, values over time, units, long name)."""
+def _value(values: np.ndarray, index: int, attrs: dict) -> str:
+    """One value of an observable; a height at the top of the box marked saturated (a lower bound)."""
+    text = number(values[index])
+    return text + " (top: saturated)" if saturated(values[index], attrs.get(SATURATION)) else text
+
+
+def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np.ndarray, dict]]) -> Group:
+    """One run from its attributes, output times and observables (name, values over time, their attributes)."""
     name, description = _scene_title(attrs)
     status = str(attrs.get("status", "done"))
     rows = _header(attrs)
@@ -115,8 +121,9 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
         table.add_column(f"T* = {number(times[-1])}", justify="right")
         table.add_column("units")
         table.add_column("meaning")
-        for name, values, units, long_name in series:
-            table.add_row(name, number(values[0]), number(values[-1]), units_text(units), long_name)
+        for name, values, shown in series:
+            table.add_row(name, _value(values, 0, shown), _value(values, -1, shown),
+                          units_text(shown.get("units", "1")), str(shown.get("long_name", "")))
         parts.append(table)
     return Group(*parts)
 
@@ -161,7 +168,7 @@ def study_summary(ds: xr.Dataset) -> Group:
         colour = {"done": "green", "failed": "red"}.get(status, "yellow")
         table.add_row(str(case), f"[{colour}]{status}[/{colour}]", number(columns["wall_time"][i]),
                       number(columns["steps_taken"][i]),
-                      *(number(columns[v][i]) if v in columns else "-" for v in shown),
+                      *(_value(columns[v], i, ds[v].attrs) if v in columns else "-" for v in shown),
                       str(columns["message"][i]))
     return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
 
