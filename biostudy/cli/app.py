@@ -25,6 +25,7 @@ from . import progress
 from .options import (
     FLAG,
     CaseOverrides,
+    CatalogueArgument,
     Directory,
     Force,
     Overrides,
@@ -34,6 +35,7 @@ from .options import (
     SceneArgument,
     Scheduler,
     SchedulerFile,
+    StudyArgument,
     Workers,
     overrides,
 )
@@ -144,7 +146,7 @@ def _job_command(quiet: bool, load: Callable, **execution) -> None:
 
 @app.command()
 def sweep(
-    study: Annotated[str, typer.Argument(metavar="STUDY", help="study file (TOML), or the name of a bundled study")],
+    study: StudyArgument,
     output: Directory = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
@@ -358,8 +360,7 @@ def convergence(
 
 @app.command()
 def stability(
-    catalogue: Annotated[str, typer.Argument(metavar="CATALOGUE", help="stability catalogue (TOML), or the name of "
-                                                                       "a bundled one")],
+    catalogue: CatalogueArgument,
     output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
                                                    help="directory for cases/, stability.nc, stability.md")] = None,
     workers: Workers = None,

@@ -39,7 +39,22 @@ Quiet = Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG, help="no pro
 Directory = Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
                                                    help="directory for cases/ and the results (default: from "
                                                         "the file's name)")]
-SceneArgument = Annotated[str, typer.Argument(metavar="SCENE", help="scene file (TOML), or the name of a "
-                                                                     "bundled scene")]
+def _complete(*kinds: str):
+    """Shell completion of a scene or study argument: bundled names of those kinds, and TOML files."""
+    def complete(incomplete: str) -> list[tuple[str, str]]:
+        from ..inputs.bundled import completions  # lazily: only when the shell asks
+
+        return completions(incomplete, kinds)
+
+    return complete
+
+
+SceneArgument = Annotated[str, typer.Argument(metavar="SCENE", help="scene file (TOML), or the name of a bundled "
+                                                                     "scene", autocompletion=_complete("scene"))]
+StudyArgument = Annotated[str, typer.Argument(metavar="STUDY", help="study file (TOML), or the name of a bundled "
+                                                                     "study", autocompletion=_complete("study"))]
+CatalogueArgument = Annotated[str, typer.Argument(metavar="CATALOGUE", help="stability catalogue (TOML), or the "
+                                                                             "name of a bundled one",
+                                                  autocompletion=_complete("stability"))]
 Overrides = Annotated[List[str], overrides()]
 CaseOverrides = Annotated[List[str], overrides("every case")]
