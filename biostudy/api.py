@@ -34,7 +34,11 @@ def _overrides(given: Overrides) -> list[str]:
 
 
 def _call(name: str, *args, **kwargs) -> str:
-    shown = [repr(a) for a in args] + [f"{k}={v!r}" for k, v in kwargs.items() if v not in (None, False, [], {})]
+    """The call as a user wrote it, for the files' history: biostudy.run('directional', set={'g': 1e9})."""
+    def text(value) -> str:
+        return repr(str(value)) if isinstance(value, Path) else repr(value)
+
+    shown = [text(a) for a in args] + [f"{k}={text(v)}" for k, v in kwargs.items() if v not in (None, False, [], {})]
     return f"biostudy.{name}({', '.join(shown)})"
 
 

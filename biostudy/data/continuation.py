@@ -55,7 +55,7 @@ def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
                        "is a run of this scene", path)
     differ = _differences(recorded, scene.model_dump(mode="json", exclude_none=True))
     if differ:
-        raise BadInput(f"a run of another scene ({len(differ)} key{'s' * (len(differ) > 1)} differ besides [time]: "
+        raise BadInput(f"a run of another scene ({len(differ)} {'keys differ' if len(differ) > 1 else 'key differs'} besides [time]: "
                        f"{'; '.join(differ[:3])}{'; ...' if len(differ) > 3 else ''}); --continue takes a run of "
                        f"the same scene", path)
     if not scene.time.t_end > last:
