@@ -272,3 +272,16 @@ def test_progress_without_a_terminal_is_plain_lines(tiny_scene, tiny_study, tmp_
     assert again.returncode == 0 and "\x1b" not in again.stderr
     assert again.stderr.splitlines()[0] == "nothing to run: all 4 cases finished before", again.stderr
     assert "0/0" not in again.stderr
+
+
+def test_shell_completion_offers_bundled_names_by_kind():
+    def offered(words: str) -> list[str]:
+        env = {"_BIOSTUDY_COMPLETE": "complete_bash", "COMP_WORDS": words, "COMP_CWORD": str(len(words.split()) - 1)}
+        result = runner.invoke(app, [], env=env, prog_name="biostudy")
+        assert result.exit_code == 0, result.output
+        return result.stdout.split()
+
+    assert offered("biostudy run direc") == ["directional", "directional2d"]  # scenes only, not the studies
+    assert offered("biostudy sweep direc") == ["directional-sensitivity", "directional-sweep"]
+    assert offered("biostudy stability st") == ["stability"]
+    assert "agar-g1e8" in offered("biostudy convergence a")

@@ -55,9 +55,9 @@ def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
                        "is a run of this scene", path)
     differ = _differences(recorded, scene.model_dump(mode="json", exclude_none=True))
     if differ:
-        raise BadInput(f"a run of another scene ({len(differ)} {'keys differ' if len(differ) > 1 else 'key differs'} besides [time]: "
-                       f"{'; '.join(differ[:3])}{'; ...' if len(differ) > 3 else ''}); --continue takes a run of "
-                       f"the same scene", path)
+        count = f"{len(differ)} {'keys differ' if len(differ) > 1 else 'key differs'}"
+        raise BadInput(f"a run of another scene ({count} besides [time]: {'; '.join(differ[:3])}"
+                       f"{'; ...' if len(differ) > 3 else ''}); --continue takes a run of the same scene", path)
     if not scene.time.t_end > last:
         raise BadInput(f"must be after the last output of the run it continues, T* = {last:g} (got "
                        f"{scene.time.t_end:g}); give e.g. --set time.t_end={2 * last:g}", None, "time.t_end")
