@@ -27,7 +27,7 @@ from ..errors import Failed
 from ..execution.targets import check_run
 from ..execution.worker import provenance
 from ..inputs import bundled
-from ..inputs.keys import key_parts, parse_override
+from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
 
 
@@ -71,8 +71,6 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
     NAME.nc); bad input is `BadInput`."""
     if isinstance(scene, dict):
-        from ..inputs.keys import apply_overrides, given_by
-
         data = {"name": "scene", **scene}
         path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"))
     else:
