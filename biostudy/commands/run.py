@@ -105,7 +105,7 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
-    layout = combine.run_layout(pairs)
+    layout = combine.run_layout(pairs, ds)
     ds = layout.apply(ds) if layout else ds
     if loaded.target is not None:
         try:

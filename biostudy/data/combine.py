@@ -144,14 +144,18 @@ class CaseLayout:
 SCENE_STATICS = ("grid", "nutrient", "obstacle")  # what the masks and cell bounds depend on
 
 
-def run_layout(pairs: dict) -> CaseLayout | None:
+def run_layout(pairs: dict, ds: xr.Dataset) -> CaseLayout | None:
     """The layout of one run's file made with overrides (`biostudy run --set KEY=VALUE`): each overridden key a
-    dimension of length 1 with its value, as a grid study's case file has its swept keys, so that runs of
-    one scene with different values combine with ``xr.open_mfdataset`` along them; None without overrides."""
+    dimension of length 1 with its value, as a grid study's case file has its swept keys, so that runs of one
+    scene with different values combine with ``xr.open_mfdataset`` along them; None without overrides.  An
+    overridden parameter keeps the units and long name of its variable in `ds`."""
     if not pairs:
         return None
     dims = [dimension(key) for key in pairs]
-    coords = {d: (d, *_coordinate(key, [value])) for d, (key, value) in zip(dims, pairs.items())}
+    coords = {}
+    for d, (key, value) in zip(dims, pairs.items()):
+        values, attrs = _coordinate(key, [value])
+        coords[d] = (d, values, dict(ds[d].attrs) if d in ds.data_vars else attrs)
     shared = not any(key.split(".")[0] in SCENE_STATICS for key in pairs)
     return CaseLayout(tuple(dims), coords, shared, records=False)
 
