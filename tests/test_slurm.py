@@ -25,7 +25,8 @@ def _slurm_answers() -> bool:
     return any(state.strip().rstrip("*") in ("idle", "mixed") for state in states.split())
 
 
-pytestmark = pytest.mark.skipif(not _slurm_answers(), reason="no SLURM cluster answers here (sinfo)")
+pytestmark = [pytest.mark.skipif(not _slurm_answers(), reason="no SLURM cluster answers here (sinfo)"),
+              pytest.mark.slow]
 
 
 def sbatch(*args, cwd):
@@ -53,10 +54,9 @@ def study(tiny_study, tmp_path):
 
 
 def test_the_job_array_recipe_then_combine(study, tmp_path):
-    tasks = sbatch("--array=1-3", BATCH / "sweep-array.sbatch", study, tmp_path / "array", cwd=tmp_path)
-    combined = sbatch(f"--dependency=afterany:{tasks}", "--wrap",
-                      f"biostudy sweep {study} -o {tmp_path / 'array'} --combine", cwd=tmp_path)
-    assert combined
+    sbatch("--array=1-3", BATCH / "sweep-array.sbatch", study, tmp_path / "array", cwd=tmp_path)  # waits for all
+    combined = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "array"), "--combine"])
+    assert combined.exit_code == 0 and "(4 done, 0 failed, 0 missing)" in combined.stderr
     same_study(xr.open_dataset(tmp_path / "array" / "study.nc"), xr.open_dataset(tmp_path / "here" / "study.nc"))
 
 
