@@ -124,3 +124,14 @@ def test_continue_refuses_what_it_cannot_go_on_from(runs, tmp_path, write_toml):
         assert result.exit_code == 2 and len(lines) == 1 and lines[0].startswith("error: "), (label, result.output)
         assert expected in lines[0], (label, lines[0])
     assert xr.open_dataset(run).time.size == 3  # untouched
+
+
+def test_the_fingerprint_counts_a_start_state_and_not_its_absence(runs):
+    from biostudy.execution.jobs import ADDED_LATER, fingerprint
+
+    path, first, _ = runs
+    fresh = load_scene(path, LATER).problem()
+    continued = dataclasses.replace(fresh, **start_state(first))
+    assert fingerprint(continued) != fingerprint(fresh)
+    assert fingerprint(dataclasses.replace(continued, alpha0=continued.alpha0 * 2)) != fingerprint(continued)
+    assert all(getattr(fresh, name) == default for name, default in ADDED_LATER.items())  # left out: old prints

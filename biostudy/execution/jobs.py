@@ -112,6 +112,11 @@ class Job:
     layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
 
 
+# Fields `solver.Problem` gained after sweeps had been recorded, with their defaults: at those they are left out
+# of the fingerprint, so that the cases those sweeps finished stay finished.
+ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None}
+
+
 def fingerprint(problem: "solver.Problem") -> str:
     """sha256 of everything that determines a run's result (not its name).  The software's versions are not
     in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
@@ -120,6 +125,8 @@ def fingerprint(problem: "solver.Problem") -> str:
         if part.name == "name":
             continue
         value = getattr(problem, part.name)
+        if part.name in ADDED_LATER and not isinstance(value, np.ndarray) and value == ADDED_LATER[part.name]:
+            continue
         digest.update(part.name.encode())
         digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
     return digest.hexdigest()
