@@ -19,7 +19,7 @@ def _slurm_answers() -> bool:
     if not shutil.which("sbatch") or not shutil.which("sinfo"):
         return False
     try:
-        states = subprocess.run(["sinfo", "-h", "-o", "%T"], capture_output=True, text=True, timeout=10).stdout
+        states = subprocess.run(["sinfo", "-h", "-o", "%T"], capture_output=True, text=True, timeout=3).stdout
     except (OSError, subprocess.TimeoutExpired):
         return False
     return any(state.strip().rstrip("*") in ("idle", "mixed") for state in states.split())
