@@ -1,4 +1,4 @@
-"""Shapes of a scene (box, sphere, cylinder, mask; for obstacles also the
+"""Shapes of a scene (box, sphere, cylinder, mask, an image: `images`; for obstacles also the
 generated maze and grate of paper 4.4 and 4.5) and the cells they cover.
 
 A cell belongs to a shape when its centre is inside (boundaries included).
@@ -22,7 +22,7 @@ import functools
 import math
 import os
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
@@ -32,7 +32,7 @@ from solver.problem import FACES
 
 from ..errors import InvalidAt, first_line
 from ..formatting import value_text
-from . import images, structures
+from . import structures
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
 EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)
@@ -316,120 +316,6 @@ class Grate(Shape):
         return structures.grate(x, y, self.lower[:2], self.upper[:2], self.bar, self.pitch)
 
 
-class Image(Shape):
-    """Cells from a microscopy image (`images`): a TIFF z-y-x stack or a PNG/TIFF y-x picture, segmented, or
-    greyscale with a `threshold`, or (a biofilm) phi itself with `scale`; averaged onto the grid."""
-
-    shape: Literal["image"] = Field(description="cells from a TIFF stack or a PNG/TIFF picture")
-    path: str = Field(description="image file (.tif, .tiff, .png): a z-y-x stack (3-D) or a y-x picture (2-D), "
-                                  "index [k, j, i] the voxel at z_k, y_j, x_i (slice 0 at the bottom, row 0 at y = "
-                                  "0); a relative path is relative to the scene file and stays inside its folder")
-    voxel: list[Annotated[float, Field(gt=0)]] | None = um(
-        "voxel size [dz, dy, dx] (a picture: [dy, dx]), µm; absent: from the file's ImageJ or OME metadata",
-        default=None, min_length=2, max_length=3)
-    origin: Point | None = um("where the image's first voxel's outer corner lies, x, y[, z], µm (default: the "
-                              "grid's origin); the image may reach beyond the grid", default=None)
-    threshold: float | None = Field(None, description="greyscale: voxels with values >= threshold are the region "
-                                                      "(absent: the image must be segmented, 0 and one other value)")
-    scale: float | None = Field(None, gt=0, description="biofilm only: phi = scale × the grey value, averaged over "
-                                                        "each cell (instead of one value inside the region)")
-    _image: images.Image = PrivateAttr()
-
-    @field_validator("path")
-    @classmethod
-    def _resolve(cls, value: str, info: ValidationInfo) -> str:
-        resolved = input_path(value, info, "image file")
-        if Path(resolved).suffix.lower() not in images.PICTURES:
-            raise ValueError(f"image file {value!r} is not a TIFF or PNG file (.tif, .tiff, .png)")
-        return resolved
-
-    @model_validator(mode="after")
-    def _load(self):
-        stat = Path(self.path).stat()
-        self._image = image = images.read(self.path, stat.st_mtime_ns, stat.st_size)
-        values = image.values
-        if self.threshold is not None and self.scale is not None:
-            raise InvalidAt("scale", "give threshold (segment the image) or scale (phi from the grey values), not "
-                                     "both")
-        if self.scale is not None and "value" in self.model_fields_set:
-            raise InvalidAt("value", "with scale, phi is scale × the grey value; leave out value")
-        if self.scale is not None and getattr(self, "edge", 0.0):
-            raise InvalidAt("edge", "with scale, the image gives phi itself; leave out edge")
-        if self.threshold is None and self.scale is None:
-            top = values.max(initial=0)
-            grey = np.count_nonzero((values != 0) & (values != top))
-            if grey:
-                raise InvalidAt("threshold", f"{self.path} is greyscale ({grey} voxels neither 0 nor {top}): give "
-                                             "threshold (the region: values >= it) or, for a biofilm, scale (phi = "
-                                             "scale × value)")
-        if self.scale is not None and self.scale * float(values.max(initial=0)) > 1 + 1e-12:
-            raise InvalidAt("scale", f"phi = {self.scale:g} × the brightest voxel {float(values.max()):g} = "
-                                     f"{self.scale * float(values.max()):g} > 1; phi lies in [0, 1]")
-        if self.scale is not None and values.min(initial=0) < 0:
-            raise InvalidAt("scale", f"{self.path} has negative values; phi = scale × value would be negative")
-        voxel = self.voxel or image.voxel
-        if voxel is None:
-            raise InvalidAt("voxel", f"{self.path} states no voxel size (no ImageJ or OME metadata); give voxel = "
-                                     f"{'[dz, dy, dx]' if values.ndim == 3 else '[dy, dx]'} in µm")
-        if len(voxel) != values.ndim:
-            raise InvalidAt("voxel", f"has {len(voxel)} entries; {self.path} is {values.ndim}-D (give "
-                                     f"{'[dz, dy, dx]' if values.ndim == 3 else '[dy, dx]'})")
-        return self
-
-    @property
-    def voxel_size(self) -> tuple[float, ...]:
-        """[dz,] dy, dx in µm: given, or from the file."""
-        return tuple(self.voxel or self._image.voxel)
-
-    def check(self, grid):
-        ndim = self._image.values.ndim
-        if ndim != grid.ndim:
-            kind = "z-y-x stack" if ndim == 3 else "y-x picture"
-            raise InvalidAt("path", f"{self.path} is a {ndim}-D {kind} (shape "
-                                    f"{value_text(list(self._image.values.shape))}); the grid is {grid.ndim}-D: give "
-                                    f"a {'z-y-x stack' if grid.ndim == 3 else 'y-x picture (one slice)'}")
-        if self.origin is not None and len(self.origin) != grid.ndim:
-            raise InvalidAt("origin", f"has {len(self.origin)} coordinates; the grid is {grid.ndim}-D")
-        if not self.cells(grid).any():
-            raise InvalidAt("", f"covers no cell: no cell of the grid is at least half covered by the image's "
-                                f"region (the image spans {self._extent_text()})")
-
-    def _extent_text(self) -> str:
-        origin = list(reversed(self.origin)) if self.origin else [0.0] * self._image.values.ndim
-        spans = [f"{axis} {o:g}..{o + n * d:g} µm" for axis, o, n, d in
-                 zip("zyx"[3 - self._image.values.ndim:], origin, self._image.values.shape, self.voxel_size)]
-        return ", ".join(reversed(spans))
-
-    def _average(self, grid: Grid, of: str) -> np.ndarray:
-        stat = Path(self.path).stat()
-        origin = tuple(reversed(self.origin)) if self.origin else (0.0,) * grid.ndim
-        return _averaged(self.path, stat.st_mtime_ns, stat.st_size, of, self.threshold, self.voxel_size, origin,
-                         grid.spacing, grid.cells_shape)
-
-    def cells(self, grid):
-        if self.scale is not None:
-            return self._average(grid, "values") > 0
-        return self._average(grid, "region") >= 0.5
-
-    def density(self, grid: Grid) -> np.ndarray:
-        """phi per cell from the grey values (`scale`): scale × their average over the cell."""
-        return self.scale * self._average(grid, "values")
-
-
-@functools.lru_cache(maxsize=8)
-def _averaged(path: str, mtime_ns: int, size: int, of: str, threshold: float | None, voxel: tuple[float, ...],
-              origin: tuple[float, ...], spacing: float, cells_shape: tuple[int, ...]) -> np.ndarray:
-    """An image's cell averages on one grid (read-only), computed once however many study cases use them: of
-    its grey values ("values") or of its region ("region": 1 where value >= threshold, or where nonzero)."""
-    values = images.read(path, mtime_ns, size).values
-    if of == "region":
-        values = values >= threshold if threshold is not None else values != 0
-    average = images.cell_average(values, voxel, origin, spacing, cells_shape)
-    average.flags.writeable = False
-    return average
-
-
-AnyShape = Annotated[Union[Box, Sphere, Cylinder, Mask, Image, Maze, Grate], Field(discriminator="shape")]
 class BoundaryFace(Shape):
     """An outer face of the grid: for a nutrient source held on the face itself (the paper's nodes on the
     bottom plane), a Dirichlet condition half a cell from the cells beside it, which stay free."""
@@ -445,4 +331,4 @@ class BoundaryFace(Shape):
         return np.zeros(grid.cells_shape, bool)  # no cell is held: the face is
 
 
-SHAPES = (Box, Sphere, Cylinder, Mask, Image)  # for regions of biofilm and nutrient; obstacles take any shape
+SHAPES = (Box, Sphere, Cylinder, Mask)  # drawn shapes and masks (the scene adds images: `scene.SHAPES`)

@@ -1,4 +1,5 @@
-"""Microscopy images as scene regions: a TIFF stack or a PNG/TIFF picture, read, sized and averaged onto the grid.
+"""Microscopy images as scene regions (`Image`, ``shape = "image"``): a TIFF stack or a PNG/TIFF picture, read,
+sized and averaged onto the grid.
 
 The axes, said once: an image array is indexed [z, y, x] (a stack: slice,
 row, column) or [y, x] (a picture: row, column), the solver's own cell order
@@ -31,11 +32,16 @@ import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
+
+from solver import Grid
 
 from ..errors import InvalidAt, first_line
 from ..formatting import value_text
+from .geometry import Point, Shape, input_path, um
 
 TIFF = (".tif", ".tiff")
 PICTURES = (".png", *TIFF)
@@ -46,7 +52,7 @@ MEMORY_SHARE = 0.5  # an image may take at most this share of the available memo
 
 
 @dataclass(frozen=True)
-class Image:
+class Stack:
     """An image as read: values [z,] y, x and voxel sizes [dz,] dy, dx in µm from the file (None: not stated)."""
 
     values: np.ndarray
@@ -106,7 +112,7 @@ def _fits(shape: tuple[int, ...], path: str) -> None:
                                 f"memory, {_available() / 1e9:.3g} GB available; crop or bin the stack first")
 
 
-def _read_tiff(path: str) -> Image:
+def _read_tiff(path: str) -> Stack:
     import tifffile
 
     with tifffile.TiffFile(path) as tif:
@@ -124,10 +130,10 @@ def _read_tiff(path: str) -> Image:
             voxel = _imagej_voxel(tif, values.ndim)
         elif tif.is_ome:
             voxel = _ome_voxel(tif, values.ndim)
-    return Image(values, voxel)
+    return Stack(values, voxel)
 
 
-def _read_picture(path: str) -> Image:
+def _read_picture(path: str) -> Stack:
     from PIL import Image as Pictures
 
     with Pictures.open(path) as picture:
@@ -135,11 +141,11 @@ def _read_picture(path: str) -> Image:
             raise InvalidAt("path", f"{path} is a colour picture (mode {picture.mode}); a region takes a greyscale "
                                     "or segmented one")
         _fits((picture.height, picture.width), path)
-        return Image(np.asarray(picture), None)
+        return Stack(np.asarray(picture), None)
 
 
 @functools.lru_cache(maxsize=4)
-def read(path: str, mtime_ns: int, size: int) -> Image:
+def read(path: str, mtime_ns: int, size: int) -> Stack:
     """An image file (TIFF stack or picture, PNG picture) with the voxel size its metadata states; read once
     however many cases of a study use it (the file's time and size are the key).  `InvalidAt` (key path) for a
     file that is not such an image."""
@@ -156,7 +162,7 @@ def read(path: str, mtime_ns: int, size: int) -> Image:
     if values.dtype.kind == "f" and not np.isfinite(values).all():
         raise InvalidAt("path", f"{path} holds NaN or infinite values")
     values.flags.writeable = False
-    return Image(values, image.voxel)
+    return Stack(values, image.voxel)
 
 
 def overlap(edges: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -176,3 +182,116 @@ def cell_average(values: np.ndarray, voxel: tuple[float, ...], origin: tuple[flo
         weights = overlap(origin[axis] + voxel[axis] * np.arange(n + 1), spacing * np.arange(cells_shape[axis] + 1))
         result = np.moveaxis(np.tensordot(weights, result, axes=([1], [axis])), 0, axis)
     return np.asarray(result, dtype=float)
+
+
+class Image(Shape):
+    """Cells from a microscopy image (`images`): a TIFF z-y-x stack or a PNG/TIFF y-x picture, segmented, or
+    greyscale with a `threshold`, or (a biofilm) phi itself with `scale`; averaged onto the grid."""
+
+    shape: Literal["image"] = Field(description="cells from a TIFF stack or a PNG/TIFF picture")
+    path: str = Field(description="image file (.tif, .tiff, .png): a z-y-x stack (3-D) or a y-x picture (2-D), "
+                                  "index [k, j, i] the voxel at z_k, y_j, x_i (slice 0 at the bottom, row 0 at y = "
+                                  "0); a relative path is relative to the scene file and stays inside its folder")
+    voxel: list[Annotated[float, Field(gt=0)]] | None = um(
+        "voxel size [dz, dy, dx] (a picture: [dy, dx]), µm; absent: from the file's ImageJ or OME metadata",
+        default=None, min_length=2, max_length=3)
+    origin: Point | None = um("where the image's first voxel's outer corner lies, x, y[, z], µm (default: the "
+                              "grid's origin); the image may reach beyond the grid", default=None)
+    threshold: float | None = Field(None, description="greyscale: voxels with values >= threshold are the region "
+                                                      "(absent: the image must be segmented, 0 and one other value)")
+    scale: float | None = Field(None, gt=0, description="biofilm only: phi = scale × the grey value, averaged over "
+                                                        "each cell (instead of one value inside the region)")
+    _image: Stack = PrivateAttr()
+
+    @field_validator("path")
+    @classmethod
+    def _resolve(cls, value: str, info: ValidationInfo) -> str:
+        resolved = input_path(value, info, "image file")
+        if Path(resolved).suffix.lower() not in PICTURES:
+            raise ValueError(f"image file {value!r} is not a TIFF or PNG file (.tif, .tiff, .png)")
+        return resolved
+
+    @model_validator(mode="after")
+    def _load(self):
+        stat = Path(self.path).stat()
+        self._image = image = read(self.path, stat.st_mtime_ns, stat.st_size)
+        values = image.values
+        if self.threshold is not None and self.scale is not None:
+            raise InvalidAt("scale", "give threshold (segment the image) or scale (phi from the grey values), not "
+                                     "both")
+        if self.scale is not None and "value" in self.model_fields_set:
+            raise InvalidAt("value", "with scale, phi is scale × the grey value; leave out value")
+        if self.scale is not None and getattr(self, "edge", 0.0):
+            raise InvalidAt("edge", "with scale, the image gives phi itself; leave out edge")
+        if self.threshold is None and self.scale is None:
+            top = values.max(initial=0)
+            grey = np.count_nonzero((values != 0) & (values != top))
+            if grey:
+                raise InvalidAt("threshold", f"{self.path} is greyscale ({grey} voxels neither 0 nor {top}): give "
+                                             "threshold (the region: values >= it) or, for a biofilm, scale (phi = "
+                                             "scale × value)")
+        if self.scale is not None and self.scale * float(values.max(initial=0)) > 1 + 1e-12:
+            raise InvalidAt("scale", f"phi = {self.scale:g} × the brightest voxel {float(values.max()):g} = "
+                                     f"{self.scale * float(values.max()):g} > 1; phi lies in [0, 1]")
+        if self.scale is not None and values.min(initial=0) < 0:
+            raise InvalidAt("scale", f"{self.path} has negative values; phi = scale × value would be negative")
+        voxel = self.voxel or image.voxel
+        if voxel is None:
+            raise InvalidAt("voxel", f"{self.path} states no voxel size (no ImageJ or OME metadata); give voxel = "
+                                     f"{'[dz, dy, dx]' if values.ndim == 3 else '[dy, dx]'} in µm")
+        if len(voxel) != values.ndim:
+            raise InvalidAt("voxel", f"has {len(voxel)} entries; {self.path} is {values.ndim}-D (give "
+                                     f"{'[dz, dy, dx]' if values.ndim == 3 else '[dy, dx]'})")
+        return self
+
+    @property
+    def voxel_size(self) -> tuple[float, ...]:
+        """[dz,] dy, dx in µm: given, or from the file."""
+        return tuple(self.voxel or self._image.voxel)
+
+    def check(self, grid):
+        ndim = self._image.values.ndim
+        if ndim != grid.ndim:
+            kind = "z-y-x stack" if ndim == 3 else "y-x picture"
+            raise InvalidAt("path", f"{self.path} is a {ndim}-D {kind} (shape "
+                                    f"{value_text(list(self._image.values.shape))}); the grid is {grid.ndim}-D: give "
+                                    f"a {'z-y-x stack' if grid.ndim == 3 else 'y-x picture (one slice)'}")
+        if self.origin is not None and len(self.origin) != grid.ndim:
+            raise InvalidAt("origin", f"has {len(self.origin)} coordinates; the grid is {grid.ndim}-D")
+        if not self.cells(grid).any():
+            raise InvalidAt("", f"covers no cell: no cell of the grid is at least half covered by the image's "
+                                f"region (the image spans {self._extent_text()})")
+
+    def _extent_text(self) -> str:
+        origin = list(reversed(self.origin)) if self.origin else [0.0] * self._image.values.ndim
+        spans = [f"{axis} {o:g}..{o + n * d:g} µm" for axis, o, n, d in
+                 zip("zyx"[3 - self._image.values.ndim:], origin, self._image.values.shape, self.voxel_size)]
+        return ", ".join(reversed(spans))
+
+    def _average(self, grid: Grid, of: str) -> np.ndarray:
+        stat = Path(self.path).stat()
+        origin = tuple(reversed(self.origin)) if self.origin else (0.0,) * grid.ndim
+        return _averaged(self.path, stat.st_mtime_ns, stat.st_size, of, self.threshold, self.voxel_size, origin,
+                         grid.spacing, grid.cells_shape)
+
+    def cells(self, grid):
+        if self.scale is not None:
+            return self._average(grid, "values") > 0
+        return self._average(grid, "region") >= 0.5
+
+    def density(self, grid: Grid) -> np.ndarray:
+        """phi per cell from the grey values (`scale`): scale × their average over the cell."""
+        return self.scale * self._average(grid, "values")
+
+
+@functools.lru_cache(maxsize=8)
+def _averaged(path: str, mtime_ns: int, size: int, of: str, threshold: float | None, voxel: tuple[float, ...],
+              origin: tuple[float, ...], spacing: float, cells_shape: tuple[int, ...]) -> np.ndarray:
+    """An image's cell averages on one grid (read-only), computed once however many study cases use them: of
+    its grey values ("values") or of its region ("region": 1 where value >= threshold, or where nonzero)."""
+    values = read(path, mtime_ns, size).values
+    if of == "region":
+        values = values >= threshold if threshold is not None else values != 0
+    average = cell_average(values, voxel, origin, spacing, cells_shape)
+    average.flags.writeable = False
+    return average

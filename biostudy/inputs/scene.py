@@ -27,7 +27,9 @@ from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
 from ..errors import BadInput, InvalidAt, from_validation_error
 from ..formatting import units_text, value_text
 from .files import read_toml
-from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
+from .geometry import SHAPES as DRAWN
+from .geometry import BoundaryFace, Grate, Maze, Shape
+from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
 from .resources import DEFAULT_OUTPUTS, validation_problem
 from .tomltext import dumps as toml_dumps
@@ -184,6 +186,10 @@ class MechanicsSpec(BaseModel):
         return solver.MechanicsSetup(clamp=tuple(self.clamp), slide=tuple(self.slide),
                                      residual_stiffness=self.residual_stiffness, every=self.every,
                                      linear_solver=self.linear_solver, pressure=self.pressure)
+
+
+SHAPES = (*DRAWN, Image)  # what a region of biofilm or nutrient may be; an obstacle may also be generated
+AnyShape = Annotated[Union[(*SHAPES, Maze, Grate)], Field(discriminator="shape")]
 
 
 def _valued(role: str, description: str, shapes=SHAPES, **extra):
