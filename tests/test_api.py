@@ -85,4 +85,4 @@ def test_the_notebook_runs_and_records_the_api_call(tmp_path, monkeypatch):
     assert "biostudy.run('directional2d'" in text and "ipykernel" not in text
     assert any("image/png" in o.get("data", {}) for o in outputs)  # the plot was drawn
     ds = xr.open_dataset(tmp_path / "directional2d-g1e8.nc")
-    assert "biostudy.run(" in ds.attrs["history"] and ds.sizes["time"] == 4
+    assert "biostudy.run(" in ds.attrs["history"] and ds.sizes["time"] == 3
