@@ -4,4 +4,45 @@ Scene and study files (TOML, validated by pydantic), the `biostudy` command
 line, netCDF datasets written atomically, resumable sweeps on local
 processes or a Dask cluster.  Data flows one way: scene file -> `Scene` ->
 `solver.Problem` -> `solver.simulate` -> xarray Dataset -> netCDF.
+
+From Python (a notebook, a script; README, "From Python"):
+
+    import biostudy
+    ds = biostudy.run("directional", set={"grid.shape": [10, 10, 10], "mechanics.enabled": False})
+    ds.phi_mean.plot()
+    study = biostudy.sweep("directional-sweep", "sweep", workers=2)
+    same = biostudy.open("sweep/cases/g=1e+08_r=50.nc")
+
+`run`, `sweep` and `open` (`biostudy.api`) are imported when first used, so
+``import biostudy`` (which the command line does) costs nothing.
 """
+from __future__ import annotations
+
+__all__ = ["run", "sweep", "open", "calibrate", "BadInput", "Failed"]
+
+_API = {"run": "run", "sweep": "sweep", "open": "open_result"}
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, _API[name])
+    if name in ("BadInput", "Failed"):
+        from . import errors
+
+        return getattr(errors, name)
+    if name == "calibrate":
+        # the place of the calibration work (its own issue): biostudy.commands.calibrate, once it exists
+        import importlib
+        import importlib.util
+
+        if importlib.util.find_spec("biostudy.commands.calibrate") is None:
+            raise AttributeError("biostudy.calibrate is not in this version: calibration comes with its own "
+                                 "issue (biostudy.commands.calibrate)")
+        return importlib.import_module("biostudy.commands.calibrate").calibrate
+    raise AttributeError(f"module 'biostudy' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *__all__])

@@ -14,15 +14,16 @@ from __future__ import annotations
 import difflib
 import tomllib
 from pathlib import Path
-from typing import Iterable
-
-from pydantic import ValidationError
+from typing import TYPE_CHECKING, Iterable
 
 from .formatting import value_text
 
+if TYPE_CHECKING:
+    from pydantic import ValidationError  # pydantic when a scene is validated, not when the CLI starts
+
 # Tags of the shape union: pydantic puts them into error locations
 # (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.
-SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "maze", "grate"})
+SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "image", "maze", "grate"})
 
 
 def first_line(error: BaseException) -> str:
@@ -114,7 +115,7 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         least = "at least" if kind == "too_short" else "at most"
         return "", f"must have {least} {bound} entries (got {value_text(given)})"
     if kind == "union_tag_not_found":
-        return "", "needs a 'shape' key (box, sphere, cylinder or mask; obstacles also maze or grate)"
+        return "", "needs a 'shape' key (box, sphere, cylinder, mask or image; obstacles also maze or grate)"
     message = error["msg"]
     for before, after in (("Input should be", "must be"), ("List should have", "must have"),
                           ("Value should have", "must have")):

@@ -10,7 +10,19 @@ Nothing here knows about files, schemas or command lines.
 """
 from .errors import MechanicsError, SimulationError, StepFailure
 from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
-from .timeloop import Progress, Simulation, Snapshot, evolve, simulate
+
+_TIMELOOP = ("Progress", "Simulation", "Snapshot", "evolve", "simulate")
+
+
+def __getattr__(name: str):
+    # the time loop (and with it FiPy and the transport) is imported when first used, not with the problem's
+    # description: a scene's validation or `biostudy show` do not pay for it
+    if name in _TIMELOOP:
+        from . import timeloop
+
+        return getattr(timeloop, name)
+    raise AttributeError(f"module 'solver' has no attribute {name!r}")
+
 
 __all__ = [
     "Grid", "Parameters", "Numerics", "MechanicsSetup", "Problem",

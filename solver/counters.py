@@ -22,7 +22,12 @@ MEANINGS = {
     "projected_phi_count": "values of phi the solver projected onto their bounds (round-off)",
     "projected_phi_largest": "largest correction of phi by that projection",
     "numerical_diffusion_max": "largest numerical diffusivity |v| h / 2 of upwinding (um2 per T*)",
+    "next_step": "the clock's step after the last output: where a continuation of the run goes on",
 }
+# How the counters of a run and of its continuation add up to the whole history's (`solver.restart`): the
+# largest of both, the continuation's own, or (every other counter) the sum.
+LARGEST = frozenset({"largest_step_error", "projected_c_largest", "projected_phi_largest", "numerical_diffusion_max"})
+LAST = frozenset({"next_step"})
 
 Counters = dict[str, int | float]
 

@@ -175,7 +175,7 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     data["biofilm_volume"] = ("time", np.array([np.count_nonzero(f[active] >= BIOFILM_THRESHOLD) * volume
                                                 for f in phi]),
                               {"units": "um3", "long_name": "volume of cells with phi >= 0.5"
-                               + (" (2-D: per um of thickness)" if grid.ndim == 2 else "")})
+                               + (" (2-D: per µm of thickness)" if grid.ndim == 2 else "")})
     for name, counter, long_name in (("steps_taken", "steps", "accepted steps so far"),
                                      ("steps_bisected", "bisections", "bisected (failed) steps so far"),
                                      ("steps_rejected", "rejected", "steps rejected by the error control so far")):

@@ -233,6 +233,14 @@ class Problem:
     output_times: the output clock, increasing, within [0, t_end].
     steps: nominal number of steps over [0, t_end] (the model clock).
     mechanics: None leaves the mechanics out entirely.
+
+    A continuation (`solver.restart`) starts from another run's last state
+    instead of from rest: at ``start_time`` (> 0) with ``phi0``, ``alpha0``
+    and ``c0`` (per cell), ``u0`` (the displacement the mechanics last
+    converged to, per node, components x, y[, z]) and the clock's step
+    ``first_step``; its outputs at or before ``start_time`` belong to the run
+    it continues and are not computed again.  None: alpha = 0, c solved from
+    phi0, the mechanics at rest, the nominal step.
     """
 
     grid: Grid
@@ -248,6 +256,11 @@ class Problem:
     obstacle: np.ndarray | None = None
     numerics: Numerics = field(default_factory=Numerics)
     mechanics: MechanicsSetup | None = None
+    start_time: float = 0.0
+    alpha0: np.ndarray | None = None
+    c0: np.ndarray | None = None
+    u0: np.ndarray | None = None
+    first_step: float | None = None
     name: str = "unnamed"
 
     def __post_init__(self):
@@ -261,6 +274,10 @@ class Problem:
         fix(self, "obstacle", np.asarray(obstacle, dtype=bool).reshape(shape))
         fix(self, "output_times", np.asarray(self.output_times, dtype=float).ravel())
         fix(self, "nutrient_faces", tuple((str(face), float(value)) for face, value in self.nutrient_faces))
+        for name, shaped in (("alpha0", shape), ("c0", shape), ("u0", (*self.grid.nodes_shape, self.grid.ndim))):
+            if getattr(self, name) is not None:
+                fix(self, name, np.asarray(getattr(self, name), dtype=float).reshape(shaped))
+        fix(self, "start_time", float(self.start_time))
         self._check()
 
     def _check(self):
@@ -282,8 +299,21 @@ class Problem:
             raise ValueError("held nutrient values must lie in [0, 1]")
         if np.any(self.nutrient_held & self.obstacle):
             raise ValueError("nutrient sources must not lie inside obstacles")
-        if np.any((self.phi0 < 0) | (self.phi0 > 1)):
+        if not 0 <= self.start_time < self.t_end:
+            raise ValueError("start_time must lie in [0, t_end)")
+        if not np.any(times > self.start_time):
+            raise ValueError("no output time after start_time")
+        if self.start_time == 0 and np.any((self.phi0 < 0) | (self.phi0 > 1)):
             raise ValueError("initial phi must lie in [0, 1]")
+        if not np.all(np.isfinite(self.phi0) & (self.phi0 >= 0)):  # a continued phi may exceed 1 (the alpha source)
+            raise ValueError("initial phi must be finite and >= 0")
+        for name in ("alpha0", "c0", "u0"):
+            if getattr(self, name) is not None and not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"{name} must be finite")
+        if self.alpha0 is not None and np.any(self.alpha0 <= -1):
+            raise ValueError("alpha0 must be > -1")
+        if self.first_step is not None and not self.first_step > 0:
+            raise ValueError("first_step must be positive")
         if np.all(self.obstacle):
             raise ValueError("every cell is an obstacle")
 

@@ -81,7 +81,7 @@ class Clock:
         self.nominal = problem.dt
         self.smallest = problem.t_end / problem.numerics.max_substeps
         self.tolerance = problem.numerics.time_tolerance
-        self.dt = self.nominal
+        self.dt = min(problem.first_step or self.nominal, self.nominal)  # a continuation goes on with its step
         self.steps = self.bisections = self.rejected = 0
         self.largest_error = 0.0
 
@@ -89,7 +89,8 @@ class Clock:
         return {"steps_taken": self.steps,
                 "steps_bisected": self.bisections,
                 "steps_rejected": self.rejected,
-                "largest_step_error": self.largest_error}
+                "largest_step_error": self.largest_error,
+                "next_step": self.dt}
 
     def advance(self, state: State, until: float) -> State:
         """Step from state.t to exactly `until`."""
@@ -158,12 +159,21 @@ class Simulation:
         self.transport = Transport(problem)
         self.clock = Clock(self.transport, progress)
         self.mechanics = _mechanics(problem)
+        if self.mechanics is not None and problem.u0 is not None:
+            alpha = np.zeros(problem.grid.cells_shape) if problem.alpha0 is None else problem.alpha0
+            self.mechanics.start_from(problem.u0, problem.phi0, alpha)
 
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
         state = transport.initial()
         last = len(problem.output_times) - 1
+        # a continuation's outputs up to its start belong to the run it continues (indices stay the scene's:
+        # the mechanics is solved at the same outputs as in a run straight to t_end)
+        first = 0 if problem.start_time == 0 else int(np.searchsorted(
+            problem.output_times, problem.start_time * (1 + 1e-12) + 1e-12 * problem.t_end, side="right"))
         for index, when in enumerate(problem.output_times):
+            if index < first:
+                continue
             with threadpool_limits(limits=1, user_api="blas"):
                 state = clock.advance(state, float(when))
             snapshot = Snapshot(

@@ -14,6 +14,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from biostudy.cli import app
+from biostudy.data import store
 
 runner = CliRunner()
 
@@ -28,8 +29,10 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
                     "--set", "mechanics.enabled=false")
     assert result.exit_code == 0, result.output
     assert "wrote" in result.stderr and "20 steps" in result.stderr
-    ds = xr.open_dataset(out)
-    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
+    ds = xr.open_dataset(out)  # each overridden key a dimension of length 1 (runs combine along them)
+    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2, "g": 1,
+                                                       "grid_shape": 1, "mechanics_enabled": 1}
+    assert dict(store.open_dataset(out).sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
 
@@ -268,3 +271,16 @@ def test_progress_without_a_terminal_is_plain_lines(tiny_scene, tiny_study, tmp_
     assert again.exit_code == 0 and "\x1b" not in again.stderr
     assert again.stderr.splitlines()[0] == "nothing to run: all 4 cases finished before", again.stderr
     assert "0/0" not in again.stderr
+
+
+def test_shell_completion_offers_bundled_names_by_kind():
+    def offered(words: str) -> list[str]:
+        env = {"_BIOSTUDY_COMPLETE": "complete_bash", "COMP_WORDS": words, "COMP_CWORD": str(len(words.split()) - 1)}
+        result = runner.invoke(app, [], env=env, prog_name="biostudy")
+        assert result.exit_code == 0, result.output
+        return result.stdout.split()
+
+    assert offered("biostudy run direc") == ["directional", "directional2d"]  # scenes only, not the studies
+    assert offered("biostudy sweep direc") == ["directional-sensitivity", "directional-sweep"]
+    assert offered("biostudy stability st") == ["stability"]
+    assert "agar-g1e8" in offered("biostudy convergence a")

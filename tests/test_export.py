@@ -80,6 +80,16 @@ def test_collection_lists_every_snapshot_with_its_time(run3d, tmp_path):
     assert all((tmp_path / e.get("file")).is_file() for e in entries)
 
 
+def test_times_are_written_as_people_write_them(run3d, tmp_path):
+    """0.05 * 3 is the float64 0.15000000000000002: the PVD and the VTU's TimeValue say 0.15."""
+    ds = run3d.assign_coords(time=[0.0, 0.05 * 3, 0.3])
+    paths = export(ds, tmp_path)
+    entries = ET.parse(paths[-1]).getroot().find("Collection").findall("DataSet")
+    assert [e.get("timestep") for e in entries] == ["0", "0.15", "0.3"]
+    value = ET.parse(paths[1]).getroot().find("UnstructuredGrid/FieldData/DataArray[@Name='TimeValue']")
+    assert value.text == "0.15"
+
+
 def vtk_arrays(path):
     """What VTK's own reader (as ParaView's) finds in a VTU: cell, point and field arrays, the active ones."""
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader

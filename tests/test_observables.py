@@ -100,3 +100,25 @@ def test_a_runs_own_series_agree_and_a_study_is_evaluated_case_by_case(tiny_run,
     assert both.dims == ("case", "time")
     np.testing.assert_allclose(both.values[0], values["biofilm_volume"].values)
     np.testing.assert_allclose(both.values[1], observables.evaluate(ds.assign(phi=ds.phi * 0.5), "biofilm_volume"))
+
+
+def test_a_height_at_the_top_of_the_box_is_marked_saturated(tmp_path):
+    """A column of dense biofilm reaching the top cell: its height is the box's top (9 H), a lower bound."""
+    from typer.testing import CliRunner
+
+    from biostudy.cli import app
+    from biostudy.data import store
+    from biostudy.quantities.saturation import SATURATION, saturated
+
+    ds = sphere_dataset()
+    ds["phi"][1, :, 4, 4] = 1.0  # the middle column, bottom to top
+    height = observables.variables(ds)["height"]
+    assert height.attrs[SATURATION] == 9 * H and height.values[1] == 9 * H
+    assert saturated(height.values, height.attrs[SATURATION]).tolist() == [False, True]  # t = 0: no biofilm (NaN)
+    assert not saturated([9 * H - 0.01 * H], 9 * H).any() and not saturated([1.0], None).any()
+    run = ds.assign(nutrient_source=(("z", "y", "x"), np.zeros((9, 9, 9), np.int8)))
+    run.attrs.update(biostudy_version="0", grid_spacing=H, grid_shape=[9, 9, 9], scene='name = "column"')
+    path = store.write_atomic(store.with_observables(run), tmp_path / "column.nc")
+    shown = CliRunner().invoke(app, ["show", str(path)], env={"COLUMNS": "200"})
+    row = next(line for line in shown.stdout.splitlines() if line.strip().startswith("height "))
+    assert shown.exit_code == 0 and "4.5 (top: saturated)" in row

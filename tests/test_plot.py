@@ -234,14 +234,28 @@ def test_sweep_gives_outputs_against_parameters_and_every_series(tmp_path, zip_m
                 np.testing.assert_array_equal(lines[f"r = {r}"].get_ydata(), grid[name].values[:, k, index])
             assert list(lines["failed"].get_xdata()) == [1e10]
         series = drawn[f"{figure}_series.png"].axes
-        for ax, name in zip(series, names):
+        for ax, name in zip(series, names):  # every case's points that have a value (the failed case's first 3)
             drawn_series = sorted(tuple(line.get_ydata()) for line in ax.lines)
-            cases_series = sorted(tuple(grid[name].values[i, k]) for i in range(3) for k in range(2))
-            np.testing.assert_array_equal(drawn_series, cases_series)
+            values = [grid[name].values[i, k] for i in range(3) for k in range(2)]
+            assert drawn_series == sorted(tuple(v[np.isfinite(v)]) for v in values)
     with pytest.raises(ValueError, match="unknown variable"):
         plot(sweep_dataset(zip_mode), tmp_path / "bad.png", variable="phi")
     with pytest.raises(ValueError, match="no fields"):
         plot(sweep_dataset(zip_mode), tmp_path / "bad.png", cut="diagonal")
+
+
+def test_series_of_an_observable_solved_at_some_outputs_draws_those_points(tmp_path, drawn):
+    """compression_max is NaN between the outputs where the mechanics was solved: a plain line through NaN draws
+    nothing, so the solved points are drawn, with markers."""
+    ds = sweep_dataset()
+    pressure = 10.0 * ds.phi_mean.where(xr.DataArray(np.arange(6) % 2 == 0, dims="time"))  # solved every 2nd
+    ds["compression_max"] = pressure.assign_attrs(units="Pa", long_name="largest compression")
+    plot(ds, tmp_path / "study.png", variable="compression_max")
+    (ax,) = drawn["study_series.png"].axes
+    assert len(ax.lines) == 6
+    for line in ax.lines:
+        assert line.get_marker() == "o" and len(line.get_xdata()) in (3, 2)  # t = 0, 0.4, 0.8 (failed: 2 left)
+        np.testing.assert_allclose(np.asarray(line.get_xdata()) % 0.4, 0, atol=1e-12)
 
 
 def test_zip_parameters_that_change_together_are_one_line_not_many():
@@ -352,21 +366,47 @@ def test_isosurface_of_a_body_on_a_wall_is_closed_on_the_wall():
 
 
 def test_warped_two_dimensional_mesh_is_the_grid_moved_by_factor_u(run2d, with_mechanics):
-    """Fig. 13: every cell corner drawn at node + factor * u (u known exactly here), phi as the cell colour."""
-    from matplotlib.collections import QuadMesh
+    """Fig. 13: every corner of a biofilm cell (phi >= 0.5) drawn at node + factor * u (u known exactly here), phi
+    as the cell colour; the void's cells left out (at x 500 their soft cells fold into a tangle)."""
+    from matplotlib.collections import PolyCollection
 
     from biostudy.plots import warped
 
     ds = on_output_times(with_mechanics(run2d, unsolved=1))  # as plot() hands it on: p and u per output
     assert warped.solved_indices(ds, [1]) in ([0], [2])  # not solved at 1: the nearest solved output
     fig = warped.figure(ds, [2], 500.0)
-    mesh = next(c for c in fig.axes[0].collections if isinstance(c, QuadMesh))
-    corners = mesh.get_coordinates()  # (ny+1, nx+1, 2)
+    mesh = next(c for c in fig.axes[0].collections if isinstance(c, PolyCollection))
     u = ds.u.isel(time=2).transpose("y_node", "x_node", "component").values
     x, y = np.meshgrid(ds.x_node.values, ds.y_node.values)
-    assert np.allclose(corners[..., 0], x + 500.0 * u[..., 0]) and np.allclose(corners[..., 1], y + 500.0 * u[..., 1])
-    assert np.allclose(np.ma.filled(mesh.get_array(), np.nan).ravel(), ds.phi.isel(time=2).values.ravel(),
-                       equal_nan=True)
+    moved = np.stack([x + 500.0 * u[..., 0], y + 500.0 * u[..., 1]], axis=-1)  # (ny+1, nx+1, 2)
+    phi = ds.phi.isel(time=2).transpose("y", "x").values
+    biofilm = np.argwhere(np.nan_to_num(phi) >= 0.5)  # (j, i) of each drawn cell, in order
+    assert len(mesh.get_paths()) == len(biofilm) > 0
+    for path, (j, i) in zip(mesh.get_paths(), biofilm):
+        assert np.allclose(path.vertices[:4], [moved[j, i], moved[j, i + 1], moved[j + 1, i + 1], moved[j + 1, i]])
+    assert np.allclose(mesh.get_array(), phi[np.nan_to_num(phi) >= 0.5])
+
+
+def test_warped_panels_share_axes_and_size_and_say_when_cells_fold(run2d, with_mechanics):
+    from biostudy.plots import warped
+
+    ds = on_output_times(with_mechanics(run2d))
+    fig = warped.figure(ds, [0, 1, 2], 500.0)  # u ~ N(0, 1) µm here: x 500 folds cells of 0.5 µm
+    fig.canvas.draw()
+    panels = [ax for ax in fig.axes if ax.get_title().startswith("T* =")]
+    assert len(panels) == 3
+    assert len({ax.get_xlim() for ax in panels}) == 1 and len({ax.get_ylim() for ax in panels}) == 1
+    sizes = {(round(ax.get_position().width, 4), round(ax.get_position().height, 4)) for ax in panels}
+    assert len(sizes) == 1
+    renderer = fig.canvas.get_renderer()
+    box = fig.bbox
+    for ax in panels:  # every label inside the figure
+        for label in (ax.xaxis.label, ax.yaxis.label):
+            if label.get_text():
+                extent = label.get_window_extent(renderer)
+                assert extent.x0 >= box.x0 - 1 and extent.x1 <= box.x1 + 1 and extent.y0 >= box.y0 - 1
+    assert "cells fold over at this magnification" in " ".join(fig._suptitle.get_text().split())
+    assert "fold" not in warped.figure(ds, [0], 1e-6)._suptitle.get_text()
 
 
 def test_warped_refuses_runs_without_solved_mechanics(run2d, with_mechanics, tmp_path):

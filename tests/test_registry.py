@@ -41,7 +41,7 @@ GROWN = textwrap.dedent("""\
     ran = cli.invoke(app, ["run", scene, "--set", "q=3.0", "-o", "run.nc", "-q"])
     found["run"] = [ran.exit_code, ran.output]
     found["attrs_q"] = float(xr.open_dataset("run.nc").attrs["q"])
-    found["variable_q"] = [float(xr.open_dataset("run.nc")["q"]), dict(xr.open_dataset("run.nc")["q"].attrs)]
+    found["variable_q"] = [xr.open_dataset("run.nc")["q"].item(), dict(xr.open_dataset("run.nc")["q"].attrs)]
     found["show"] = cli.invoke(app, ["show", "run.nc"]).stdout
     plan = catalogue.load(stability.Path(catalogue_file))
     table = stability.verdicts(plan_jobs(plan), stability.Path("unrun"))

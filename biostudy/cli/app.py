@@ -10,6 +10,7 @@ and `-h` do not pay for numpy, xarray and FiPy.
 from __future__ import annotations
 
 import contextlib
+import enum
 import os
 import signal
 from pathlib import Path
@@ -24,6 +25,7 @@ from . import progress
 from .options import (
     FLAG,
     CaseOverrides,
+    CatalogueArgument,
     Directory,
     Force,
     Overrides,
@@ -32,6 +34,8 @@ from .options import (
     RetryFailed,
     SceneArgument,
     Scheduler,
+    SchedulerFile,
+    StudyArgument,
     Workers,
     overrides,
 )
@@ -43,9 +47,12 @@ app = typer.Typer(name="biostudy", no_args_is_help=True, pretty_exceptions_enabl
 
 def _version(value: bool) -> None:
     if value:
-        from ..data.store import version  # lazily: the version alone imports nothing heavy
+        import importlib.metadata
 
-        typer.echo(f"biostudy {version()}")
+        try:
+            typer.echo(f"biostudy {importlib.metadata.version('biostudy')}")
+        except importlib.metadata.PackageNotFoundError:
+            typer.echo("biostudy unknown")
         raise typer.Exit()
 
 
@@ -94,12 +101,16 @@ def run(
                                         help="replace OUT.nc even if it holds the result of another scene or a "
                                              "sweep's file (never an input or a file biostudy did not write)")] = False,
     quiet: Quiet = False,
+    continue_from: Annotated[Optional[Path], typer.Option(
+        "--continue", metavar="RUN.nc", help="go on from the last state of this finished run of the same scene "
+                                              "(give a later --set time.t_end=...); writes the whole history "
+                                              "(default: RUN-tT_END.nc beside it)")] = None,
 ):
     """Run one simulation and write its dataset (netCDF)."""
     with _guarded():
         from ..commands import run as command  # lazily (module docstring)
 
-        loaded = command.load(scene, overrides=overrides, output=output, force=force)
+        loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from)
         with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
             result = command.compute(loaded, progress=report)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
@@ -116,7 +127,7 @@ def _job_command(quiet: bool, load: Callable, **execution) -> None:
         from ..execution.dask import check_choice  # lazily (module docstring)
         from ..execution.jobs import Execution  # lazily
 
-        check_choice(execution.get("workers"), execution.get("scheduler"))
+        check_choice(execution.get("workers"), execution.get("scheduler"), execution.get("scheduler_file"))
         if execution.get("workers"):
             from ..execution.pool import warm_up  # lazily
 
@@ -135,24 +146,36 @@ def _job_command(quiet: bool, load: Callable, **execution) -> None:
 
 @app.command()
 def sweep(
-    study: Annotated[str, typer.Argument(metavar="STUDY", help="study file (TOML), or the name of a bundled study")],
+    study: StudyArgument,
     output: Directory = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
     overrides: CaseOverrides = [],
     retry_failed: RetryFailed = False,
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    cases: Annotated[List[str], typer.Option(
+        "--case", metavar="ID", help="run only this case (an array task; repeatable): its file goes into DIR "
+                                     "beside those of other such tasks; study.nc is left to --combine")] = [],
+    task: Annotated[Optional[int], typer.Option(
+        "--task", metavar="N", help="an array task: run share N (0..M-1) of --tasks M (cases N, N+M, ...)")] = None,
+    tasks: Annotated[Optional[int], typer.Option("--tasks", metavar="M", help="how many array tasks share the "
+                                                                             "study")] = None,
+    combine_only: Annotated[bool, typer.Option(
+        "--combine", metavar=FLAG, help="run nothing: write DIR/study.nc from the case files there (after array "
+                                        "tasks)")] = False,
 ):
     """Run every case of a study; re-running skips finished cases."""
     def load():
         from ..commands import sweep as command  # lazily (module docstring)
 
-        return command.load(study, output=output, overrides=overrides)
+        return command.load(study, output=output, overrides=overrides, cases=cases, task=task, tasks=tasks,
+                            combine_only=combine_only)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, retry_failed=retry_failed, force=force,
-                 rerun_all=rerun_all)
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+                 retry_failed=retry_failed, force=force, rerun_all=rerun_all)
 
 
 @app.command()
@@ -171,19 +194,36 @@ def scenes():
 
 
 @app.command()
-def show(path: Annotated[Path, typer.Argument(metavar="FILE", help="dataset written by run or sweep (a case file, "
-                                                                   "study.nc, or a sweep's directory), or a scene "
-                                                                   "or study file (TOML)")]):
+def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="dataset written by run or sweep (a "
+                                                                           "case file, study.nc, or a sweep's "
+                                                                           "directory), or a scene or study file "
+                                                                           "(TOML); several runs: side by side")]):
     """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
-    running it needs (memory, disk)."""
+    running it needs (memory, disk); for several runs, how they differ (scenes, parameters, observables at their
+    common times, the largest field differences)."""
+    if len(paths) > 1:
+        with _guarded():
+            from ..data.store import open_result  # lazily (module docstring)
+            from ..reports.compare import show_compared
+
+            runs = [open_result(p, ("run",), "show of several files sets runs side by side") for p in paths]
+            show_compared(runs, paths, progress.out())
+        return
+    path = paths[0]
     with _guarded():
         if path.suffix == ".toml" or (not path.exists() and not path.suffix):
             from ..reports.needs import needs  # lazily (module docstring)
 
             typer.echo(needs(bundled.resolve(path)))
             return
-        from ..data.store import open_result  # lazily (module docstring)
-        from ..reports.show import summarize  # lazily
+        from ..reports.glance import glance  # lazily (module docstring)
+
+        at_a_glance = glance(path) if path.is_file() else None  # a run's file: netCDF4 alone, no xarray
+        if at_a_glance is not None:
+            progress.out().print(at_a_glance)
+            return
+        from ..data.store import open_result
+        from ..reports.show import summarize
 
         summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
                               "study.nc"), progress.out())
@@ -243,24 +283,39 @@ def analyze(
         progress.err().print("wrote " + ", ".join(str(p) for p in written))
 
 
+class ExportFormat(str, enum.Enum):
+    vtu = "vtu"
+    tiff = "tiff"
+
+
 @app.command()
 def export(
     path: Annotated[Path, typer.Argument(metavar="FILE.nc", help="dataset written by run (or one case of a sweep)")],
     directory: Annotated[Path, typer.Argument(metavar="DIR", help="directory for snapshot_NNNN.vtu files and "
-                                                                  "series.pvd")],
+                                                                  "series.pvd (tiff: phi.tif, c.tif)")],
+    format: Annotated[ExportFormat, typer.Option(
+        "--format", metavar="F", help="vtu: ParaView (default); tiff: ImageJ hyperstacks of phi and c at scale (µm) "
+                                      "with the time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vtu,
 ):
-    """Write files ParaView opens: one VTU per snapshot and a PVD listing them in time."""
+    """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
     with _guarded():
-        from ..data.export import export as write  # lazily (module docstring)
-        from ..data.store import open_result  # lazily
+        from ..data.store import open_result  # lazily (module docstring)
 
         ds = open_result(path, ("run",), "export writes one run's fields")
         try:
-            written = write(ds, directory)
+            if format is ExportFormat.tiff:
+                from ..data.tiff import export_tiff
+
+                written = export_tiff(ds, directory, str(path))
+            else:
+                from ..data.export import export as write
+
+                written = write(ds, directory)
         except ValueError as error:
             raise BadInput(str(error), path) from None
-        progress.out().print(f"wrote {len(written)} files to {directory} (open {directory / 'series.pvd'} in "
-                             "ParaView)")
+        opened = "in Fiji (File > Open: at scale, in µm)" if format is ExportFormat.tiff else \
+            f"{directory / 'series.pvd'} in ParaView"
+        progress.out().print(f"wrote {len(written)} files to {directory} (open {opened})")
 
 
 @app.command()
@@ -279,6 +334,7 @@ def convergence(
                                                   "level)")] = 1e-2,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
     overrides: Annotated[List[str], overrides("level 0")] = [],
     force: Force = False,
     rerun_all: RerunAll = False,
@@ -298,17 +354,18 @@ def convergence(
         return command.load(scene, output=output, levels=levels, series=series, tolerance=tolerance,
                             overrides=overrides, reference=reference, time=time)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
+                 rerun_all=rerun_all)
 
 
 @app.command()
 def stability(
-    catalogue: Annotated[str, typer.Argument(metavar="CATALOGUE", help="stability catalogue (TOML), or the name of "
-                                                                       "a bundled one")],
+    catalogue: CatalogueArgument,
     output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
                                                    help="directory for cases/, stability.nc, stability.md")] = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
     overrides: CaseOverrides = [],
     force: Force = False,
     rerun_all: RerunAll = False,
@@ -320,4 +377,5 @@ def stability(
 
         return command.load(catalogue, output=output, overrides=overrides)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
+                 rerun_all=rerun_all)

@@ -22,6 +22,10 @@ Scheduler = Annotated[Optional[str], typer.Option("--scheduler", metavar="ADDRES
                                                   help="address of a running Dask scheduler, e.g. "
                                                        "tcp://10.0.0.5:8786 or tls://... (README: 'Sweeps on a "
                                                        "Dask cluster')")]
+SchedulerFile = Annotated[Optional[Path], typer.Option(
+    "--scheduler-file", metavar="FILE", help="the file a Dask scheduler wrote (`dask scheduler --scheduler-file "
+                                             "FILE`): how a batch job finds the cluster it started (README: "
+                                             "'Batch clusters')")]
 Force = Annotated[bool, typer.Option("--force", metavar=FLAG,
                                      help="use the output directory even if it belongs to another study or holds "
                                           "files no biostudy run recorded (cases of the same ids are replaced)")]
@@ -35,7 +39,22 @@ Quiet = Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG, help="no pro
 Directory = Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
                                                    help="directory for cases/ and the results (default: from "
                                                         "the file's name)")]
-SceneArgument = Annotated[str, typer.Argument(metavar="SCENE", help="scene file (TOML), or the name of a "
-                                                                     "bundled scene")]
+def _complete(*kinds: str):
+    """Shell completion of a scene or study argument: bundled names of those kinds, and TOML files."""
+    def complete(incomplete: str) -> list[tuple[str, str]]:
+        from ..inputs.bundled import completions  # lazily: only when the shell asks
+
+        return completions(incomplete, kinds)
+
+    return complete
+
+
+SceneArgument = Annotated[str, typer.Argument(metavar="SCENE", help="scene file (TOML), or the name of a bundled "
+                                                                     "scene", autocompletion=_complete("scene"))]
+StudyArgument = Annotated[str, typer.Argument(metavar="STUDY", help="study file (TOML), or the name of a bundled "
+                                                                     "study", autocompletion=_complete("study"))]
+CatalogueArgument = Annotated[str, typer.Argument(metavar="CATALOGUE", help="stability catalogue (TOML), or the "
+                                                                             "name of a bundled one",
+                                                  autocompletion=_complete("stability"))]
 Overrides = Annotated[List[str], overrides()]
 CaseOverrides = Annotated[List[str], overrides("every case")]

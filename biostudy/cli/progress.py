@@ -11,13 +11,16 @@ import contextlib
 import sys
 import time as clock
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+if TYPE_CHECKING:
+    from rich.console import Console
 
 
 @lru_cache(maxsize=None)
 def _console(stderr: bool, stream_id: int) -> Console:
+    from rich.console import Console  # rich when first printed to: `--version` and `-h` do not pay for it
+
     return Console(stderr=stderr, soft_wrap=True)  # soft_wrap: a long message stays one line in a log
 
 
@@ -74,6 +77,8 @@ def simulation(name: str, t_end: float, quiet: bool):
         yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
                                      f"steps {p.steps}, bisections {p.bisections}")
         return
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
     columns = (TextColumn("[bold]{task.description}"), BarColumn(),
                TextColumn("T* = {task.completed:.4g} / {task.total:g}"), TextColumn("steps {task.fields[steps]}"),
                TextColumn("bisections {task.fields[bisections]}"), TimeElapsedColumn())
@@ -91,6 +96,8 @@ def jobs(title: str, quiet: bool, noun: str = "cases"):
     console = err()
     counts = {"start": 0, "skip": 0, "failed before": 0, "finished": 0, "failed": 0}
     lines = None if quiet or console.is_terminal else Lines(title, 0)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
     progress = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                         TextColumn("{task.fields[last]}"), TimeElapsedColumn(), console=console,
                         disable=quiet or lines is not None)

@@ -2,10 +2,16 @@
 
 The output is checked before anything is computed (`targets.check_run`): never
 an input, never a file biostudy did not write; an earlier result of the same
-scene is replaced and the message says so.
+scene is replaced and the message says so.  The dataset carries every
+observable (`quantities.observables`) besides the fields, and each key an
+override set as a dimension of length 1 (`combine.run_layout`), so runs of one
+scene with different ``--set`` values combine with ``xr.open_mfdataset``.
+``continue_from`` goes on from a finished run of the same scene
+(`data.continuation`): the dataset is then the whole history.
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,65 +20,96 @@ from typing import Callable
 import xarray as xr
 
 import solver
+from solver.restart import start_state
 
-from ..data import store
+from ..data import combine, continuation, store
 from ..errors import Failed
 from ..execution.targets import check_run
 from ..execution.worker import provenance
 from ..inputs import bundled
-from ..inputs.keys import parse_override
-from ..inputs.scene import Scene, load_scene, overrides_text
+from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
+from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
 
 
 @dataclass(frozen=True)
 class Loaded:
     """A scene ready to run: where it came from, its overrides and where its dataset goes."""
 
-    path: Path
+    path: Path | None  # None: a scene given as data (the Python API)
     scene: Scene
     overrides: tuple[str, ...]
-    target: Path
+    target: Path | None  # None: the dataset is only returned (the Python API)
     replacing: str  # what the final message adds when the target is replaced ("" if nothing is)
+    previous: xr.Dataset | None = None  # the run it continues
+    previous_path: Path | None = None
 
 
 @dataclass(frozen=True)
 class Result:
     dataset: xr.Dataset
-    target: Path
+    target: Path | None
     replacing: str
 
     def message(self) -> str:
         attrs = self.dataset.attrs
+        went_on = f", continuing {attrs['continued_from'].split(' (')[0]}" if "continued_from" in attrs else ""
         return (f"wrote {self.target} (wall time {attrs['wall_time']:.3g} s, {attrs['steps_taken']} steps, "
-                f"{attrs['steps_bisected']} bisected){self.replacing}")
+                f"{attrs['steps_bisected']} bisected{went_on}){self.replacing}")
 
 
-def default_output(scene: Scene) -> Path:
-    """NAME.nc in the current directory, the scene's name made a file name."""
+def default_output(scene: Scene, previous: Path | None = None) -> Path:
+    """NAME.nc in the current directory, the scene's name made a file name; a continuation of RUN.nc:
+    RUN-tT_END.nc beside it (never the run it reads)."""
+    if previous is not None:
+        return previous.with_name(f"{previous.stem}-t{scene.time.t_end:g}.nc")
     return Path(re.sub(r"[^\w.+-]", "-", scene.name) + ".nc")
 
 
-def load(scene: str | Path, *, overrides: tuple[str, ...] | list[str] = (), output: Path | None = None,
-         force: bool = False) -> Loaded:
-    """Read and validate a scene (a path or a bundled name) with its overrides, and check its output before
-    anything is computed; bad input is `BadInput`."""
-    path = bundled.resolve(scene)
-    loaded = load_scene(path, overrides)
-    target = Path(output) if output is not None else default_output(loaded)
-    return Loaded(path, loaded, tuple(overrides), target, check_run(loaded, path, target, force))
+def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (), output: Path | None = None,
+         force: bool = False, continue_from: str | Path | None = None, write: bool = True) -> Loaded:
+    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
+    it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
+    NAME.nc); bad input is `BadInput`."""
+    if isinstance(scene, dict):
+        data = {"name": "scene", **scene}
+        path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"))
+    else:
+        path = bundled.resolve(scene)
+        loaded = load_scene(path, overrides)
+    previous = None
+    if continue_from is not None:
+        continue_from = Path(continue_from)
+        previous = continuation.previous_run(continue_from, loaded)
+    if not write and output is None:
+        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
+    target = Path(output) if output is not None else default_output(loaded, continue_from)
+    replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [])
+    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from)
 
 
 def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
     """Simulate and write the dataset (stamped with the scene, its file, the overrides and the software);
     a simulation that fails, or a dataset that cannot be written, is `Failed`."""
+    problem = loaded.scene.problem()
+    if loaded.previous is not None:
+        problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:
-        ds = solver.simulate(loaded.scene.problem(), progress=progress)
+        ds = solver.simulate(problem, progress=progress)
     except solver.SimulationError as error:
-        raise Failed(f"simulation failed: {loaded.path}: {error}") from None
-    text = overrides_text([parse_override(o) for o in loaded.overrides])
-    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path, text, **provenance())
-    try:
-        store.write_atomic(ds, loaded.target)
-    except OSError as error:  # e.g. the disk filled up while it ran
-        raise Failed(f"cannot write {loaded.target} ({error.strerror or error}); the result is lost") from None
+        raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
+    if loaded.previous is not None:
+        ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
+    ds = store.with_observables(ds)
+    pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
+    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance())
+    if loaded.previous is not None:
+        before = ds.attrs.pop("history_before")
+        ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
+    layout = combine.run_layout(pairs, ds)
+    ds = layout.apply(ds) if layout else ds
+    if loaded.target is not None:
+        try:
+            store.write_atomic(ds, loaded.target)
+        except OSError as error:  # e.g. the disk filled up while it ran
+            raise Failed(f"cannot write {loaded.target} ({error.strerror or error}); the result is lost") from None
     return Result(ds, loaded.target, loaded.replacing)

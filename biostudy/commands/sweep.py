@@ -2,6 +2,16 @@
 
 Re-running skips finished cases (`execution.jobs.run_jobs`); the directory
 belongs to one study (`execution.targets.owned`).
+
+Array jobs without Dask (a SLURM or PBS job array; README, "Batch clusters"):
+``--case ID`` runs the cases named, ``--task N --tasks M`` the N-th of M
+shares (cases N, N + M, N + 2M, ... in the study's order, so every share
+gets cheap and dear cases alike).  Such tasks hold the directory's lock
+shared (`ownership`): any number of them write their own case files into
+one directory at once, none removes another's temporary file (another node's
+writer is alive though its process id is not here), and none writes
+study.nc.  ``--combine`` (or an ordinary run of the whole study, which runs
+what is missing) then writes study.nc from the case files there.
 """
 from __future__ import annotations
 
@@ -9,6 +19,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..data import combine
+from ..errors import BadInput
 from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
@@ -17,15 +28,61 @@ from ..plans.study import load_study
 from .finished import Finished
 
 
-def run_study(plan: Plan, directory: str | Path, execution: Execution = Execution()) -> SweepReport:
-    """Run every case not yet recorded, write DIR/cases/<id>.nc for each and DIR/study.nc (see `run_jobs`);
-    the directory must be this study's (or new, or `execution.force`) and not in use by another run."""
+@dataclass(frozen=True)
+class Share:
+    """Which cases an array task runs: those named, or the `task`-th of `tasks` shares."""
+
+    cases: tuple[str, ...] = ()
+    task: int | None = None
+    tasks: int | None = None
+
+    def describe(self) -> str:
+        return f"cases {', '.join(self.cases)}" if self.cases else f"share {self.task} of {self.tasks}"
+
+
+def choose(plan: Plan, share: Share) -> list[str]:
+    """The ids of the cases `share` runs; `BadInput` for a case the study does not have or a task out of range."""
+    ids = [case.id for case in plan.cases]
+    if share.cases:
+        unknown = [c for c in share.cases if c not in ids]
+        if unknown:
+            listed = ", ".join(ids[:4]) + (", ..." if len(ids) > 4 else "")
+            raise BadInput(f"no case {unknown[0]!r} in this study (its {len(ids)} cases: {listed})", "--case")
+        return [i for i in ids if i in share.cases]
+    if share.task is None or share.tasks is None:
+        raise BadInput("--task N and --tasks M go together (task N of M, N from 0 to M - 1)",
+                       "--task" if share.task is None else "--tasks")
+    if share.tasks < 1 or not 0 <= share.task < share.tasks:
+        raise BadInput(f"must be in 0..{share.tasks - 1} for --tasks {share.tasks} (got {share.task})", "--task")
+    return ids[share.task::share.tasks]
+
+
+def run_study(plan: Plan, directory: str | Path, execution: Execution = Execution(),
+              share: Share | None = None) -> SweepReport:
+    """Run every case not yet recorded (or, for an array task, those of its `share`), write DIR/cases/<id>.nc
+    for each and, unless it is an array task, DIR/study.nc (see `run_jobs`); the directory must be this
+    study's (or new, or `execution.force`) and not in use by another run (array tasks share it)."""
     layouts = combine.case_layouts(plan)
     jobs = [replace(job, layout=layouts[job.id]) for job in plan_jobs(plan, study_file=str(plan.file.resolve()))]
-    with owned(directory, plan_owner(plan, "study"), "study.nc", execution.force):
-        report = run_jobs(jobs, directory, execution)
-        combine.write_study(plan, Path(directory))
+    if share is not None:
+        chosen = set(choose(plan, share))
+        jobs = [job for job in jobs if job.id in chosen]
+    with owned(directory, plan_owner(plan, "study"), "study.nc", execution.force, shared=share is not None):
+        report = run_jobs(jobs, directory, execution, tidy=share is None)
+        if share is None:
+            combine.write_study(plan, Path(directory))
     return report
+
+
+def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Path:
+    """DIR/study.nc from the case files under DIR/cases/ as they are (missing cases: status "missing"),
+    running nothing; the directory must be this study's."""
+    directory = Path(directory)
+    if not (directory / "cases").is_dir():
+        raise BadInput("has no cases/ directory: nothing to combine (run the study, or its array tasks, first)",
+                       directory)
+    with owned(directory, plan_owner(plan, "study"), "study.nc", force):
+        return combine.write_study(plan, directory)
 
 
 @dataclass
@@ -33,19 +90,51 @@ class Sweep:
     plan: Plan
     directory: Path
     noun: str = "cases"
+    share: Share | None = None  # an array task's cases
+    combine_only: bool = False  # --combine: write study.nc from what is there
 
     @property
     def title(self) -> str:
-        return self.plan.spec.name
+        return self.plan.spec.name + (f" ({self.share.describe()})" if self.share else "")
 
     def run(self, execution: Execution) -> Finished:
-        report = run_study(self.plan, self.directory, execution)
+        if self.combine_only:
+            written = combine_study(self.plan, self.directory, execution.force)
+            statuses = _statuses(written)
+            return Finished(f"combined {len(self.plan.cases)} cases ({statuses}) into {written}", {},
+                            len(self.plan.cases), result=written)
+        report = run_study(self.plan, self.directory, execution, self.share)
+        total = len(self.plan.cases) if self.share is None else len(report.ran) + len(report.skipped)
+        if self.share is not None:
+            return Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
+                            f"{len(report.failed)} failed ({self.share.describe()}); study.nc is written by "
+                            f"`biostudy sweep {self.plan.file} -o {self.directory} --combine` once every task "
+                            "is done", report.failed, total, warnings=report.warnings(), result=report)
         return Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
-                        f"{len(report.failed)} failed; wrote {report.study}", report.failed, len(self.plan.cases),
+                        f"{len(report.failed)} failed; wrote {report.study}", report.failed, total,
                         warnings=report.warnings(), result=report)
 
 
-def load(study: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> Sweep:
-    """Read and validate a study (a path or a bundled name) and every case; bad input is `BadInput`."""
+def _statuses(study: Path) -> str:
+    import netCDF4
+
+    with netCDF4.Dataset(study) as nc:
+        return ", ".join(f"{nc.getncattr(f'cases_{s}')} {s}" for s in ("done", "failed", "missing"))
+
+
+def load(study: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = (),
+         cases: tuple[str, ...] | list[str] = (), task: int | None = None, tasks: int | None = None,
+         combine_only: bool = False) -> Sweep:
+    """Read and validate a study (a path or a bundled name) and every case, and which cases to run (`cases`,
+    or share `task` of `tasks`; `combine_only`: none); bad input is `BadInput`."""
     plan = load_study(bundled.resolve(study), overrides)
-    return Sweep(plan, Path(output) if output is not None else Path(plan.spec.name))
+    share = None
+    if cases or task is not None or tasks is not None:
+        if cases and (task is not None or tasks is not None):
+            raise BadInput("give --case or --task/--tasks, not both", "--case")
+        share = Share(tuple(cases), task, tasks)
+        choose(plan, share)  # bad input now, before anything runs
+    if combine_only and share is not None:
+        raise BadInput("--combine runs no case; leave out --case and --task", "--combine")
+    return Sweep(plan, Path(output) if output is not None else Path(plan.spec.name), share=share,
+                 combine_only=combine_only)

@@ -15,7 +15,8 @@
   (a case open in a notebook while a sweep resumes, which reads every finished
   case back) corrupts HDF5's state and crashes a later open (HDFGroup/hdf5#5359,
   Unidata/netcdf-c#2510).  Measured in the README ("Looking at the results").
-* `history`: the CF ``history`` attribute, the command line that made the file.
+* `history`: the CF ``history`` attribute, the command line that made the file
+  (or the Python call, inside `called`: the API's, not a notebook kernel's argv).
 * `as_run`: a sweep's case file carries its place in the study as dimensions of
   length 1 (`combine.CaseLayout`, so that ``xr.open_mfdataset`` combines the
   cases by itself); read as one run, they are squeezed to scalar coordinates.
@@ -23,17 +24,22 @@
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import shlex
 import sys
+from contextvars import ContextVar
 from pathlib import Path
+from typing import TYPE_CHECKING, Iterator
 
-import xarray as xr
+if TYPE_CHECKING:
+    import xarray as xr  # the functions here take datasets; importing this module costs nothing (`show`)
 
 COMPRESSION = {"zlib": True, "complevel": 4, "shuffle": True}
 # Dimensions a snapshot spans whole; every other dimension (time, time_mechanics, a study's) is cut in 1s.
 SNAPSHOT_DIMS = frozenset({"x", "y", "z", "x_node", "y_node", "z_node", "component", "bounds"})
 CASE_DIMENSIONS = "case_dimensions"  # attribute of a case file: its study dimensions (length 1)
+OBSERVABLES = "observables"  # attribute of a run's or case's file: the observables it holds, in order
 OLD_NAMES = {"steps_bisections": "steps_bisected"}  # a run's variables as named before issue 11
 
 
@@ -56,14 +62,30 @@ def encoding(ds: xr.Dataset) -> dict[str, dict]:
     return result
 
 
+_CALL: ContextVar[str | None] = ContextVar("biostudy_call", default=None)
+
+
+@contextlib.contextmanager
+def called(call: str) -> Iterator[None]:
+    """Within the block, files record `call` as what made them (e.g. "biostudy.run('directional')"), not the
+    process's command line."""
+    token = _CALL.set(call)
+    try:
+        yield
+    finally:
+        _CALL.reset(token)
+
+
 def history(argv: list[str] | None = None) -> str:
     """'2026-01-31T12:00:00Z: biostudy run directional -o d.nc': when, and the command line of this process
-    (CF 2.6.2; `python -m biostudy` is written as biostudy)."""
+    (CF 2.6.2; `python -m biostudy` is written as biostudy), or the Python call inside `called`."""
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    if argv is None and _CALL.get() is not None:
+        return f"{stamp}: {_CALL.get()}"
     argv = list(sys.argv if argv is None else argv) or ["python"]
     program = Path(argv[0]).name
     if Path(argv[0]).parts[-2:] == ("biostudy", "__main__.py"):
         program = "biostudy"
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     return f"{stamp}: {shlex.join([program, *argv[1:]])}"
 
 

@@ -34,10 +34,12 @@ import os
 import re
 import secrets
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:
+    import xarray as xr  # imported where a dataset is read or made: `show` of a run's file needs none
 
 from ..errors import BadInput, first_line
 from . import netcdf
@@ -86,8 +88,21 @@ def legal_attrs(attrs: dict) -> dict:
 def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
     """The run's dataset with what produced it: the scene as TOML text, its file, the overrides."""
     ds = ds.copy()
-    ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve()),
+    ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve())
+                                if scene_file else "",
                                 "overrides": overrides, **extra})
+    return ds
+
+
+def with_observables(ds: xr.Dataset) -> xr.Dataset:
+    """A run's dataset with every observable its fields give as a variable (those it has are kept), listed in
+    its ``observables`` attribute in the registry's order (`quantities.observables`): the file says what it
+    holds, and `show` reads them without computing anything (`reports.glance`)."""
+    from ..quantities import observables
+
+    found = observables.variables(ds)
+    ds = ds.assign({name: values for name, values in found.items() if name not in ds})
+    ds.attrs[netcdf.OBSERVABLES] = ", ".join(found)
     return ds
 
 
@@ -224,6 +239,8 @@ def _bounded(name: str) -> str:
 def open_dataset(path: str | Path) -> xr.Dataset:
     """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
     an unreadable or damaged file is `BadInput`."""
+    import xarray as xr
+
     path = Path(path)
     if not path.is_file():
         raise BadInput("no such file", path)
@@ -322,5 +339,7 @@ def recorded(path: str | Path) -> dict | None:
 def failure_record(message: str, seconds: float, name: str, scene: str, scene_file: Path, overrides: str,
                    **extra: Any) -> xr.Dataset:
     """A failed case on disk: no variables, the reason in the attributes (`scene`: its TOML text)."""
+    import xarray as xr
+
     ds = xr.Dataset(attrs={"Conventions": "CF-1.10", "title": f"failed run: {name}", "wall_time": seconds})
     return stamp(ds, scene, scene_file, overrides, status="failed", message=message, **extra)

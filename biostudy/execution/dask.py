@@ -1,5 +1,9 @@
 """Cases on a Dask cluster (README, "Sweeps on a Dask cluster"), and the choice between it and local workers.
 
+A cluster is named by its scheduler's address or by the scheduler file it
+wrote (``dask scheduler --scheduler-file FILE``, how a batch job started
+inside an allocation is found: README, "Batch clusters").
+
 The cluster's workers only simulate: each receives a compiled `solver.Problem`
 (plain arrays) and returns the dataset or the reason it failed; this process
 writes every file, so the workers need no shared filesystem.  Dask's nanny
@@ -8,10 +12,12 @@ Dask's TLS configuration (certificates), checked before anything runs.
 """
 from __future__ import annotations
 
+import json
 import uuid
+from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import BadInput
+from ..errors import BadInput, first_line
 from .worker import Outcome, solve
 
 if TYPE_CHECKING:
@@ -20,11 +26,33 @@ if TYPE_CHECKING:
 CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
 
 
-def check_choice(workers: int | None, scheduler: str | None) -> None:
-    """Jobs run on local processes or on a Dask cluster, not both; a tls:// scheduler needs Dask's TLS
-    configuration (certificates), which a plain Dask client would only miss with a traceback."""
-    if workers and scheduler:
-        raise BadInput("give --workers or --scheduler, not both", "--workers")
+def scheduler_address(scheduler_file: str | Path) -> str:
+    """The address a Dask scheduler wrote into its scheduler file (`dask scheduler --scheduler-file FILE`, a JSON
+    object with "address"); `BadInput` if the file is missing or holds none."""
+    path = Path(scheduler_file)
+    try:
+        address = json.loads(path.read_text(encoding="utf-8")).get("address")
+    except FileNotFoundError:
+        raise BadInput("no such file (has the Dask scheduler started? `dask scheduler --scheduler-file FILE` "
+                       "writes it)", path, "--scheduler-file") from None
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError) as error:
+        raise BadInput(f"not a Dask scheduler file ({first_line(error)})", path, "--scheduler-file") from None
+    if not isinstance(address, str) or "://" not in address:
+        raise BadInput("not a Dask scheduler file (no \"address\" in it)", path, "--scheduler-file")
+    return address
+
+
+def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str | Path | None = None) -> None:
+    """Jobs run on local processes or on a Dask cluster (its address or its scheduler file), not both; a
+    tls:// scheduler needs Dask's TLS configuration (certificates), which a plain Dask client would only miss
+    with a traceback."""
+    given = [name for name, value in (("--workers", workers), ("--scheduler", scheduler),
+                                      ("--scheduler-file", scheduler_file)) if value]
+    if len(given) > 1:
+        raise BadInput(f"give {given[0]} or {given[1]}, not both" if len(given) == 2 else
+                       "give one of --workers, --scheduler and --scheduler-file", given[0])
+    if scheduler_file:
+        scheduler = scheduler_address(scheduler_file)
     if scheduler and scheduler.startswith("tls://"):
         from distributed.security import Security  # Dask only when a cluster is asked for
 
@@ -42,13 +70,16 @@ class DaskCluster:
     """A `backends.Backend` on a running Dask scheduler: twice as many cases in flight as the cluster has
     threads (at least 4); closing cancels the cases still submitted."""
 
-    def __init__(self, address: str):
+    def __init__(self, address: str | None, scheduler_file: str | Path | None = None):
         from distributed import Client
 
+        option = "--scheduler"
+        if address is None:
+            address, option = scheduler_address(scheduler_file), "--scheduler-file"
         try:
             self.client = Client(address, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as error:
-            raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", "--scheduler") from None
+            raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", option) from None
         self.capacity = max(4, 2 * sum(self.client.nthreads().values()))
         self.running: dict = {}  # future -> case id
         self.tag = uuid.uuid4().hex[:8]  # keys of this sweep's tasks, apart from any other client's

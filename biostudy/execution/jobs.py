@@ -56,12 +56,13 @@ class SweepError(Failed):
 @dataclass(frozen=True, kw_only=True)
 class Execution:
     """How a job command (sweep, convergence, stability, calibrate) runs its cases: here, on `workers` local
-    processes or on the Dask `scheduler`; which finished cases it runs again; whether it may take over a
-    directory of another study (`force`); notify(event, case id, message) hears of every case (see
-    `run_jobs`)."""
+    processes or on the Dask `scheduler` (its address, or the `scheduler_file` it wrote); which finished cases
+    it runs again; whether it may take over a directory of another study (`force`); notify(event, case id,
+    message) hears of every case (see `run_jobs`)."""
 
     workers: int | None = None
     scheduler: str | None = None
+    scheduler_file: str | Path | None = None  # the JSON file a Dask scheduler wrote, instead of its address
     retry_failed: bool = False
     rerun_all: bool = False
     force: bool = False
@@ -111,6 +112,11 @@ class Job:
     layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
 
 
+# Fields `solver.Problem` gained after sweeps had been recorded, with their defaults: at those they are left out
+# of the fingerprint, so that the cases those sweeps finished stay finished.
+ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None}
+
+
 def fingerprint(problem: "solver.Problem") -> str:
     """sha256 of everything that determines a run's result (not its name).  The software's versions are not
     in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
@@ -119,6 +125,8 @@ def fingerprint(problem: "solver.Problem") -> str:
         if part.name == "name":
             continue
         value = getattr(problem, part.name)
+        if part.name in ADDED_LATER and not isinstance(value, np.ndarray) and value == ADDED_LATER[part.name]:
+            continue
         digest.update(part.name.encode())
         digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
     return digest.hexdigest()
@@ -140,7 +148,8 @@ def _outdated(record: dict) -> str:
                      f"(now {v})" for k, v in now.items() if k in record and str(record[k]) != v)
 
 
-def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execution()) -> SweepReport:
+def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execution(),
+             tidy: bool = True) -> SweepReport:
     """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
 
     A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
@@ -148,16 +157,18 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     damaged file is run again); `execution.rerun_all` runs every job again.  notify(event, id, message) is
     called with event "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without
     workers or a scheduler jobs run here, one after another.  The caller holds the directory
-    (`targets.owned`).
+    (`targets.owned`); `tidy`: it holds it alone, and removes the temporaries dead writers left (an array task
+    does not: a writer on another node is alive though no process here has its id).
     """
-    workers, scheduler = execution.workers, execution.scheduler
+    workers, scheduler = execution.workers, execution.scheduler or execution.scheduler_file
     if workers and not scheduler:
         pool.warm_up()  # the workers' imports overlap the checks below
     out_dir = Path(out_dir)
     cases_dir = out_dir / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
     report = SweepReport(out_dir / "study.nc")
-    report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
+    if tidy:
+        report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
     notify = execution.notify or (lambda *args: None)
     by_id = {job.id: job for job in jobs}
 
@@ -192,7 +203,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     def compile_(job_id: str) -> "solver.Problem":
         return by_id[job_id].scene.problem()
 
-    backend = Here() if not ids else DaskCluster(scheduler) if scheduler else LocalPool(workers) if workers else Here()
+    backend = (Here() if not ids else DaskCluster(execution.scheduler, execution.scheduler_file) if scheduler
+               else LocalPool(workers) if workers else Here())
     with contextlib.closing(windowed(ids, compile_, backend)) as results:
         for job_id, outcome in results:
             _record(by_id[job_id], out_dir, outcome, prints[job_id])
@@ -222,8 +234,8 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     sweep (`SweepError`): the cases recorded so far are kept."""
     extra = {**job.attrs, "fingerprint": fingerprint}
     if outcome.status == "done":
-        ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
-                         message="", **extra)
+        ds = store.stamp(store.with_observables(outcome.dataset), job.scene.to_toml(), job.scene_file, job.overrides,
+                         status="done", message="", **extra)
     else:
         ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
                                   job.scene_file, job.overrides, error=outcome.error, **extra)

@@ -7,7 +7,10 @@ computes anything:
   the run writes there.  The kernel releases it when the process ends, however
   it ends (SIGKILL included), so a dead run never blocks the next one.  A
   second run into a locked directory is refused at once, naming the process
-  that holds it; it never disturbs the first.
+  that holds it; it never disturbs the first.  Array tasks (``sweep --case``,
+  ``--task N --tasks M``) hold it shared: many of them write their own cases
+  into one directory at once; a whole sweep into it is refused while they run,
+  and they while it runs.
 - the owner: ``DIR/.biostudy-owner.toml`` records which study the directory
   belongs to (its kind, name, base scene and swept keys, and their
   fingerprint).  Re-running the same study, with changed values or
@@ -68,27 +71,28 @@ def _recorded(directory: Path) -> dict | None:
         return {}  # unreadable: as good as a foreign owner
 
 
-def _lock(directory: Path) -> int:
+def _lock(directory: Path, shared: bool = False) -> int:
     """Take the directory's lock (without waiting); returns its file descriptor.  `BadInput` if another
-    process holds it."""
+    process holds it (`shared`: unless the others hold it shared too, as array tasks do)."""
     fd = os.open(directory / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
     except BlockingIOError:
         holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
         os.close(fd)
         raise BadInput(f"another biostudy run is writing into this directory ({holder}); wait for it to finish "
                        "or stop it, or give another -o", directory) from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"pid {os.getpid()} on {os.uname().nodename}, since "
-                  f"{_dt.datetime.now().isoformat(timespec='seconds')}\n".encode(), 0)
+    holder = (f"{'array tasks, the latest ' if shared else ''}pid {os.getpid()} on {os.uname().nodename}, since "
+              f"{_dt.datetime.now().isoformat(timespec='seconds')}\n").encode()
+    os.pwrite(fd, holder.ljust(200), 0)  # one write of a fixed length: readers never see it half-replaced
     return fd
 
 
 def _check_owner(directory: Path, owner: Owner, force: bool) -> None:
     recorded = _recorded(directory)
-    if recorded is None:
-        others = [p.name for p in directory.iterdir() if p.name not in (LOCK, OWNER)]
+    if recorded is None:  # (the owner record of an array task starting beside this one may be in flight)
+        others = [p.name for p in directory.iterdir() if p.name not in (LOCK, OWNER)
+                  and not p.name.startswith(f".{OWNER}.")]
         if others and not force:
             raise BadInput(f"holds files that no biostudy run recorded as its own ({', '.join(sorted(others)[:3])}"
                            f"{', ...' if len(others) > 3 else ''}); give --force to use it for {owner.describe()}, "
@@ -100,13 +104,14 @@ def _check_owner(directory: Path, owner: Owner, force: bool) -> None:
 
 
 @contextlib.contextmanager
-def claimed(directory: str | Path, owner: Owner, force: bool = False) -> Iterator[Path]:
+def claimed(directory: str | Path, owner: Owner, force: bool = False, shared: bool = False) -> Iterator[Path]:
     """Lock `directory` (created if needed) for this process and make sure it belongs to `owner` (or take
-    it over with `force`); held until the block ends."""
+    it over with `force`); held until the block ends.  `shared`: an array task, which shares the directory
+    with the other tasks of its study (each writes its own cases) but not with a whole sweep."""
     directory = Path(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        fd = _lock(directory)
+        fd = _lock(directory, shared)
     except FileExistsError:
         raise BadInput("is a file, not a directory", directory) from None
     except OSError as error:

@@ -20,26 +20,28 @@ from . import ownership
 
 
 @contextlib.contextmanager
-def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False) -> Iterator[Path]:
-    """Claim a sweep's directory for `owner` (`ownership.claimed`) and check, before anything runs, that its
-    summary file (study.nc, ...) may be replaced."""
-    with ownership.claimed(out_dir, owner, force) as directory:
+def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False,
+          shared: bool = False) -> Iterator[Path]:
+    """Claim a sweep's directory for `owner` (`ownership.claimed`; `shared`: an array task) and check, before
+    anything runs, that its summary file (study.nc, ...) may be replaced."""
+    with ownership.claimed(out_dir, owner, force, shared) as directory:
         store.replaceable(directory / summary)
         yield directory
 
 
-def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False) -> str:
+def check_run(scene: Scene, scene_file: Path | None, target: Path, force: bool = False,
+              inputs: list[Path] = ()) -> str:
     """Before one run computes anything: `BadInput` unless its dataset can be written to `target` and the
     run fits in memory; returns what the final message adds when `target` is replaced.
 
-    `target` is never an input (the scene file, a mask) nor a file biostudy did not write; an earlier result
-    of the same scene is replaced, anything else biostudy wrote (another scene's result, a sweep's file)
-    only with `force`.
+    `target` is never an input (the scene file, a mask or image it reads, `inputs` such as the run it
+    continues) nor a file biostudy did not write; an earlier result of the same scene is replaced, anything
+    else biostudy wrote (another scene's result, a sweep's file) only with `force`.
     """
     store.writable(target)
     masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
-             if getattr(r, "shape", None) == "mask"]
-    previous = store.replaceable(target, [scene_file, *masks])
+             if getattr(r, "shape", None) in ("mask", "image")]
+    previous = store.replaceable(target, [p for p in (scene_file, *masks, *inputs) if p])
     too_big = resources.run_problem({scene.name: resources.estimate(scene)}, 1, target)
     if too_big:
         raise BadInput(too_big, scene_file)
@@ -47,7 +49,7 @@ def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False)
         return ""
     if "case_id" in previous or "sweep_mode" in previous:
         what = "a file of a sweep"
-    elif previous.get("scene_file") != str(Path(scene_file).resolve()):
+    elif previous.get("scene_file") != (str(Path(scene_file).resolve()) if scene_file else ""):
         what = f"the result of another scene ({previous.get('scene_file', 'unknown')})"
     else:
         return "; it replaces the earlier result of the same scene"

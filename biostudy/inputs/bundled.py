@@ -49,6 +49,19 @@ def entries(directory: Path | None = None) -> list[Entry]:
     return sorted(found, key=lambda e: (order.get(e.kind, 3), e.path.name))
 
 
+def completions(incomplete: str, kinds: tuple[str, ...] = ("scene", "study", "stability")) -> list[tuple[str, str]]:
+    """What shell completion offers for a scene or study argument: the bundled files of those kinds whose names
+    start with `incomplete` (with their descriptions), and the TOML files here that do."""
+    offered = [(entry.path.stem, entry.description) for entry in entries() if entry.kind in kinds
+               and entry.path.stem.startswith(incomplete)]
+    folder, _, stem = incomplete.rpartition("/")
+    try:
+        local = sorted(Path(folder or ".").glob(f"{stem}*.toml"))
+    except (OSError, ValueError):
+        local = []
+    return offered + [(str(path) if folder else path.name, "file") for path in local]
+
+
 def resolve(name: str | Path) -> Path:
     """A path as given if it exists; else a bundled file of that name ('directional' or 'directional.toml').
     A bare name that is neither is bad input, with the closest bundled name if one is close."""

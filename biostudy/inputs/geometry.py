@@ -1,4 +1,4 @@
-"""Shapes of a scene (box, sphere, cylinder, mask; for obstacles also the
+"""Shapes of a scene (box, sphere, cylinder, mask, an image: `images`; for obstacles also the
 generated maze and grate of paper 4.4 and 4.5) and the cells they cover.
 
 A cell belongs to a shape when its centre is inside (boundaries included).
@@ -22,7 +22,7 @@ import functools
 import math
 import os
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
@@ -173,6 +173,22 @@ class Cylinder(Shape):
         return _from_gaps(gaps)
 
 
+def input_path(value: str, info: ValidationInfo, what: str) -> str:
+    """A file a scene reads (mask, image), resolved: a relative path is relative to the scene file and must stay
+    inside its folder (no ../), an absolute one (or ~/...) is taken as given; it must be a regular file."""
+    base = Path((info.context or {}).get("base", "."))
+    given = Path(value).expanduser()
+    if not given.is_absolute() and os.path.normpath(given).split(os.sep)[0] == os.pardir:
+        raise ValueError(f"{what} {value!r} lies outside the scene's folder {base}; a relative path must "
+                         "stay inside it (give an absolute path to read a file elsewhere)")
+    path = base / given
+    if not path.is_file():
+        if path.exists():
+            raise ValueError(f"{what} {value!r} is not a regular file ({path})")
+        raise ValueError(f"{what} {value!r} not found (looked for {path})")
+    return str(path.resolve())
+
+
 class Mask(Shape):
     """Cells given by a boolean .npy array of the grid's shape [nx, ny(, nz)]."""
 
@@ -185,15 +201,7 @@ class Mask(Shape):
     @field_validator("path")
     @classmethod
     def _resolve(cls, value: str, info: ValidationInfo) -> str:
-        base = Path((info.context or {}).get("base", "."))
-        given = Path(value).expanduser()
-        if not given.is_absolute() and os.path.normpath(given).split(os.sep)[0] == os.pardir:
-            raise ValueError(f"mask file {value!r} lies outside the scene's folder {base}; a relative path must "
-                             "stay inside it (give an absolute path to read a file elsewhere)")
-        path = base / given
-        if not path.is_file():
-            raise ValueError(f"mask file {value!r} not found (looked for {path})")
-        return str(path.resolve())
+        return input_path(value, info, "mask file")
 
     @model_validator(mode="after")
     def _load(self):
@@ -308,7 +316,6 @@ class Grate(Shape):
         return structures.grate(x, y, self.lower[:2], self.upper[:2], self.bar, self.pitch)
 
 
-AnyShape = Annotated[Union[Box, Sphere, Cylinder, Mask, Maze, Grate], Field(discriminator="shape")]
 class BoundaryFace(Shape):
     """An outer face of the grid: for a nutrient source held on the face itself (the paper's nodes on the
     bottom plane), a Dirichlet condition half a cell from the cells beside it, which stay free."""
@@ -324,4 +331,4 @@ class BoundaryFace(Shape):
         return np.zeros(grid.cells_shape, bool)  # no cell is held: the face is
 
 
-SHAPES = (Box, Sphere, Cylinder, Mask)  # for regions of biofilm and nutrient; obstacles take any shape
+SHAPES = (Box, Sphere, Cylinder, Mask)  # drawn shapes and masks (the scene adds images: `scene.SHAPES`)

@@ -27,7 +27,9 @@ from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
 from ..errors import BadInput, InvalidAt, from_validation_error
 from ..formatting import units_text, value_text
 from .files import read_toml
-from .geometry import SHAPES, AnyShape, BoundaryFace, Shape
+from .geometry import SHAPES as DRAWN
+from .geometry import BoundaryFace, Grate, Maze, Shape
+from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
 from .resources import DEFAULT_OUTPUTS, validation_problem
 from .tomltext import dumps as toml_dumps
@@ -186,6 +188,10 @@ class MechanicsSpec(BaseModel):
                                      linear_solver=self.linear_solver, pressure=self.pressure)
 
 
+SHAPES = (*DRAWN, Image)  # what a region of biofilm or nutrient may be; an obstacle may also be generated
+AnyShape = Annotated[Union[(*SHAPES, Maze, Grate)], Field(discriminator="shape")]
+
+
 def _valued(role: str, description: str, shapes=SHAPES, **extra):
     """The shape union with a `value` key (0..1, default 1) for one kind of region."""
     members = tuple(create_model(f"{role}{shape.__name__}", __base__=shape,
@@ -206,7 +212,10 @@ def initial_biofilm(regions, grid: solver.Grid) -> np.ndarray:
     """phi at t = 0: a step region sets its cells (later regions win); a smooth one raises phi to its profile."""
     phi0 = np.zeros(grid.cells_shape)
     for region in regions:
-        if region.edge > 0:
+        if getattr(region, "scale", None) is not None:  # an image's grey values are phi
+            cells = region.cells(grid)
+            phi0[cells] = region.density(grid)[cells]
+        elif region.edge > 0:
             profile = 0.5 * region.value * (1.0 - np.tanh(region.distance(grid) / region.edge))
             np.maximum(phi0, profile, out=phi0)
         else:
@@ -242,6 +251,11 @@ class Scene(BaseModel):
                     region.check(grid)
                 except InvalidAt as error:
                     raise InvalidAt(".".join(filter(None, (f"{kind}[{i}]", error.key))), error.problem) from None
+        for kind in ("nutrient", "obstacle"):
+            for i, region in enumerate(getattr(self, kind)):
+                if getattr(region, "scale", None) is not None:
+                    raise InvalidAt(f"{kind}[{i}].scale", "only a biofilm region takes phi from an image's grey "
+                                                          "values; give threshold (or a segmented image)")
         blocked = self._union(self.obstacle, grid)
         if blocked.all():
             raise InvalidAt("obstacle", "covers every cell of the grid")

@@ -16,7 +16,7 @@ import xarray as xr
 from ..formatting import number, units_text
 from ..reports.cases import cases_of
 from .style import axis_label, suptitle
-from .sweep import panels
+from .sweep import panels, solved_points
 
 COLUMNS = 3  # panels per row of the indices figure
 
@@ -113,7 +113,8 @@ def sample_series_figure(ds: xr.Dataset, names: list[str]):
     time = ds["time"].values
     for ax, name in zip(axes, names):
         for row in flat.values(ds[name])[flat.status == "done"]:
-            ax.plot(time, row, color="C0", lw=0.6, alpha=0.5)
+            drawn, marker = solved_points(time, row)
+            ax.plot(*drawn, color="C0", lw=0.6, alpha=0.5, marker=marker, ms=2)
         ax.set_xlabel("normalised time T*")
         ax.set_ylabel(axis_label(ds[name]))
         ax.set_title(ds[name].attrs.get("long_name", name), fontsize=8)

@@ -19,6 +19,7 @@ import numpy as np
 import xarray as xr
 
 from ..formatting import number, shown_units
+from ..quantities.saturation import SATURATION, saturated
 from .style import SERIES_NAMES, axis_label, suptitle
 
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
@@ -154,6 +155,11 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
             ys = [c.series[name][index] for c in members]
             text = ", ".join(f"{k} = {_fmt(v)}" for k, v in zip(others, group)) or None
             ax.plot(xs, ys, "o", ls=LINESTYLES[g % len(LINESTYLES)], label=text)
+            top = saturated(ys, ds[name].attrs.get(SATURATION))
+            if top.any():  # a height at the top of the box: a lower bound, not a measurement
+                named = "reaches the top (saturated)" in ax.get_legend_handles_labels()[1]
+                ax.plot(np.asarray(xs)[top], np.asarray(ys)[top], "^", ms=9, mfc="none", mec="C3", mew=1.5,
+                        label=None if named else "reaches the top (saturated)")
             failed = [x for x, c in zip(xs, members) if not c.ok]
             if failed:  # the legend names the red crosses once, whichever line they belong to
                 named = "failed" in ax.get_legend_handles_labels()[1]
@@ -169,6 +175,15 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     return fig
 
 
+def solved_points(time: np.ndarray, values: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], str | None]:
+    """The points of a time series that have a value, and a marker when some have none: an observable of the
+    mechanics (compression_max) is NaN between the outputs where it was solved, and a line through NaN draws
+    nothing at all."""
+    values = np.asarray(values, dtype=float)
+    known = np.isfinite(values)
+    return (np.asarray(time)[known], values[known]), (None if known.all() else "o")
+
+
 def series_figure(ds: xr.Dataset, names: list[str]):
     """Every case's time series: colour = value of the first varying parameter, line style = the others."""
     found, x_key, others, follow, groups = _layout(ds, names)
@@ -180,7 +195,8 @@ def series_figure(ds: xr.Dataset, names: list[str]):
         for c in found:
             colour = colours[x_values.index(c.params[x_key])]
             style = LINESTYLES[groups.index(tuple(c.params[k] for k in others)) % len(LINESTYLES)]
-            ax.plot(time, c.series[name], color=colour, ls=style, lw=1.2 if c.ok else 0.6)
+            drawn, marker = solved_points(time, c.series[name])
+            ax.plot(*drawn, color=colour, ls=style, lw=1.2 if c.ok else 0.6, marker=marker, ms=3)
         ax.set_xlabel("normalised time T*")
         ax.set_ylabel(axis_label(ds[name]))
         ax.grid(alpha=0.3)

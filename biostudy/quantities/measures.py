@@ -143,6 +143,12 @@ def height(ds: xr.Dataset, axis: str, level: float = THRESHOLD) -> np.ndarray:
     return out
 
 
+def top(ds: xr.Dataset, axis: str) -> float:
+    """The domain's upper face along `axis` (µm): a `height` equal to it is saturated, a lower bound (the
+    biofilm reaches the top of the box and may have grown on, out of it)."""
+    return float(ds[axis].values[-1] + 0.5 * spacing(ds))
+
+
 def reach(ds: xr.Dataset, axis: str, level: float = THRESHOLD) -> np.ndarray:
     """Largest distance (µm) of a cell centre with phi >= level from the line along `axis` through the centroid
     of the initial phi >= level, per output time (the radius of a colony's footprint)."""

@@ -32,6 +32,7 @@ import numpy as np
 import xarray as xr
 
 from . import measures
+from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
 TWO_D = " (2-D: per µm of thickness)"
@@ -100,23 +101,26 @@ def get(name: str) -> Observable:
 def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     """The observable over time (and over a study's case dimensions) from the dataset's fields."""
     observable = get(name)
+    attrs = observable.attrs(ds)
     if name == "height" or name.startswith("height_"):
         axis = name.removeprefix("height_") if name != "height" else _vertical(ds)
         if axis not in ds.dims:
             raise ValueError(f"{name}: the dataset has no axis {axis}")
+        attrs = {**attrs, SATURATION: measures.top(ds, axis),
+                 "comment": f"{SATURATION}: the domain's top along {axis}; a height equal to it is saturated (the "
+                            "biofilm reaches the top: a lower bound)"}
     missing = [v for v in observable.needs if v not in ds]
     if missing:
         raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
     extra = [d for d in ds[observable.needs[0]].dims if d not in ("time", "time_mechanics", *CELL_DIMS)]
     if not extra:
         values = observable.compute(ds)
-        return xr.DataArray(values, dims=("time",), coords={"time": ds["time"]}, name=name,
-                            attrs=observable.attrs(ds))
+        return xr.DataArray(values, dims=("time",), coords={"time": ds["time"]}, name=name, attrs=attrs)
     stacked = ds.stack(_case=extra)
     parts = [observable.compute(stacked.isel(_case=i)) for i in range(stacked.sizes["_case"])]
     out = xr.DataArray(np.stack(parts), dims=("_case", "time"),
                        coords={"_case": stacked["_case"], "time": ds["time"]}, name=name)
-    return out.unstack("_case").transpose(*extra, "time").assign_attrs(observable.attrs(ds))
+    return out.unstack("_case").transpose(*extra, "time").assign_attrs(attrs)
 
 
 def variables(ds: xr.Dataset) -> dict[str, xr.DataArray]:

@@ -6,9 +6,9 @@ so a result can be understood without the scene file that produced it.
 from __future__ import annotations
 
 import tomllib
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 from rich.console import Console, Group
 from rich.table import Table
 from rich.text import Text
@@ -16,7 +16,10 @@ from rich.text import Text
 from solver.problem import parameter_infos
 
 from ..formatting import number, units_text
-from ..quantities import observables
+from ..quantities.saturation import SATURATION, saturated
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 AVERAGES = ("phi_mean", "c_mean", "biofilm_volume")  # what a study.nc written before observables has
 
@@ -81,8 +84,23 @@ def _software(attrs: dict) -> str:
 
 
 def run_summary(ds: xr.Dataset) -> Group:
-    """One run: scene, parameters, cost, and the averages at the start and the end."""
-    attrs = ds.attrs
+    """One run: scene, parameters, cost, and the observables at the start and the end."""
+    if "time" not in ds.dims or "phi" not in ds:
+        return summary_of(ds.attrs, None, [])
+    from ..quantities import observables  # lazily: a file that holds its observables needs none of this
+
+    series = [(name, values.values, values.attrs) for name, values in observables.variables(ds).items()]
+    return summary_of(ds.attrs, ds.time.values, series)
+
+
+def _value(values: np.ndarray, index: int, attrs: dict) -> str:
+    """One value of an observable; a height at the top of the box marked saturated (a lower bound)."""
+    text = number(values[index])
+    return text + " (top: saturated)" if saturated(values[index], attrs.get(SATURATION)) else text
+
+
+def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np.ndarray, dict]]) -> Group:
+    """One run from its attributes, output times and observables (name, values over time, their attributes)."""
     name, description = _scene_title(attrs)
     status = str(attrs.get("status", "done"))
     rows = _header(attrs)
@@ -96,22 +114,24 @@ def run_summary(ds: xr.Dataset) -> Group:
         ("software", _software(attrs)),
     ]
     parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
-    if "time" in ds.dims and "phi" in ds:
+    if times is not None:
         table = Table(title=None, show_edge=False)
         table.add_column("observable")
-        table.add_column(f"T* = {number(ds.time.values[0])}", justify="right")
-        table.add_column(f"T* = {number(ds.time.values[-1])}", justify="right")
+        table.add_column(f"T* = {number(times[0])}", justify="right")
+        table.add_column(f"T* = {number(times[-1])}", justify="right")
         table.add_column("units")
         table.add_column("meaning")
-        for name, values in observables.variables(ds).items():
-            table.add_row(name, number(values.values[0]), number(values.values[-1]),
-                          units_text(values.attrs["units"]), values.attrs["long_name"])
+        for name, values, shown in series:
+            table.add_row(name, _value(values, 0, shown), _value(values, -1, shown),
+                          units_text(shown.get("units", "1")), str(shown.get("long_name", "")))
         parts.append(table)
     return Group(*parts)
 
 
 def study_summary(ds: xr.Dataset) -> Group:
     """A study.nc: what was swept, how many cases finished, one row per case."""
+    from ..quantities import observables
+
     attrs = ds.attrs
     dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
     rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
@@ -148,7 +168,7 @@ def study_summary(ds: xr.Dataset) -> Group:
         colour = {"done": "green", "failed": "red"}.get(status, "yellow")
         table.add_row(str(case), f"[{colour}]{status}[/{colour}]", number(columns["wall_time"][i]),
                       number(columns["steps_taken"][i]),
-                      *(number(columns[v][i]) if v in columns else "-" for v in shown),
+                      *(_value(columns[v], i, ds[v].attrs) if v in columns else "-" for v in shown),
                       str(columns["message"][i]))
     return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
 

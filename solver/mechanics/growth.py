@@ -69,6 +69,15 @@ class GrowthMechanics:
         self.phi = None
         self.alpha = np.zeros(mesh.n_elements)
 
+    def start_from(self, u: np.ndarray, phi: np.ndarray, alpha: np.ndarray) -> None:
+        """Go on from a converged state of another run (a continuation): u per node as a dataset holds it
+        (nodes_shape + (ndim,), NaN inside obstacles), phi and alpha per cell; the next `solve` follows the
+        load from there, as it would have in that run."""
+        d = self.grid.ndim
+        self.u = np.nan_to_num(np.asarray(u, dtype=float)).reshape(-1, d)[self.mesh.nodes].ravel()
+        self.phi = self._element_values("phi", np.nan_to_num(phi), 0.0)
+        self.alpha = self._element_values("alpha", np.nan_to_num(alpha), 0.0)
+
     # -- helpers -----------------------------------------------------------------
     def _cell(self, element: int) -> str:
         index = np.unravel_index(self.mesh.cells[element], self.grid.cells_shape)

@@ -48,8 +48,13 @@ class Transport:
         self.largest_numerical_diffusion = 0.0
 
     def initial(self) -> State:
-        phi = self.fv.to_active(self.problem.phi0)
-        return State(0.0, phi, np.zeros_like(phi), self._nutrient(phi, None))
+        """The state at the problem's start: from rest (alpha = 0, c solved for phi0) or, continuing a run,
+        its last state as given."""
+        problem = self.problem
+        phi = self.fv.to_active(problem.phi0)
+        alpha = np.zeros_like(phi) if problem.alpha0 is None else self.fv.to_active(problem.alpha0)
+        c = self._nutrient(phi, None) if problem.c0 is None else self.fv.to_active(problem.c0)
+        return State(problem.start_time, phi, alpha, c)
 
     def _nutrient(self, phi, guess):
         start = time.perf_counter()

@@ -1,0 +1,77 @@
+"""`biostudy run SCENE --continue RUN.nc`: the run a scene goes on from, checked, and the whole history written.
+
+The run continued must be a finished run of the same scene: the same
+everything but the clock (``[time]``: a later ``t_end``, other steps or
+outputs), and its name and description; a failed case's record, a run that
+stopped before its own ``t_end`` or one of another scene is bad input, told
+in one line.  The dataset written is the whole history: the run's outputs
+up to its last one, then the continuation's (`solver.restart.joined`), and
+its attributes say so (``continued_from``, ``continuation``; ``history``
+keeps the run's own lines before this one, CF 2.6.2).
+"""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import xarray as xr
+
+from solver.restart import joined
+
+from ..errors import BadInput
+from ..formatting import value_text
+from ..inputs.keys import flatten
+from ..inputs.scene import Scene
+from . import store
+
+FREE = ("name", "description")  # besides [time]: what a continuation may change
+CONTINUE = "--continue"
+
+
+def _differences(recorded: dict, scene: dict) -> list[str]:
+    """'key: here X, in the run Y' for every scene key (but the clock and the names) that differs."""
+    mine = {k: v for k, v in flatten(scene).items() if not k.startswith("time.") and k not in FREE}
+    theirs = {k: v for k, v in flatten(recorded).items() if not k.startswith("time.") and k not in FREE}
+    return [f"{key}: {value_text(mine.get(key, '(absent)'))} here, {value_text(theirs.get(key, '(absent)'))} in "
+            f"the run" for key in sorted(set(mine) | set(theirs)) if mine.get(key) != theirs.get(key)]
+
+
+def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
+    """The finished run of `scene` that a continuation starts from; `BadInput` (naming RUN.nc) for anything
+    else: not a run, a failed case, an unfinished run, a run of another scene, a t_end not after its end."""
+    path = Path(path)
+    ds = store.open_result(path, ("run",), "--continue starts from a finished run's last state")
+    attrs = ds.attrs
+    last = float(ds["time"].values[-1])
+    if str(attrs.get("status", "done")) != "done" or last < float(attrs.get("t_end", last)) * (1 - 1e-12):
+        raise BadInput(f"an unfinished run (its last output is T* = {last:g}, its t_end {attrs.get('t_end')}): "
+                       "--continue starts from a finished run", path)
+    try:
+        recorded = tomllib.loads(str(attrs.get("scene", "")))
+    except tomllib.TOMLDecodeError:
+        recorded = {}
+    if not recorded:
+        raise BadInput("records no scene (its `scene` attribute is missing or unreadable): cannot tell whether it "
+                       "is a run of this scene", path)
+    differ = _differences(recorded, scene.model_dump(mode="json", exclude_none=True))
+    if differ:
+        count = f"{len(differ)} {'keys differ' if len(differ) > 1 else 'key differs'}"
+        raise BadInput(f"a run of another scene ({count} besides [time]: {'; '.join(differ[:3])}"
+                       f"{'; ...' if len(differ) > 3 else ''}); --continue takes a run of the same scene", path)
+    if not scene.time.t_end > last:
+        raise BadInput(f"must be after the last output of the run it continues, T* = {last:g} (got "
+                       f"{scene.time.t_end:g}); give e.g. --set time.t_end={2 * last:g}", None, "time.t_end")
+    return ds
+
+
+def continued(previous: xr.Dataset, path: str | Path, continuation: xr.Dataset) -> xr.Dataset:
+    """The whole history of `previous` (read from `path`) and its `continuation`, marked as such."""
+    whole = joined(previous, continuation)
+    start = float(previous["time"].values[-1])
+    whole.attrs.update({
+        "continued_from": f"{Path(path).resolve()} (T* = {start:g}; created {previous.attrs.get('created', '?')})",
+        "continuation": f"whole history: outputs up to T* = {start:g} are those of the run continued, later ones "
+                        "this run's; the counters and wall times add up both",
+        "history_before": str(previous.attrs.get("history", "")),
+    })
+    return whole

@@ -1,0 +1,49 @@
+"""`biostudy show FILE` of one run at a glance: read with netCDF4 alone, no xarray, no solver.
+
+A run's file (and a sweep's case file) holds its observables and lists them
+in its ``observables`` attribute (`store.with_observables`), so its summary
+needs only the attributes and those time series: `show` of a small file
+starts and ends in a fraction of a second.  The file is still read whole
+first, checksums verified (`store.intact`): a damaged file goes to the full
+reader, which calls it damaged.  Anything else (a study.nc, a file written
+before the observables were stored) goes there too.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rich.console import Group
+
+from ..data.netcdf import OBSERVABLES
+from .show import summary_of
+
+
+def glance(path: str | Path) -> Group | None:
+    """The summary of a run, a case or a failed case's record, or None when the full reader must do it."""
+    import netCDF4
+
+    from ..data.store import intact
+
+    try:
+        with netCDF4.Dataset(path) as nc:
+            nc.set_auto_mask(False)
+            attrs = {name: nc.getncattr(name) for name in nc.ncattrs()}
+            if "biostudy_version" not in attrs or "sweep_mode" in attrs:
+                return None
+            if attrs.get("status") == "failed" and not nc.variables:
+                return summary_of(attrs, None, [])
+            names = [n.strip() for n in str(attrs.get(OBSERVABLES, "")).split(",") if n.strip()]
+            if not names or "time" not in nc.variables or any(n not in nc.variables for n in names):
+                return None
+            times = np.asarray(nc["time"][:], dtype=float).ravel()
+            series = []
+            for name in names:
+                var = nc[name]
+                values = np.asarray(var[:], dtype=float).reshape(-1)
+                if values.shape != times.shape:
+                    return None
+                series.append((name, values, {key: var.getncattr(key) for key in var.ncattrs()}))
+    except (OSError, RuntimeError, ValueError, KeyError, AttributeError):
+        return None
+    return summary_of(attrs, times, series) if intact(path) else None
