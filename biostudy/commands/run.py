@@ -2,7 +2,9 @@
 
 The output is checked before anything is computed (`targets.check_run`): never
 an input, never a file biostudy did not write; an earlier result of the same
-scene is replaced and the message says so.
+scene is replaced and the message says so.  It is then claimed for this run
+(`store.claim`): a second run into the same output is refused while this one
+computes, and a file written there meanwhile by anything else is not replaced.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import solver
 
 from ..data import store
 from ..errors import Failed
-from ..execution.targets import check_run
+from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import parse_override
@@ -33,6 +35,7 @@ class Loaded:
     overrides: tuple[str, ...]
     target: Path
     replacing: str  # what the final message adds when the target is replaced ("" if nothing is)
+    claim: store.Claim | None = None  # the output, reserved for this run until `compute` ends
 
 
 @dataclass(frozen=True)
@@ -57,22 +60,28 @@ def load(scene: str | Path, *, overrides: tuple[str, ...] | list[str] = (), outp
     """Read and validate a scene (a path or a bundled name) with its overrides, and check its output before
     anything is computed; bad input is `BadInput`."""
     path = bundled.resolve(scene)
-    loaded = load_scene(path, overrides)
+    loaded = load_scene(path, overrides, runs_here=True)
     target = Path(output) if output is not None else default_output(loaded)
-    return Loaded(path, loaded, tuple(overrides), target, check_run(loaded, path, target, force))
+    replacing = check_run(loaded, path, target, force)
+    return Loaded(path, loaded, tuple(overrides), target, replacing, claim_run(target))
 
 
 def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
     """Simulate and write the dataset (stamped with the scene, its file, the overrides and the software);
-    a simulation that fails, or a dataset that cannot be written, is `Failed`."""
+    a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here."""
     try:
-        ds = solver.simulate(loaded.scene.problem(), progress=progress)
-    except solver.SimulationError as error:
-        raise Failed(f"simulation failed: {loaded.path}: {error}") from None
-    text = overrides_text([parse_override(o) for o in loaded.overrides])
-    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path, text, **provenance())
-    try:
-        store.write_atomic(ds, loaded.target)
-    except OSError as error:  # e.g. the disk filled up while it ran
-        raise Failed(f"cannot write {loaded.target} ({error.strerror or error}); the result is lost") from None
+        try:
+            ds = solver.simulate(loaded.scene.problem(), progress=progress)
+        except solver.SimulationError as error:
+            raise Failed(f"simulation failed: {loaded.path}: {error}") from None
+        text = overrides_text([parse_override(o) for o in loaded.overrides])
+        ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path, text, **provenance())
+        try:
+            store.write_atomic(ds, loaded.target, claim=loaded.claim)
+        except OSError as error:  # e.g. the disk filled up while it ran (`store.NotWritten`)
+            kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+            raise Failed(f"{error}; this run's result is lost ({kept})") from None
+    finally:
+        if loaded.claim is not None:
+            loaded.claim.release()
     return Result(ds, loaded.target, loaded.replacing)

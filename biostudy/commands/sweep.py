@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..data import combine
-from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
+from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
 from ..plans.cases import Plan
@@ -24,7 +24,11 @@ def run_study(plan: Plan, directory: str | Path, execution: Execution = Executio
     jobs = [replace(job, layout=layouts[job.id]) for job in plan_jobs(plan, study_file=str(plan.file.resolve()))]
     with owned(directory, plan_owner(plan, "study"), "study.nc", execution.force):
         report = run_jobs(jobs, directory, execution)
-        combine.write_study(plan, Path(directory))
+        try:
+            combine.write_study(plan, Path(directory))
+        except OSError as error:  # `store.NotWritten`, e.g. a full disk
+            raise SweepError(f"{error}; the case files in {Path(directory) / 'cases'} are kept: run the same "
+                             "command again to write study.nc (nothing is computed again)") from None
     return report
 
 

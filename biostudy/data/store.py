@@ -11,12 +11,16 @@ sweep in that directory removes once that process is gone; other files,
 and the temporaries of processes still running, are never touched.
 
 Every numeric variable of more than one value carries a fletcher32 checksum
-per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), so
-`intact` tells a damaged file from a good one even when the damage keeps its
-size.  `writable` and `replaceable` check a
-target before anything is computed: a result is never lost to an unwritable
-path afterwards, and never overwrites an input or a file biostudy did not
-write.
+per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), and
+HDF5 checksums its headers, so `intact` tells a damaged file from a good one
+even when the damage keeps its size: a file that cannot be read whole
+(header, attributes or data) is damaged.  `writable` and `replaceable` check
+a target before anything is computed: a result is never lost to an
+unwritable path afterwards, and never overwrites an input or a file biostudy
+cannot prove it wrote (a damaged file included).  A write that fails is a
+`NotWritten` naming the file and why, a full disk by its file system.
+netCDF files are read and written through `netcdf_io`, which an interruption
+cannot leave waiting on a lock.
 
 A sweep keeps one file per case, ``DIR/cases/<case id>.nc``: the dataset of
 a finished run (``status = "done"``) or, for a run that failed, a record
@@ -26,25 +30,33 @@ re-running a study skips exactly the cases whose inputs have not changed.
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
+import errno
+import fcntl
 import hashlib
 import importlib.metadata
 import math
 import os
 import re
 import secrets
+import shutil
+import weakref
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
 import numpy as np
 import xarray as xr
 
-from ..errors import BadInput, first_line
-from . import netcdf
+from ..errors import BadInput, Failed, first_line
+from ..inputs.resources import size
+from . import netcdf, netcdf_io
 
 TMP_GLOB = ".*.tmp"
 TEMPORARY = re.compile(r"^\..+\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")  # .NAME.PID.TOKEN.tmp, see `temporary_name`
 CASE_NAME_BYTES = 150  # a case file's name stays well within the 255 bytes of a file name, temporary suffix included
+FULL_BELOW = 1 << 20  # bytes free on a file system that failed a write: it is full
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 def version() -> str:
@@ -91,23 +103,98 @@ def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **
     return ds
 
 
+def mark() -> str:
+    """What every picture and ParaView file biostudy writes carries (in its metadata or a comment), so that it
+    can tell its own files from others' before replacing one."""
+    return f"written by biostudy {version()}"
+
+
+def marked(path: str | Path, most: int = 1 << 25) -> bool:
+    """Whether a file (of at most `most` bytes, a picture or a VTU) carries biostudy's `mark`."""
+    path = Path(path)
+    try:
+        if not path.is_file() or path.stat().st_size > most:
+            return False
+        return b"written by biostudy " in path.read_bytes()
+    except OSError:
+        return False
+
+
+def foreign(paths: Iterable[str | Path], what: str) -> None:
+    """`BadInput` (every one at once) for those of `paths` that exist and do not carry biostudy's `mark`: a
+    file biostudy cannot prove it wrote is never replaced."""
+    found = [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
+                      "output, or remove the file first)", path) for path in paths
+             if Path(path).exists() and not marked(path)]
+    if found:
+        raise BadInput.every(found)
+
+
 def temporary_name(path: Path) -> Path:
     """Where `path` is written before it is renamed: hidden, beside it, unique to this process and call."""
     return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
 
 
-def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False) -> Path:
-    """write(temporary) beside `path` (unique to this writer), then renamed to it: the file is complete or
-    absent, and nothing else is left on failure.  `fsync`: the data and the rename reach the disk first."""
+class NotWritten(OSError, Failed):
+    """A file that could not be written; str() is one line: the file and why (a full disk: which one, and what
+    is free on it).  Nothing of it is left behind.  A `Failed` (exit status 1) where no caller says more."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
+def mount_point(path: str | Path) -> Path:
+    """The directory a file system holding `path` (or its nearest existing ancestor) is mounted at."""
+    path = Path(path).absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    device = path.stat().st_dev
+    while path != path.parent and path.parent.stat().st_dev == device:
+        path = path.parent
+    return path
+
+
+def _not_written(path: Path, error: BaseException) -> NotWritten | None:
+    """What a failed write is told as: a full disk (ENOSPC, or almost nothing left, as HDF5's errors do not
+    say), or the system's reason; None for an error that is not about the file (a bug, to be raised as it is)."""
+    code = getattr(error, "errno", None)
+    try:
+        free = shutil.disk_usage(path.parent).free
+    except OSError:
+        free = None
+    if code in (errno.ENOSPC, errno.EDQUOT) or (free is not None and free < FULL_BELOW):
+        return NotWritten(errno.ENOSPC, f"cannot write {path}: the disk is full (the file system at "
+                                        f"{mount_point(path)}, {size(free or 0).lstrip('~')} free)")
+    if isinstance(error, OSError):
+        return NotWritten(code or errno.EIO, f"cannot write {path} ({error.strerror or first_line(error)})")
+    return None
+
+
+def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False,
+           claim: "Claim | None" = None) -> Path:
+    """write(temporary) beside `path` (unique to this writer; with a `claim`, the claim's), then renamed to it:
+    the file is complete or absent, and nothing else is left on failure, which is a `NotWritten`.  `fsync`:
+    the data and the rename reach the disk first."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = temporary_name(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise _not_written(path, error) from None
+    temporary = claim.temporary if claim else temporary_name(path)
     try:
         write(temporary)
         if fsync:
             with open(temporary, "rb+") as handle:
                 os.fsync(handle.fileno())
-        os.replace(temporary, path)
+        if claim:
+            claim.replace()
+        else:
+            os.replace(temporary, path)
+    except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's "HDF error" on a full disk
+        told = _not_written(path, error)
+        if told is None:
+            raise
+        raise told from None
     finally:
         temporary.unlink(missing_ok=True)
     if fsync:
@@ -120,11 +207,81 @@ def write_text(path: str | Path, text: str) -> Path:
     return atomic(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
 
 
-def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
+def write_atomic(ds: xr.Dataset, path: str | Path, claim: "Claim | None" = None) -> Path:
     """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
-    beside it, fsync, rename; nothing else on failure."""
-    return atomic(path, lambda temporary: ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4",
-                                                       encoding=netcdf.encoding(ds)), fsync=True)
+    beside it (a `claim`'s), fsync, rename; nothing else on failure (`NotWritten`)."""
+    return atomic(path, lambda into: netcdf_io.write(ds, into, netcdf.encoding(ds)), fsync=True, claim=claim)
+
+
+def _identity(path: Path) -> tuple | None:
+    """What tells a file from its replacement: device, inode, size, modification time (None: no file)."""
+    try:
+        found = os.stat(path)
+    except FileNotFoundError:
+        return None
+    return found.st_dev, found.st_ino, found.st_size, found.st_mtime_ns
+
+
+@contextlib.contextmanager
+def _directory_locked(directory: Path):
+    """This process alone looks at and renames files in `directory` for the block (a brief flock on the
+    directory itself; where the file system has no such locks, the block runs unlocked)."""
+    handle = os.open(directory, os.O_RDONLY)
+    try:
+        with contextlib.suppress(OSError):
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(handle)  # releases the lock
+
+
+class Claim:
+    """An output reserved for one run until its result is written (`claim`).
+
+    Its temporary (`temporary_name`) is made at once and tells other biostudy runs that the output is being
+    computed; the result is written into it and renamed over the output only if the output is still what it
+    was when claimed (`replace`), so a result is never silently replaced by another written meanwhile."""
+
+    def __init__(self, target: Path, temporary: Path, removed: list[Path]):
+        self.target, self.temporary, self.removed = target, temporary, removed
+        self.seen = _identity(target)
+        self._release = weakref.finalize(self, temporary.unlink, missing_ok=True)
+
+    def release(self) -> None:
+        """Give the output up (the temporary goes; a written result stays)."""
+        self._release()
+
+    def replace(self) -> None:
+        """Rename the written temporary over the output, unless the output changed since it was claimed: then
+        the result is kept beside it under a new name and `Failed` says where."""
+        with _directory_locked(self.target.parent):
+            if _identity(self.target) == self.seen:
+                os.replace(self.temporary, self.target)
+                return
+            for number in range(1, 1000):  # a name nothing has: link() never replaces a file
+                kept = self.target.with_name(f"{self.target.stem}.{number}{self.target.suffix}")
+                with contextlib.suppress(FileExistsError):
+                    os.link(self.temporary, kept)
+                    break
+            self.temporary.unlink()
+        raise Failed(f"{self.target} was changed by another program while this run computed; it is left as it "
+                     f"is, and this run's result is kept in {kept}")
+
+
+def claim(path: str | Path) -> Claim:
+    """Reserve `path` for this process's result: `BadInput` if another running process claimed it (its
+    temporary is there); the temporaries of writers that are gone (killed, even with SIGKILL) are removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _directory_locked(path.parent):
+        removed = remove_temporaries(path.parent, of=path.name)
+        running = sorted(pid for _, pid in _temporaries(path.parent, path.name) if pid != os.getpid())
+        if running:
+            raise BadInput(f"another biostudy run (pid {running[0]}) is computing this output; wait for it to end, "
+                           "or choose another output", path)
+        temporary = temporary_name(path)
+        os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    return Claim(path, temporary, removed)
 
 
 def _fsync_directory(directory: Path) -> None:
@@ -148,14 +305,23 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def remove_temporaries(directory: str | Path) -> list[Path]:
-    """Delete the temporary files (`temporary_name`) that writers no longer running left behind: never a
-    file under a final name, nor one of another name pattern (a user's .draft.tmp), nor the temporary of a
-    process still running (another sweep's file in flight)."""
-    removed = []
+def _temporaries(directory: Path, of: str | None = None) -> Iterable[tuple[Path, int]]:
+    """(file, writer's pid) of the temporaries in `directory` (`temporary_name`), of the file named `of` only if
+    given."""
     for leftover in Path(directory).glob(TMP_GLOB):
         match = TEMPORARY.match(leftover.name)
-        if not match or int(match["pid"]) == os.getpid() or _alive(int(match["pid"])):
+        if match and (of is None or leftover.name.startswith(f".{of}.") and
+                      leftover.name.count(".") == of.count(".") + 4):
+            yield leftover, int(match["pid"])
+
+
+def remove_temporaries(directory: str | Path, of: str | None = None) -> list[Path]:
+    """Delete the temporary files (`temporary_name`; of the file named `of` only, if given) that writers no
+    longer running left behind: never a file under a final name, nor one of another name pattern (a user's
+    .draft.tmp), nor the temporary of a process still running (another sweep's file in flight)."""
+    removed = []
+    for leftover, pid in _temporaries(Path(directory), of):
+        if pid == os.getpid() or _alive(pid):
             continue
         leftover.unlink(missing_ok=True)
         removed.append(leftover)
@@ -181,31 +347,46 @@ def writable(path: str | Path) -> None:
         raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
 
 
-def _attributes(path: Path) -> dict | None:
-    """The global attributes of a netCDF file, or None if it is not one (or cannot be read)."""
+def attributes(path: Path) -> dict | None:
+    """The global attributes of a netCDF file, or None if it is not one or cannot be read whole (a damaged
+    header: HDF5 raises AttributeError, KeyError, ... as well as OSError)."""
     import netCDF4
 
     try:
         with netCDF4.Dataset(path) as nc:
             return {name: nc.getncattr(name) for name in nc.ncattrs()}
-    except (OSError, RuntimeError, ValueError):
+    except Exception:
         return None
 
 
-def replaceable(path: str | Path, inputs: Iterable[str | Path] = ()) -> dict | None:
+def _looks_like_netcdf(path: Path) -> bool:
+    """Whether a file begins as a netCDF file does (HDF5's signature, or netCDF-3's 'CDF')."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(8)
+    except OSError:
+        return False
+    return head == HDF5_SIGNATURE or head[:3] == b"CDF"
+
+
+def replaceable(path: str | Path, inputs: Iterable[str | Path] = (), damaged_ok: bool = False) -> dict | None:
     """Whether a new dataset may replace `path`: None if there is nothing there, the old file's attributes if
-    it is a dataset biostudy wrote; `BadInput` if it is one of `inputs` or any other file."""
+    it is a dataset biostudy wrote; `BadInput` if it is one of `inputs` or any other file, a netCDF file too
+    damaged to tell who wrote it included (unless `damaged_ok`: it lies where only biostudy writes, e.g. in a
+    directory a study owned before; then {})."""
     path = Path(path)
     if not path.exists():
         return None
     for given in inputs:
         if Path(given).exists() and os.path.samefile(path, given):
             raise BadInput(f"is an input of this run ({given}); choose another output", path)
-    attrs = _attributes(path) if path.is_file() else None
-    if attrs is None and path.is_file():
-        with open(path, "rb") as handle:
-            if handle.read(8) == b"\x89HDF\r\n\x1a\n":
-                return {}  # a netCDF4 file too damaged to read: nothing in it is left to keep
+    attrs = attributes(path) if path.is_file() else None
+    if attrs is None and path.is_file() and _looks_like_netcdf(path):
+        if damaged_ok:
+            return {}
+        raise BadInput("exists and is a damaged or truncated netCDF file, so biostudy cannot tell whether it wrote "
+                       "it; refusing to overwrite it, --force or not (choose another output, or remove the file "
+                       "first)", path)
     if attrs is None or "biostudy_version" not in attrs:
         raise BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it (choose another "
                        "output, or remove the file first)", path)
@@ -223,17 +404,21 @@ def _bounded(name: str) -> str:
 
 def open_dataset(path: str | Path) -> xr.Dataset:
     """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
-    an unreadable or damaged file is `BadInput`."""
+    a file that is not netCDF, or one that cannot be read whole (damaged), is `BadInput` in one line."""
     path = Path(path)
     if not path.is_file():
-        raise BadInput("no such file", path)
+        raise BadInput("no such file" if not path.exists() else "is not a regular file", path)
     try:
-        with xr.open_dataset(path, engine="netcdf4") as ds:
+        ds = netcdf_io.open_dataset(path)
+        try:
             return netcdf.as_run(ds.load())
-    except (OSError, ValueError) as error:
-        raise BadInput(f"not a netCDF dataset ({first_line(error)})", path) from None
-    except RuntimeError as error:  # netCDF4/HDF5 while reading data: a checksum that does not match
-        raise BadInput(f"damaged: its data cannot be read ({first_line(error)})", path) from None
+        finally:
+            ds.close()
+    except Exception as error:  # netCDF4/HDF5: OSError, RuntimeError (a checksum), AttributeError (a header), ...
+        if not _looks_like_netcdf(path):
+            raise BadInput(f"not a netCDF dataset ({first_line(error)})", path) from None
+        raise BadInput(f"damaged: it cannot be read whole ({first_line(error)}); a sweep computes a damaged case "
+                       "again when run again", path) from None
 
 
 def kind(ds: xr.Dataset) -> str:
@@ -256,6 +441,12 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
     file that is not of the kinds it takes (`kind`), e.g. a netCDF file biostudy did not write."""
     ds = open_dataset(path)
     found = kind(ds)
+    if found == "study":
+        dims = [d.strip() for d in str(ds.attrs.get("sweep_dimensions", "")).split(",") if d.strip()]
+        missing = [v for v in ("case_id", "status") if v not in ds] + [d for d in dims if d not in ds.dims]
+        if missing or not dims:
+            raise BadInput(f"a study.nc without {', '.join(missing) or 'sweep_dimensions'}: not as biostudy writes "
+                           "one (damaged or edited); running its sweep again writes it anew from cases/", path)
     if found in wanted:
         return ds
     reason = {
@@ -270,8 +461,8 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
 
 
 def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
-    """Whether every numeric variable of a netCDF file reads back (checksums verified where it has them),
-    read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
+    """Whether a netCDF file reads back whole: every attribute, and every numeric variable (checksums verified
+    where it has them), read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
 
     Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
     checksum and are not read: read through a second handle of a file that is open elsewhere in this
@@ -281,7 +472,11 @@ def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
     try:
         with netCDF4.Dataset(path) as nc:
             nc.set_auto_mask(False)
+            for name in nc.ncattrs():
+                nc.getncattr(name)
             for var in nc.variables.values():
+                for name in var.ncattrs():
+                    var.getncattr(name)
                 if not isinstance(var.dtype, np.dtype):
                     continue  # a variable-length string: no checksum to verify
                 if not var.ndim or not var.shape[0]:
@@ -291,7 +486,7 @@ def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
                 step = max(1, slab_bytes // max(row, 1))
                 for start in range(0, var.shape[0], step):
                     var[start:start + step]
-    except (OSError, RuntimeError, ValueError, IndexError):
+    except Exception:  # whatever HDF5 makes of damage: OSError, RuntimeError, AttributeError, IndexError, ...
         return False
     return True
 
@@ -311,7 +506,7 @@ def recorded(path: str | Path) -> dict | None:
     none or it cannot be read."""
     if not Path(path).is_file():
         return None
-    attrs = _attributes(Path(path))
+    attrs = attributes(Path(path))
     if attrs is None:
         return None
     return {name: value for name, value in attrs.items()

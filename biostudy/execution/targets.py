@@ -21,11 +21,27 @@ from . import ownership
 
 @contextlib.contextmanager
 def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False) -> Iterator[Path]:
-    """Claim a sweep's directory for `owner` (`ownership.claimed`) and check, before anything runs, that its
-    summary file (study.nc, ...) may be replaced."""
-    with ownership.claimed(out_dir, owner, force) as directory:
-        store.replaceable(directory / summary)
+    """Claim a sweep's directory for `owner` (`ownership.claimed`) and check, before anything runs or is
+    recorded there, that its summary file (study.nc, ...) may be replaced, and, in a directory no biostudy run
+    owned before (taken with `force`), that every file in cases/ is a dataset biostudy wrote: a file biostudy
+    cannot prove it wrote is never replaced, `force` or not."""
+    def check(directory: Path, biostudys: bool) -> None:
+        problems = []
+        for path in [directory / summary, *([] if biostudys else sorted(directory.glob("cases/*.nc")))]:
+            try:
+                store.replaceable(path, damaged_ok=biostudys)
+            except BadInput as error:
+                problems.append(error)
+        if problems:
+            raise BadInput(problems[0].problem, problems[0].file, more=tuple(problems[1:]))
+
+    with ownership.claimed(out_dir, owner, force, check) as directory:
         yield directory
+
+
+def claim_run(target: Path) -> store.Claim:
+    """The output of one run, reserved for it (`store.claim`): `BadInput` while another run computes it."""
+    return store.claim(target)
 
 
 def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False) -> str:

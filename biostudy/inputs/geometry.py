@@ -30,9 +30,10 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, 
 from solver import Grid
 from solver.problem import FACES
 
-from ..errors import InvalidAt, first_line
+from ..errors import BadInput, InvalidAt, first_line
 from ..formatting import value_text
 from . import structures
+from .files import MASK_BYTES, checked
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
 EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)
@@ -191,8 +192,13 @@ class Mask(Shape):
             raise ValueError(f"mask file {value!r} lies outside the scene's folder {base}; a relative path must "
                              "stay inside it (give an absolute path to read a file elsewhere)")
         path = base / given
-        if not path.is_file():
+        if not path.exists():
             raise ValueError(f"mask file {value!r} not found (looked for {path})")
+        try:
+            checked(path, MASK_BYTES, "a .npy mask file")
+        except BadInput as error:
+            where = "" if str(path) == value else f" ({path})"
+            raise ValueError(f"mask file {value!r}{where} {error.problem}") from None
         return str(path.resolve())
 
     @model_validator(mode="after")
