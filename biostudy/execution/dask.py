@@ -108,7 +108,7 @@ class DaskCluster:
             raise BadInput(f"{address} is not a Dask scheduler (it answers as {kind})", "--scheduler")
         self.quiet = _Quiet()
         try:
-            self.client = Client(address, timeout=f"{CONNECT_TIMEOUT}s")
+            self.client = Client(address, timeout=f"{CONNECT_TIMEOUT}s", set_as_default=False)  # cases only
         except (OSError, TimeoutError, ValueError) as error:
             self.quiet.restore()
             raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", "--scheduler") from None
