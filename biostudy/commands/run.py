@@ -3,7 +3,7 @@
 The output is checked before anything is computed (`targets.check_run`): never
 an input, never a file biostudy did not write; an earlier result of the same
 scene is replaced and the message says so.  It is then claimed for this run
-(`store.claim`): a second run into the same output is refused while this one
+(`claims.claim`): a second run into the same output is refused while this one
 computes, and a file written there meanwhile by anything else is not replaced.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ import xarray as xr
 
 import solver
 
-from ..data import store
+from ..data import claims, store
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
@@ -35,7 +35,7 @@ class Loaded:
     overrides: tuple[str, ...]
     target: Path
     replacing: str  # what the final message adds when the target is replaced ("" if nothing is)
-    claim: store.Claim | None = None  # the output, reserved for this run until `compute` ends
+    claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,10 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
         text = overrides_text([parse_override(o) for o in loaded.overrides])
         ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path, text, **provenance())
         try:
-            store.write_atomic(ds, loaded.target, claim=loaded.claim)
+            if loaded.claim is not None:
+                loaded.claim.write_dataset(ds)
+            else:
+                store.write_atomic(ds, loaded.target)
         except OSError as error:  # e.g. the disk filled up while it ran (`store.NotWritten`)
             kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
             raise Failed(f"{error}; this run's result is lost ({kept})") from None

@@ -37,7 +37,8 @@ import xarray as xr
 from solver import Grid
 from solver.problem import AXES
 
-from .store import atomic, foreign, mark, marked
+from .claims import foreign, mark, marked
+from .store import atomic
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
 MECHANICS_TIME = "time_mechanics"
@@ -183,7 +184,7 @@ def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -
     """Add what meshio's VTU writer leaves out: field data (one value each, e.g. `TimeValue`) and the
     active scalars and vectors."""
     tree = ET.parse(path)
-    tree.getroot().insert(0, ET.Comment(f" {mark()} "))  # tells biostudy's files from others' (`store.marked`)
+    tree.getroot().insert(0, ET.Comment(f" {mark()} "))  # tells biostudy's files from others' (`claims.marked`)
     grid = tree.getroot().find("UnstructuredGrid")
     if field_data:
         block = ET.Element("FieldData")

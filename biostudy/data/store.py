@@ -20,7 +20,8 @@ unwritable path afterwards, and never overwrites an input or a file biostudy
 cannot prove it wrote (a damaged file included).  A write that fails is a
 `NotWritten` naming the file and why, a full disk by its file system.
 netCDF files are read and written through `netcdf_io`, which an interruption
-cannot leave waiting on a lock.
+cannot leave waiting on a lock.  `claims`: an output reserved for one run, and
+files told apart as biostudy's by a mark.
 
 A sweep keeps one file per case, ``DIR/cases/<case id>.nc``: the dataset of
 a finished run (``status = "done"``) or, for a run that failed, a record
@@ -30,10 +31,8 @@ re-running a study skips exactly the cases whose inputs have not changed.
 """
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import errno
-import fcntl
 import hashlib
 import importlib.metadata
 import math
@@ -41,7 +40,6 @@ import os
 import re
 import secrets
 import shutil
-import weakref
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -103,33 +101,6 @@ def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **
     return ds
 
 
-def mark() -> str:
-    """What every picture and ParaView file biostudy writes carries (in its metadata or a comment), so that it
-    can tell its own files from others' before replacing one."""
-    return f"written by biostudy {version()}"
-
-
-def marked(path: str | Path, most: int = 1 << 25) -> bool:
-    """Whether a file (of at most `most` bytes, a picture or a VTU) carries biostudy's `mark`."""
-    path = Path(path)
-    try:
-        if not path.is_file() or path.stat().st_size > most:
-            return False
-        return b"written by biostudy " in path.read_bytes()
-    except OSError:
-        return False
-
-
-def foreign(paths: Iterable[str | Path], what: str) -> None:
-    """`BadInput` (every one at once) for those of `paths` that exist and do not carry biostudy's `mark`: a
-    file biostudy cannot prove it wrote is never replaced."""
-    found = [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
-                      "output, or remove the file first)", path) for path in paths
-             if Path(path).exists() and not marked(path)]
-    if found:
-        raise BadInput.every(found)
-
-
 def temporary_name(path: Path) -> Path:
     """Where `path` is written before it is renamed: hidden, beside it, unique to this process and call."""
     return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
@@ -170,24 +141,24 @@ def _not_written(path: Path, error: BaseException) -> NotWritten | None:
     return None
 
 
-def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False,
-           claim: "Claim | None" = None) -> Path:
-    """write(temporary) beside `path` (unique to this writer; with a `claim`, the claim's), then renamed to it:
-    the file is complete or absent, and nothing else is left on failure, which is a `NotWritten`.  `fsync`:
-    the data and the rename reach the disk first."""
+def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False, temporary: Path | None = None,
+           rename: Callable[[], None] | None = None) -> Path:
+    """write(temporary) beside `path` (unique to this writer, or the `temporary` given: a `claims.Claim`'s), then
+    renamed to it (by `rename`, if given): the file is complete or absent, and nothing else is left on failure,
+    which is a `NotWritten`.  `fsync`: the data and the rename reach the disk first."""
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise _not_written(path, error) from None
-    temporary = claim.temporary if claim else temporary_name(path)
+    temporary = temporary or temporary_name(path)
     try:
         write(temporary)
         if fsync:
             with open(temporary, "rb+") as handle:
                 os.fsync(handle.fileno())
-        if claim:
-            claim.replace()
+        if rename:
+            rename()
         else:
             os.replace(temporary, path)
     except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's "HDF error" on a full disk
@@ -207,81 +178,11 @@ def write_text(path: str | Path, text: str) -> Path:
     return atomic(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
 
 
-def write_atomic(ds: xr.Dataset, path: str | Path, claim: "Claim | None" = None) -> Path:
+def write_atomic(ds: xr.Dataset, path: str | Path, temporary: Path | None = None,
+                 rename: Callable[[], None] | None = None) -> Path:
     """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
-    beside it (a `claim`'s), fsync, rename; nothing else on failure (`NotWritten`)."""
-    return atomic(path, lambda into: netcdf_io.write(ds, into, netcdf.encoding(ds)), fsync=True, claim=claim)
-
-
-def _identity(path: Path) -> tuple | None:
-    """What tells a file from its replacement: device, inode, size, modification time (None: no file)."""
-    try:
-        found = os.stat(path)
-    except FileNotFoundError:
-        return None
-    return found.st_dev, found.st_ino, found.st_size, found.st_mtime_ns
-
-
-@contextlib.contextmanager
-def _directory_locked(directory: Path):
-    """This process alone looks at and renames files in `directory` for the block (a brief flock on the
-    directory itself; where the file system has no such locks, the block runs unlocked)."""
-    handle = os.open(directory, os.O_RDONLY)
-    try:
-        with contextlib.suppress(OSError):
-            fcntl.flock(handle, fcntl.LOCK_EX)
-        yield
-    finally:
-        os.close(handle)  # releases the lock
-
-
-class Claim:
-    """An output reserved for one run until its result is written (`claim`).
-
-    Its temporary (`temporary_name`) is made at once and tells other biostudy runs that the output is being
-    computed; the result is written into it and renamed over the output only if the output is still what it
-    was when claimed (`replace`), so a result is never silently replaced by another written meanwhile."""
-
-    def __init__(self, target: Path, temporary: Path, removed: list[Path]):
-        self.target, self.temporary, self.removed = target, temporary, removed
-        self.seen = _identity(target)
-        self._release = weakref.finalize(self, temporary.unlink, missing_ok=True)
-
-    def release(self) -> None:
-        """Give the output up (the temporary goes; a written result stays)."""
-        self._release()
-
-    def replace(self) -> None:
-        """Rename the written temporary over the output, unless the output changed since it was claimed: then
-        the result is kept beside it under a new name and `Failed` says where."""
-        with _directory_locked(self.target.parent):
-            if _identity(self.target) == self.seen:
-                os.replace(self.temporary, self.target)
-                return
-            for number in range(1, 1000):  # a name nothing has: link() never replaces a file
-                kept = self.target.with_name(f"{self.target.stem}.{number}{self.target.suffix}")
-                with contextlib.suppress(FileExistsError):
-                    os.link(self.temporary, kept)
-                    break
-            self.temporary.unlink()
-        raise Failed(f"{self.target} was changed by another program while this run computed; it is left as it "
-                     f"is, and this run's result is kept in {kept}")
-
-
-def claim(path: str | Path) -> Claim:
-    """Reserve `path` for this process's result: `BadInput` if another running process claimed it (its
-    temporary is there); the temporaries of writers that are gone (killed, even with SIGKILL) are removed."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with _directory_locked(path.parent):
-        removed = remove_temporaries(path.parent, of=path.name)
-        running = sorted(pid for _, pid in _temporaries(path.parent, path.name) if pid != os.getpid())
-        if running:
-            raise BadInput(f"another biostudy run (pid {running[0]}) is computing this output; wait for it to end, "
-                           "or choose another output", path)
-        temporary = temporary_name(path)
-        os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
-    return Claim(path, temporary, removed)
+    beside it, fsync, rename (`atomic`); nothing else on failure (`NotWritten`)."""
+    return atomic(path, lambda into: netcdf_io.write(ds, into, netcdf.encoding(ds)), True, temporary, rename)
 
 
 def _fsync_directory(directory: Path) -> None:
@@ -305,7 +206,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _temporaries(directory: Path, of: str | None = None) -> Iterable[tuple[Path, int]]:
+def temporaries(directory: Path, of: str | None = None) -> Iterable[tuple[Path, int]]:
     """(file, writer's pid) of the temporaries in `directory` (`temporary_name`), of the file named `of` only if
     given."""
     for leftover in Path(directory).glob(TMP_GLOB):
@@ -320,7 +221,7 @@ def remove_temporaries(directory: str | Path, of: str | None = None) -> list[Pat
     longer running left behind: never a file under a final name, nor one of another name pattern (a user's
     .draft.tmp), nor the temporary of a process still running (another sweep's file in flight)."""
     removed = []
-    for leftover, pid in _temporaries(Path(directory), of):
+    for leftover, pid in temporaries(Path(directory), of):
         if pid == os.getpid() or _alive(pid):
             continue
         leftover.unlink(missing_ok=True)

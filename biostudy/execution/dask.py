@@ -57,6 +57,7 @@ def _identity(address: str, timeout: float) -> dict:
     """What the scheduler at `address` says it is, asked directly with a deadline over connecting, the
     handshake and the answer (Dask's own connect waits forever for a peer that accepts and then says nothing)."""
     import asyncio
+    from concurrent.futures import ThreadPoolExecutor
 
     from distributed.comm import connect
     from distributed.security import Security
@@ -69,7 +70,8 @@ def _identity(address: str, timeout: float) -> dict:
         finally:
             await comm.close()
 
-    return asyncio.run(asyncio.wait_for(ask(), timeout))
+    with ThreadPoolExecutor(1) as thread:  # a loop of its own, also where one runs already (a notebook)
+        return thread.submit(asyncio.run, asyncio.wait_for(ask(), timeout)).result()
 
 
 class _Quiet:
@@ -108,7 +110,7 @@ class DaskCluster:
             raise BadInput(f"{address} is not a Dask scheduler (it answers as {kind})", "--scheduler")
         self.quiet = _Quiet()
         try:
-            self.client = Client(address, timeout=f"{CONNECT_TIMEOUT}s", set_as_default=False)  # cases only
+            self.client = Client(address, timeout=f"{CONNECT_TIMEOUT}s")
         except (OSError, TimeoutError, ValueError) as error:
             self.quiet.restore()
             raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", "--scheduler") from None

@@ -12,7 +12,7 @@ import contextlib
 from pathlib import Path
 from typing import Iterator
 
-from ..data import store
+from ..data import claims, store
 from ..errors import BadInput
 from ..inputs import resources
 from ..inputs.scene import Scene
@@ -39,9 +39,9 @@ def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool
         yield directory
 
 
-def claim_run(target: Path) -> store.Claim:
-    """The output of one run, reserved for it (`store.claim`): `BadInput` while another run computes it."""
-    return store.claim(target)
+def claim_run(target: Path) -> claims.Claim:
+    """The output of one run, reserved for it (`claims.claim`): `BadInput` while another run computes it."""
+    return claims.claim(target)
 
 
 def check_run(scene: Scene, scene_file: Path, target: Path, force: bool = False) -> str:

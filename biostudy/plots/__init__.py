@@ -31,7 +31,7 @@ import xarray as xr
 
 from solver.output import on_output_times
 
-from ..data.store import foreign
+from ..data.claims import foreign
 from ..quantities import observables
 from . import analysis, fields, isosurface, series, sweep, warped
 from .cuts import plane_for

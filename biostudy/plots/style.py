@@ -18,7 +18,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from ..data.store import atomic, mark
+from ..data.claims import mark
+from ..data.store import atomic
 from ..formatting import number, shown_units
 
 OBSTACLE_GREY = "0.6"
@@ -133,7 +134,7 @@ METADATA_KEY = {"png": "Software", "pdf": "Creator", "svg": "Creator", "ps": "Cr
 
 def save(fig, path: Path) -> Path:
     """Write the figure to `path` atomically (a temporary beside it, renamed): complete or absent.  PNG, PDF,
-    SVG and PostScript files carry biostudy's mark in their metadata (`store.mark`), so that a later plot may
+    SVG and PostScript files carry biostudy's mark in their metadata (`claims.mark`), so that a later plot may
     replace them."""
     kind = path.suffix.lstrip(".").lower() or "png"
     metadata = {METADATA_KEY[kind]: mark()} if kind in METADATA_KEY else None
