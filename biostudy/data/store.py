@@ -125,9 +125,9 @@ def mount_point(path: str | Path) -> Path:
     return path
 
 
-def _not_written(path: Path, error: BaseException) -> NotWritten | None:
+def _not_written(path: Path, error: OSError | RuntimeError) -> NotWritten:
     """What a failed write is told as: a full disk (ENOSPC, or almost nothing left, as HDF5's errors do not
-    say), or the system's reason; None for an error that is not about the file (a bug, to be raised as it is)."""
+    say), or the system's (or netCDF's) reason."""
     code = getattr(error, "errno", None)
     try:
         free = shutil.disk_usage(path.parent).free
@@ -136,9 +136,8 @@ def _not_written(path: Path, error: BaseException) -> NotWritten | None:
     if code in (errno.ENOSPC, errno.EDQUOT) or (free is not None and free < FULL_BELOW):
         return NotWritten(errno.ENOSPC, f"cannot write {path}: the disk is full (the file system at "
                                         f"{mount_point(path)}, {size(free or 0).lstrip('~')} free)")
-    if isinstance(error, OSError):
-        return NotWritten(code or errno.EIO, f"cannot write {path} ({error.strerror or first_line(error)})")
-    return None
+    reason = getattr(error, "strerror", None) or first_line(error)
+    return NotWritten(code or errno.EIO, f"cannot write {path} ({reason})")
 
 
 def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False, temporary: Path | None = None,
@@ -161,11 +160,8 @@ def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = Fals
             rename()
         else:
             os.replace(temporary, path)
-    except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's "HDF error" on a full disk
-        told = _not_written(path, error)
-        if told is None:
-            raise
-        raise told from None
+    except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's, e.g. "HDF error" on a full disk
+        raise _not_written(path, error) from None
     finally:
         temporary.unlink(missing_ok=True)
     if fsync:

@@ -143,8 +143,8 @@ class DaskCluster:
         except Exception as error:  # the scheduler is gone too
             raise self._lost(error) from None
         if not workers:
-            self.note(f"waiting for workers on {self.address}: none is connected ({len(self.running)} cases "
-                      "submitted wait for them)")
+            waiting = f" ({len(self.running)} cases submitted wait for them)" if self.running else ""
+            self.note(f"waiting for workers on {self.address}: none is connected{waiting}")
 
     def finished(self) -> list[tuple[str, Outcome]]:
         from distributed import wait

@@ -189,7 +189,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
         ids.append(job.id)
         events.append(("start", job.id, ""))
     if foreign:
-        raise BadInput(foreign[0].problem, foreign[0].file, more=tuple(foreign[1:]))
+        raise BadInput.every(foreign)
 
     estimates = {i: resources.estimate(by_id[i].scene) for i in ids}
     too_big = resources.run_problem(estimates, 0 if scheduler else (workers or 1), out_dir,
@@ -221,8 +221,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
 
 
 def _kept(report: SweepReport, to_run: int) -> str:
-    """What an interrupted sweep kept: 'the 3 cases recorded in DIR/cases/ are kept (2 of 5 not run); run the
-    same command again to resume'."""
+    """What an interrupted sweep kept: '3 cases recorded in DIR/cases are kept (2 of 5 to run did not finish);
+    run the same command again to resume'."""
     recorded = len(report.ran) + len(report.skipped)
     return (f"{recorded} case{'s' if recorded != 1 else ''} recorded in {report.study.parent / 'cases'} "
             f"{'are' if recorded != 1 else 'is'} kept ({to_run - len(report.ran)} of {to_run} to run did not "

@@ -135,13 +135,15 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False,
     """Lock `directory` (created if needed) for this process and make sure it belongs to `owner` (or take
     it over with `force`); held until the block ends.  check(directory, biostudy's) runs before the owner
     record is written, told whether a biostudy run owned the directory before (so its damaged files are
-    biostudy's).  `BadInput` from the claim, the check or the block leaves the directory as it was found."""
+    biostudy's).  `BadInput` from the claim, the check or the block (before it recorded a case) leaves the
+    directory as it was found."""
     directory = Path(directory)
     made = _missing(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
         had = {name: (directory / name).exists() for name in (LOCK, "cases")}
         previous = _read(directory / OWNER)
+        cases = _names(directory / "cases")
         fd = _lock(directory)
     except FileExistsError:
         raise BadInput("is a file, not a directory", directory) from None
@@ -159,7 +161,9 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False,
                              "keys": list(owner.keys)})
         store.write_text(directory / OWNER, record)
         yield directory
-    except BadInput:  # refused: the directory as it was found
+    except BadInput:  # refused: the directory as it was found, unless cases were recorded meanwhile
+        if _names(directory / "cases") - cases:
+            raise
         if previous is None:
             (directory / OWNER).unlink(missing_ok=True)
         else:
@@ -172,6 +176,13 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False,
         raise
     finally:
         os.close(fd)  # releases the lock
+
+
+def _names(directory: Path) -> set[str]:
+    try:
+        return {p.name for p in directory.iterdir()}
+    except OSError:
+        return set()
 
 
 def _remove_empty(directories: list[Path]) -> None:

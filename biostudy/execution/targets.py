@@ -33,7 +33,7 @@ def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool
             except BadInput as error:
                 problems.append(error)
         if problems:
-            raise BadInput(problems[0].problem, problems[0].file, more=tuple(problems[1:]))
+            raise BadInput.every(problems)
 
     with ownership.claimed(out_dir, owner, force, check) as directory:
         yield directory
