@@ -50,6 +50,16 @@ class BadInput(Exception):
         """Every problem, one line each."""
         return [str(self), *(str(other) for other in self.more)]
 
+    @classmethod
+    def every(cls, errors: list["BadInput"]) -> "BadInput":
+        """One `BadInput` telling all the problems of `errors` (each with its own `more`), each once."""
+        found = []
+        for error in errors:
+            for one in (error, *error.more):
+                if str(one) not in map(str, found):
+                    found.append(BadInput(one.problem, one.file, one.key))
+        return BadInput(found[0].problem, found[0].file, found[0].key, tuple(found[1:]))
+
     def within(self, file: str | Path) -> "BadInput":
         """The same problem, attributed to `file` unless it already names one."""
         return self if self.file else BadInput(self.problem, file, self.key, self.more)

@@ -56,6 +56,8 @@ def main(names: list[str]) -> None:
     for name in names:
         data = OUT / f"{name}.nc"
         biostudy("run", f"studies/{name}.toml", "-o", str(data), "-q")
+        for earlier in OUT.glob(f"{name}_*.png"):  # drawn again; those of a version before biostudy's mark would
+            earlier.unlink()                        # not be replaced (README, "Nothing lost, nothing hung")
         began = time.perf_counter()
         biostudy("plot", str(data), "-o", str(OUT / f"{name}.png"), "--warp", "500")
         drawn = time.perf_counter() - began

@@ -168,7 +168,7 @@ def test_another_study_is_refused_unless_forced(write_toml, tiny_study, tmp_path
     (folder / "draft.tex").write_text("mine")
     line = one_line_error(invoke("sweep", tiny_study, "-o", folder, "-q"))
     assert "holds files that no biostudy run recorded as its own (draft.tex)" in line
-    assert sorted(os.listdir(folder)) == [".biostudy.lock", "draft.tex"]
+    assert sorted(os.listdir(folder)) == ["draft.tex"]  # refused: the folder as it was (issue 21, item 8)
     forced = invoke("sweep", other, "-o", out, "-q", "--force")
     assert forced.exit_code == 0 and xr.open_dataset(out / "study.nc").attrs["sweep_keys"] == "g"
 
@@ -225,7 +225,7 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     raw[at + 64:at + 64 + damaged] = b"\x7f" * damaged  # garbage inside the chunk, the size unchanged
     path.write_bytes(raw)
     assert not store.intact(path) and store.recorded(path)["status"] == "done"
-    assert "damaged: its data cannot be read" in one_line_error(invoke("show", path))
+    assert "damaged: it cannot be read whole" in one_line_error(invoke("show", path))
     study_nc = (out / "study.nc").read_bytes()
     (out / "study.nc").write_bytes(study_nc[:8] + b"\0" * (len(study_nc) - 8))  # beyond reading: replaced
     report = sweep(plan, out)
@@ -420,7 +420,7 @@ def test_too_many_outputs_workers_or_bytes_are_refused_before_running(tiny_scene
                                                                      no_simulation):
     monkeypatch.setattr(resources, "available_memory", lambda: 0.5e9)
     line = one_line_error(invoke("run", tiny_scene, "-o", tmp_path / "o.nc", "--set", "time.outputs=1000000"))
-    assert line.startswith(f"error: {tiny_scene}: needs ~") and "of memory, 500 MB available (tiny: " in line
+    assert line.startswith("error: --set: time.outputs: needs ~") and "of memory, 500 MB available (tiny: " in line
     assert "outputs ~" in line
     out = tmp_path / "out"
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
@@ -429,7 +429,7 @@ def test_too_many_outputs_workers_or_bytes_are_refused_before_running(tiny_scene
     monkeypatch.setattr(resources, "free_disk", lambda path: 1e3)
     line = one_line_error(invoke("run", tiny_scene, "-o", tmp_path / "o.nc"))
     assert "of disk for its datasets, 1 kB free" in line
-    assert sorted(os.listdir(tmp_path)) == ["out", "tiny-sweep.toml", "tiny.toml"]
+    assert sorted(os.listdir(tmp_path)) == ["tiny-sweep.toml", "tiny.toml"]  # refused: no out/ (issue 21, item 8)
 
 
 def test_show_tells_what_a_scene_or_a_study_needs(tiny_scene, tiny_study):

@@ -203,7 +203,7 @@ def test_sweep_on_a_dask_cluster_over_tls(tiny_study, tmp_path):
 
 
 def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
-    monkeypatch.setattr(dask, "CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(dask, "CONNECT_TIMEOUT", 1.0)
     result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert result.exit_code == 2
     assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")

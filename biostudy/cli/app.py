@@ -13,6 +13,7 @@ import contextlib
 import enum
 import os
 import signal
+import sys
 from pathlib import Path
 from typing import Annotated, Callable, List, Optional
 
@@ -40,7 +41,37 @@ from .options import (
     overrides,
 )
 
-app = typer.Typer(name="biostudy", no_args_is_help=True, pretty_exceptions_enable=False,
+_USAGE_ERROR = typer.BadParameter.__mro__[1]  # click's UsageError, wherever this typer takes click from
+_CLICK_ERROR = _USAGE_ERROR.__mro__[1]  # click's ClickException
+
+
+class _OneLineErrors(typer.core.TyperGroup):
+    """Usage errors (an unknown option, a missing argument, a value out of range) told in one line, exit status
+    2, as every other error: "error: biostudy run: No such option: --bogus (biostudy run -h lists them)"."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        try:
+            status = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except _USAGE_ERROR as error:
+            if type(error).__name__ == "NoArgsIsHelpError":  # `biostudy` alone: the help, as typer shows it
+                error.show()
+                sys.exit(error.exit_code)
+            command = error.ctx.command_path if error.ctx else "biostudy"
+            message = " ".join(error.format_message().split())
+            typer.echo(f"error: {command}: {message} (see `{command} -h`)", err=True)
+            sys.exit(2)
+        except _CLICK_ERROR as error:
+            typer.echo(f"error: {' '.join(error.format_message().split())}", err=True)
+            sys.exit(error.exit_code)
+        except typer.Abort:
+            typer.echo("interrupted", err=True)
+            sys.exit(130)
+        sys.exit(status if isinstance(status, int) else 0)
+
+
+app = typer.Typer(name="biostudy", cls=_OneLineErrors, no_args_is_help=True, pretty_exceptions_enable=False,
                   context_settings={"help_option_names": ["-h", "--help"]},
                   help="Parameter studies of biofilm growth: run scenes, sweep studies, inspect results.")
 

@@ -90,7 +90,8 @@ def simulation(name: str, t_end: float, quiet: bool):
 @contextlib.contextmanager
 def jobs(title: str, quiet: bool, noun: str = "cases"):
     """Progress over the jobs of a sweep, convergence, stability or calibration run; yields `run_jobs`'
-    notify.  A job that fails is told at once (also with --quiet): the others go on.  The bar shows from the
+    notify.  A job that fails is told at once (also with --quiet): the others go on; so is a note (event
+    "note": no workers on a Dask scheduler, say).  The bar shows from the
     first job on: input found bad before (an output directory in use, say) is told on its own line.  When
     every job had finished before, it says so instead of showing an empty bar."""
     console = err()
@@ -106,7 +107,9 @@ def jobs(title: str, quiet: bool, noun: str = "cases"):
         def notify(event: str, job_id: str, message: str):
             if not progress.live.is_started:
                 progress.start()
-            if event == "skip":
+            if event == "note":  # something to know while waiting (no workers): also with --quiet
+                progress.console.print(message, markup=False, highlight=False)
+            elif event == "skip":
                 counts["skip"] += 1
                 counts["failed before"] += message == "failed"
             elif event == "start":

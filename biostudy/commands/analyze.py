@@ -2,9 +2,9 @@
 
 Writes DIR/analysis.nc, analysis.md and two pictures (the indices with their
 intervals; the outputs against each parameter).  A sweep that is still
-running, or was interrupted, has not written study.nc yet: its cases are
-combined in memory (`current`), nothing is written into the directory its
-sweep owns.
+running, or was interrupted, has not written study.nc yet, and a study.nc
+may be damaged: its cases are combined in memory (`current`), nothing is
+written into the directory its sweep owns.
 """
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import os
 import tomllib
 from pathlib import Path
 
-import netCDF4
 import numpy as np
 import xarray as xr
 
 from ..data import combine, store
 from ..errors import BadInput
+from ..inputs.keys import key_parts
 from ..inputs.tomltext import literal
 from ..plans.study import load_study
 from ..plots.analysis import indices_figure, sample_figure, scatter_figure
@@ -31,23 +31,39 @@ from ..reports.sensitivity import table_text, time_indices, variable
 def current(source: Path) -> xr.Dataset:
     """study.nc's contents up to date with DIR/cases/.  Combined in memory from the study file it records
     (with the overrides study.nc records), when that file is still there and a case file is newer than
-    study.nc; else study.nc as it is.  Nothing is written: the directory belongs to its sweep (`ownership`)."""
+    study.nc, or study.nc is damaged or missing (then from the study file and the overrides a case file
+    records); else study.nc as it is.  A damaged case file is `BadInput`.  Nothing is written: the directory
+    belongs to its sweep (`ownership`)."""
     cases = sorted(source.parent.joinpath("cases").glob("*.nc"), key=lambda p: p.stat().st_mtime)
     if not cases or (source.is_file() and source.stat().st_mtime >= cases[-1].stat().st_mtime):
-        return store.open_dataset(source)
-    record = source if source.is_file() else cases[-1]
-    try:
-        with netCDF4.Dataset(record) as nc:
-            attrs = {name: nc.getncattr(name) for name in ("study_file", "overrides") if name in nc.ncattrs()}
-    except OSError:
-        return store.open_dataset(source)
+        try:
+            return store.open_dataset(source)
+        except BadInput:
+            if not cases:
+                raise
+    records = [source, *reversed(cases)] if source.is_file() else list(reversed(cases))
+    record, attrs = next(((r, a) for r in records if (a := store.attributes(r)) is not None), (None, {}))
     study_file = attrs.get("study_file")
     if not study_file or not os.path.isfile(study_file):
         return store.open_dataset(source)
-    common = tomllib.loads(str(attrs.get("overrides", ""))) if record == source else {}
-    plan = load_study(study_file, [f"{key}={literal(value)}" for key, value in common.items()])
+    plan = load_study(study_file, _common(attrs, record == source, study_file))
+    damaged = [BadInput("damaged: it cannot be read whole; run the sweep again to compute it again", path)
+               for path in (store.case_file(source.parent, case.id) for case in plan.cases)
+               if path.exists() and not store.intact(path)]
+    if damaged:
+        raise BadInput.every(damaged)
     with contextlib.ExitStack() as opened:
         return combine.combine(plan, source.parent, opened).load()
+
+
+def _common(attrs: dict, study: bool, study_file: str) -> list[str]:
+    """The overrides every case had, as --set arguments: study.nc's `overrides`, or a case file's without the
+    keys the study varies."""
+    given = tomllib.loads(str(attrs.get("overrides", "")))
+    if not study:
+        varied = {tuple(key_parts(key)) for key in load_study(study_file).keys}
+        given = {key: value for key, value in given.items() if tuple(key_parts(key)) not in varied}
+    return [f"{key}={literal(value)}" for key, value in given.items()]
 
 
 def analyze(source: str | Path, *, outputs: list[str] | None = None,

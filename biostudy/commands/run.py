@@ -7,7 +7,10 @@ observable (`quantities.observables`) besides the fields, and each key an
 override set as a dimension of length 1 (`combine.run_layout`), so runs of one
 scene with different ``--set`` values combine with ``xr.open_mfdataset``.
 ``continue_from`` goes on from a finished run of the same scene
-(`data.continuation`): the dataset is then the whole history.
+(`data.continuation`): the dataset is then the whole history.  The output is
+claimed for this run (`claims.claim`): a second run into the same output is
+refused while this one computes, and a file written there meanwhile by anything
+else is not replaced.
 """
 from __future__ import annotations
 
@@ -22,9 +25,9 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import combine, continuation, store
+from ..data import claims, combine, continuation, store
 from ..errors import Failed
-from ..execution.targets import check_run
+from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
@@ -42,6 +45,7 @@ class Loaded:
     replacing: str  # what the final message adds when the target is replaced ("" if nothing is)
     previous: xr.Dataset | None = None  # the run it continues
     previous_path: Path | None = None
+    claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
 
 
 @dataclass(frozen=True)
@@ -72,10 +76,11 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     NAME.nc); bad input is `BadInput`."""
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}
-        path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"))
+        path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"),
+                                             runs_here=True)
     else:
         path = bundled.resolve(scene)
-        loaded = load_scene(path, overrides)
+        loaded = load_scene(path, overrides, runs_here=True)
     previous = None
     if continue_from is not None:
         continue_from = Path(continue_from)
@@ -84,12 +89,11 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
         return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
     target = Path(output) if output is not None else default_output(loaded, continue_from)
     replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [])
-    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from)
+    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
 
 
-def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
-    """Simulate and write the dataset (stamped with the scene, its file, the overrides and the software);
-    a simulation that fails, or a dataset that cannot be written, is `Failed`."""
+def _simulated(loaded: Loaded, progress) -> xr.Dataset:
+    """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped."""
     problem = loaded.scene.problem()
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
@@ -107,9 +111,24 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
     layout = combine.run_layout(pairs, ds)
     ds = layout.apply(ds) if layout else ds
-    if loaded.target is not None:
-        try:
-            store.write_atomic(ds, loaded.target)
-        except OSError as error:  # e.g. the disk filled up while it ran
-            raise Failed(f"cannot write {loaded.target} ({error.strerror or error}); the result is lost") from None
+    return ds
+
+
+def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
+    """Simulate and write the dataset (stamped with the scene, its file, the overrides and the software);
+    a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here."""
+    try:
+        ds = _simulated(loaded, progress)
+        if loaded.target is not None:
+            try:
+                if loaded.claim is not None:
+                    loaded.claim.write_dataset(ds)
+                else:
+                    store.write_atomic(ds, loaded.target)
+            except OSError as error:  # e.g. the disk filled up while it ran (`store.NotWritten`)
+                kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+                raise Failed(f"{error}; this run's result is lost ({kept})") from None
+    finally:
+        if loaded.claim is not None:
+            loaded.claim.release()
     return Result(ds, loaded.target, loaded.replacing)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..data import combine
 from ..errors import BadInput
-from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
+from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
 from ..plans.cases import Plan
@@ -70,8 +70,17 @@ def run_study(plan: Plan, directory: str | Path, execution: Execution = Executio
     with owned(directory, plan_owner(plan, "study"), "study.nc", execution.force, shared=share is not None):
         report = run_jobs(jobs, directory, execution, tidy=share is None)
         if share is None:
-            combine.write_study(plan, Path(directory))
+            write_study(plan, Path(directory))
     return report
+
+
+def write_study(plan: Plan, directory: Path) -> Path:
+    """DIR/study.nc from the case files; a write that fails (a full disk) says the case files are kept."""
+    try:
+        return combine.write_study(plan, directory)
+    except OSError as error:  # `store.NotWritten`, e.g. a full disk
+        raise SweepError(f"{error}; the case files in {directory / 'cases'} are kept: run the same command again "
+                         "to write study.nc (nothing is computed again)") from None
 
 
 def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Path:
@@ -82,7 +91,7 @@ def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Pat
         raise BadInput("has no cases/ directory: nothing to combine (run the study, or its array tasks, first)",
                        directory)
     with owned(directory, plan_owner(plan, "study"), "study.nc", force):
-        return combine.write_study(plan, directory)
+        return write_study(plan, directory)
 
 
 @dataclass

@@ -38,7 +38,7 @@ from solver.output import cf_units
 from ..inputs.keys import dimension, id_text
 from ..inputs.scene import key_info, overrides_text
 from ..quantities import observables
-from . import netcdf, store
+from . import netcdf, netcdf_io, store
 
 if TYPE_CHECKING:
     from ..plans.cases import Plan
@@ -220,7 +220,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         record = store.recorded(path) or {}
         status = str(record.get("status", "missing"))
         if status == "done":
-            ds = _as_run(opened.enter_context(xr.open_dataset(path, engine="netcdf4", chunks={})), coords)
+            ds = _as_run(opened.enter_context(netcdf_io.open_dataset(path, chunks={})), coords)
             datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
         records[case.id] = (status, str(record.get("message", "")), record)
     done = list(datasets.values())

@@ -15,7 +15,10 @@ Every file has the same arrays.  The mechanics is solved at some outputs only
 where it was solved (`mechanics_time` < `TimeValue`), so a warped animation
 holds the last deformed state instead of jumping back to the undeformed body.
 `series.pvd` lists the snapshots with their times (T*): opening it in ParaView
-loads the whole series with a working time slider.
+loads the whole series with a working time slider.  Every file carries
+biostudy's mark in a comment: a file of these names that does not is never
+replaced, and the extra snapshots of an earlier, longer export into the same
+directory are removed.
 
 Obstacles are left out of the mesh: their cells are removed, and the nodes
 that only obstacle cells use with them.  ParaView then shows the obstacles
@@ -34,6 +37,7 @@ import xarray as xr
 from solver import Grid
 from solver.problem import AXES
 
+from .claims import foreign, mark, marked
 from .store import atomic
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
@@ -86,17 +90,23 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
         raise ValueError(f"{directory} is a file, not a directory for the snapshots")
+    foreign([directory / SNAPSHOT.format(t) for t in range(ds.sizes["time"])] + [directory / COLLECTION],
+            "a ParaView file")  # before anything is written
     created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     try:
-        return _write_series(ds, directory, written)
+        written = _write_series(ds, directory, written)
     except BaseException:  # nothing half-written: this call's files go, and the directory if it made it
         for path in written:
             path.unlink(missing_ok=True)
         if created and not any(directory.iterdir()):
             directory.rmdir()
         raise
+    for stale in directory.glob("snapshot_*.vtu"):  # of an earlier, longer export: biostudy's own go
+        if stale not in written and marked(stale):
+            stale.unlink()
+    return written
 
 
 def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[Path]:
@@ -180,6 +190,7 @@ def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -
     """Add what meshio's VTU writer leaves out: field data (one value each, e.g. `TimeValue`) and the
     active scalars and vectors."""
     tree = ET.parse(path)
+    tree.getroot().insert(0, ET.Comment(f" {mark()} "))  # tells biostudy's files from others' (`claims.marked`)
     grid = tree.getroot().find("UnstructuredGrid")
     if field_data:
         block = ET.Element("FieldData")
@@ -198,6 +209,7 @@ def _annotate(path: Path, field_data: dict, scalars: str, vectors: str | None) -
 def _write_collection(path: Path, files: list[Path], times: np.ndarray) -> Path:
     """The PVD file: every snapshot with its time, file names relative to the PVD."""
     root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
+    root.append(ET.Comment(f" {mark()} "))
     collection = ET.SubElement(root, "Collection")
     for file, when in zip(files, times):
         ET.SubElement(collection, "DataSet", timestep=time_text(when), group="", part="0", file=file.name)

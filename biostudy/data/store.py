@@ -11,12 +11,17 @@ sweep in that directory removes once that process is gone; other files,
 and the temporaries of processes still running, are never touched.
 
 Every numeric variable of more than one value carries a fletcher32 checksum
-per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), so
-`intact` tells a damaged file from a good one even when the damage keeps its
-size.  `writable` and `replaceable` check a
-target before anything is computed: a result is never lost to an unwritable
-path afterwards, and never overwrites an input or a file biostudy did not
-write.
+per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), and
+HDF5 checksums its headers, so `intact` tells a damaged file from a good one
+even when the damage keeps its size: a file that cannot be read whole
+(header, attributes or data) is damaged.  `writable` and `replaceable` check
+a target before anything is computed: a result is never lost to an
+unwritable path afterwards, and never overwrites an input or a file biostudy
+cannot prove it wrote (a damaged file included).  A write that fails is a
+`NotWritten` naming the file and why, a full disk by its file system.
+netCDF files are read and written through `netcdf_io`, which an interruption
+cannot leave waiting on a lock.  `claims`: an output reserved for one run, and
+files told apart as biostudy's by a mark.
 
 A sweep keeps one file per case, ``DIR/cases/<case id>.nc``: the dataset of
 a finished run (``status = "done"``) or, for a run that failed, a record
@@ -27,12 +32,14 @@ re-running a study skips exactly the cases whose inputs have not changed.
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import hashlib
 import importlib.metadata
 import math
 import os
 import re
 import secrets
+import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
@@ -41,12 +48,15 @@ import numpy as np
 if TYPE_CHECKING:
     import xarray as xr  # imported where a dataset is read or made: `show` of a run's file needs none
 
-from ..errors import BadInput, first_line
+from ..errors import BadInput, Failed, first_line
+from ..inputs.resources import size
 from . import netcdf
 
 TMP_GLOB = ".*.tmp"
 TEMPORARY = re.compile(r"^\..+\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")  # .NAME.PID.TOKEN.tmp, see `temporary_name`
 CASE_NAME_BYTES = 150  # a case file's name stays well within the 255 bytes of a file name, temporary suffix included
+FULL_BELOW = 1 << 20  # bytes free on a file system that failed a write: it is full
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 def version() -> str:
@@ -111,18 +121,62 @@ def temporary_name(path: Path) -> Path:
     return path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
 
 
-def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False) -> Path:
-    """write(temporary) beside `path` (unique to this writer), then renamed to it: the file is complete or
-    absent, and nothing else is left on failure.  `fsync`: the data and the rename reach the disk first."""
+class NotWritten(OSError, Failed):
+    """A file that could not be written; str() is one line: the file and why (a full disk: which one, and what
+    is free on it).  Nothing of it is left behind.  A `Failed` (exit status 1) where no caller says more."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
+def mount_point(path: str | Path) -> Path:
+    """The directory a file system holding `path` (or its nearest existing ancestor) is mounted at."""
+    path = Path(path).absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    device = path.stat().st_dev
+    while path != path.parent and path.parent.stat().st_dev == device:
+        path = path.parent
+    return path
+
+
+def _not_written(path: Path, error: OSError | RuntimeError) -> NotWritten:
+    """What a failed write is told as: a full disk (ENOSPC, or almost nothing left, as HDF5's errors do not
+    say), or the system's (or netCDF's) reason."""
+    code = getattr(error, "errno", None)
+    try:
+        free = shutil.disk_usage(path.parent).free
+    except OSError:
+        free = None
+    if code in (errno.ENOSPC, errno.EDQUOT) or (free is not None and free < FULL_BELOW):
+        return NotWritten(errno.ENOSPC, f"cannot write {path}: the disk is full (the file system at "
+                                        f"{mount_point(path)}, {size(free or 0).lstrip('~')} free)")
+    reason = getattr(error, "strerror", None) or first_line(error)
+    return NotWritten(code or errno.EIO, f"cannot write {path} ({reason})")
+
+
+def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = False, temporary: Path | None = None,
+           rename: Callable[[], None] | None = None) -> Path:
+    """write(temporary) beside `path` (unique to this writer, or the `temporary` given: a `claims.Claim`'s), then
+    renamed to it (by `rename`, if given): the file is complete or absent, and nothing else is left on failure,
+    which is a `NotWritten`.  `fsync`: the data and the rename reach the disk first."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = temporary_name(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise _not_written(path, error) from None
+    temporary = temporary or temporary_name(path)
     try:
         write(temporary)
         if fsync:
             with open(temporary, "rb+") as handle:
                 os.fsync(handle.fileno())
-        os.replace(temporary, path)
+        if rename:
+            rename()
+        else:
+            os.replace(temporary, path)
+    except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's, e.g. "HDF error" on a full disk
+        raise _not_written(path, error) from None
     finally:
         temporary.unlink(missing_ok=True)
     if fsync:
@@ -135,11 +189,13 @@ def write_text(path: str | Path, text: str) -> Path:
     return atomic(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
 
 
-def write_atomic(ds: xr.Dataset, path: str | Path) -> Path:
+def write_atomic(ds: xr.Dataset, path: str | Path, temporary: Path | None = None,
+                 rename: Callable[[], None] | None = None) -> Path:
     """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
-    beside it, fsync, rename; nothing else on failure."""
-    return atomic(path, lambda temporary: ds.to_netcdf(temporary, engine="netcdf4", format="NETCDF4",
-                                                       encoding=netcdf.encoding(ds)), fsync=True)
+    beside it, fsync, rename (`atomic`); nothing else on failure (`NotWritten`)."""
+    from . import netcdf_io  # lazily: xarray only where a dataset is read or written (`show` of a run needs none)
+
+    return atomic(path, lambda into: netcdf_io.write(ds, into, netcdf.encoding(ds)), True, temporary, rename)
 
 
 def _fsync_directory(directory: Path) -> None:
@@ -163,14 +219,23 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def remove_temporaries(directory: str | Path) -> list[Path]:
-    """Delete the temporary files (`temporary_name`) that writers no longer running left behind: never a
-    file under a final name, nor one of another name pattern (a user's .draft.tmp), nor the temporary of a
-    process still running (another sweep's file in flight)."""
-    removed = []
+def temporaries(directory: Path, of: str | None = None) -> Iterable[tuple[Path, int]]:
+    """(file, writer's pid) of the temporaries in `directory` (`temporary_name`), of the file named `of` only if
+    given."""
     for leftover in Path(directory).glob(TMP_GLOB):
         match = TEMPORARY.match(leftover.name)
-        if not match or int(match["pid"]) == os.getpid() or _alive(int(match["pid"])):
+        if match and (of is None or leftover.name.startswith(f".{of}.") and
+                      leftover.name.count(".") == of.count(".") + 4):
+            yield leftover, int(match["pid"])
+
+
+def remove_temporaries(directory: str | Path, of: str | None = None) -> list[Path]:
+    """Delete the temporary files (`temporary_name`; of the file named `of` only, if given) that writers no
+    longer running left behind: never a file under a final name, nor one of another name pattern (a user's
+    .draft.tmp), nor the temporary of a process still running (another sweep's file in flight)."""
+    removed = []
+    for leftover, pid in temporaries(Path(directory), of):
+        if pid == os.getpid() or _alive(pid):
             continue
         leftover.unlink(missing_ok=True)
         removed.append(leftover)
@@ -196,31 +261,46 @@ def writable(path: str | Path) -> None:
         raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
 
 
-def _attributes(path: Path) -> dict | None:
-    """The global attributes of a netCDF file, or None if it is not one (or cannot be read)."""
+def attributes(path: Path) -> dict | None:
+    """The global attributes of a netCDF file, or None if it is not one or cannot be read whole (a damaged
+    header: HDF5 raises AttributeError, KeyError, ... as well as OSError)."""
     import netCDF4
 
     try:
         with netCDF4.Dataset(path) as nc:
             return {name: nc.getncattr(name) for name in nc.ncattrs()}
-    except (OSError, RuntimeError, ValueError):
+    except Exception:
         return None
 
 
-def replaceable(path: str | Path, inputs: Iterable[str | Path] = ()) -> dict | None:
+def _looks_like_netcdf(path: Path) -> bool:
+    """Whether a file begins as a netCDF file does (HDF5's signature, or netCDF-3's 'CDF')."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(8)
+    except OSError:
+        return False
+    return head == HDF5_SIGNATURE or head[:3] == b"CDF"
+
+
+def replaceable(path: str | Path, inputs: Iterable[str | Path] = (), damaged_ok: bool = False) -> dict | None:
     """Whether a new dataset may replace `path`: None if there is nothing there, the old file's attributes if
-    it is a dataset biostudy wrote; `BadInput` if it is one of `inputs` or any other file."""
+    it is a dataset biostudy wrote; `BadInput` if it is one of `inputs` or any other file, a netCDF file too
+    damaged to tell who wrote it included (unless `damaged_ok`: it lies where only biostudy writes, e.g. in a
+    directory a study owned before; then {})."""
     path = Path(path)
     if not path.exists():
         return None
     for given in inputs:
         if Path(given).exists() and os.path.samefile(path, given):
             raise BadInput(f"is an input of this run ({given}); choose another output", path)
-    attrs = _attributes(path) if path.is_file() else None
-    if attrs is None and path.is_file():
-        with open(path, "rb") as handle:
-            if handle.read(8) == b"\x89HDF\r\n\x1a\n":
-                return {}  # a netCDF4 file too damaged to read: nothing in it is left to keep
+    attrs = attributes(path) if path.is_file() else None
+    if attrs is None and path.is_file() and _looks_like_netcdf(path):
+        if damaged_ok:
+            return {}
+        raise BadInput("exists and is a damaged or truncated netCDF file, so biostudy cannot tell whether it wrote "
+                       "it; refusing to overwrite it, --force or not (choose another output, or remove the file "
+                       "first)", path)
     if attrs is None or "biostudy_version" not in attrs:
         raise BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it (choose another "
                        "output, or remove the file first)", path)
@@ -238,19 +318,23 @@ def _bounded(name: str) -> str:
 
 def open_dataset(path: str | Path) -> xr.Dataset:
     """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
-    an unreadable or damaged file is `BadInput`."""
-    import xarray as xr
-
+    a file that is not netCDF, or one that cannot be read whole (damaged), is `BadInput` in one line."""
     path = Path(path)
     if not path.is_file():
-        raise BadInput("no such file", path)
+        raise BadInput("no such file" if not path.exists() else "is not a regular file", path)
+    from . import netcdf_io  # lazily, as in `write_atomic`
+
     try:
-        with xr.open_dataset(path, engine="netcdf4") as ds:
+        ds = netcdf_io.open_dataset(path)
+        try:
             return netcdf.as_run(ds.load())
-    except (OSError, ValueError) as error:
-        raise BadInput(f"not a netCDF dataset ({first_line(error)})", path) from None
-    except RuntimeError as error:  # netCDF4/HDF5 while reading data: a checksum that does not match
-        raise BadInput(f"damaged: its data cannot be read ({first_line(error)})", path) from None
+        finally:
+            ds.close()
+    except Exception as error:  # netCDF4/HDF5: OSError, RuntimeError (a checksum), AttributeError (a header), ...
+        if not _looks_like_netcdf(path):
+            raise BadInput(f"not a netCDF dataset ({first_line(error)})", path) from None
+        raise BadInput(f"damaged: it cannot be read whole ({first_line(error)}); a sweep computes a damaged case "
+                       "again when run again", path) from None
 
 
 def kind(ds: xr.Dataset) -> str:
@@ -273,6 +357,12 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
     file that is not of the kinds it takes (`kind`), e.g. a netCDF file biostudy did not write."""
     ds = open_dataset(path)
     found = kind(ds)
+    if found == "study":
+        dims = [d.strip() for d in str(ds.attrs.get("sweep_dimensions", "")).split(",") if d.strip()]
+        missing = [v for v in ("case_id", "status") if v not in ds] + [d for d in dims if d not in ds.dims]
+        if missing or not dims:
+            raise BadInput(f"a study.nc without {', '.join(missing) or 'sweep_dimensions'}: not as biostudy writes "
+                           "one (damaged or edited); running its sweep again writes it anew from cases/", path)
     if found in wanted:
         return ds
     reason = {
@@ -287,8 +377,8 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
 
 
 def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
-    """Whether every numeric variable of a netCDF file reads back (checksums verified where it has them),
-    read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
+    """Whether a netCDF file reads back whole: every attribute, and every numeric variable (checksums verified
+    where it has them), read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
 
     Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
     checksum and are not read: read through a second handle of a file that is open elsewhere in this
@@ -298,7 +388,11 @@ def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
     try:
         with netCDF4.Dataset(path) as nc:
             nc.set_auto_mask(False)
+            for name in nc.ncattrs():
+                nc.getncattr(name)
             for var in nc.variables.values():
+                for name in var.ncattrs():
+                    var.getncattr(name)
                 if not isinstance(var.dtype, np.dtype):
                     continue  # a variable-length string: no checksum to verify
                 if not var.ndim or not var.shape[0]:
@@ -308,7 +402,7 @@ def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
                 step = max(1, slab_bytes // max(row, 1))
                 for start in range(0, var.shape[0], step):
                     var[start:start + step]
-    except (OSError, RuntimeError, ValueError, IndexError):
+    except Exception:  # whatever HDF5 makes of damage: OSError, RuntimeError, AttributeError, IndexError, ...
         return False
     return True
 
@@ -328,7 +422,7 @@ def recorded(path: str | Path) -> dict | None:
     none or it cannot be read."""
     if not Path(path).is_file():
         return None
-    attrs = _attributes(Path(path))
+    attrs = attributes(Path(path))
     if attrs is None:
         return None
     return {name: value for name, value in attrs.items()

@@ -9,21 +9,36 @@ The cluster's workers only simulate: each receives a compiled `solver.Problem`
 writes every file, so the workers need no shared filesystem.  Dask's nanny
 starts its workers with one thread per library.  A `tls://` scheduler needs
 Dask's TLS configuration (certificates), checked before anything runs.
+
+What a user is told, in one line each, instead of Dask's tracebacks: an
+address where nothing answers as a Dask scheduler (even one that accepts the
+connection and then says nothing) within `CONNECT_TIMEOUT`; a scheduler with
+no workers ("waiting for workers on ADDR", again every `NOTICE_EVERY`
+seconds while there are none); a scheduler lost while the sweep runs
+(`SchedulerLost`: the caller says what was kept and how to resume).
+Distributed's own log lines are held back in this process while a sweep
+uses the cluster.
 """
 from __future__ import annotations
 
 import json
+import logging
 import uuid
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
-from ..errors import BadInput, first_line
+from ..errors import BadInput, Failed, first_line
 from .worker import Outcome, solve
 
 if TYPE_CHECKING:
     import solver
 
-CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
+CONNECT_TIMEOUT = 10.0  # seconds to reach a Dask scheduler and hear it answer
+NOTICE_EVERY = 30.0  # seconds between two "waiting for workers" notices
+
+
+class SchedulerLost(Failed):
+    """The connection to the Dask scheduler broke while cases ran on it."""
 
 
 def scheduler_address(scheduler_file: str | Path) -> str:
@@ -66,23 +81,77 @@ def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str
                            "Dask cluster')", "--scheduler")
 
 
+def _identity(address: str, timeout: float) -> dict:
+    """What the scheduler at `address` says it is, asked directly with a deadline over connecting, the
+    handshake and the answer (Dask's own connect waits forever for a peer that accepts and then says nothing)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def ask() -> dict:
+        comm = await connect(address, timeout=timeout, **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            await comm.close()
+
+    with ThreadPoolExecutor(1) as thread:  # a loop of its own, also where one runs already (a notebook)
+        return thread.submit(asyncio.run, asyncio.wait_for(ask(), timeout)).result()
+
+
+class _Quiet:
+    """distributed's loggers in this process held to CRITICAL until `restore`."""
+
+    def __init__(self):
+        names = ["distributed", *(n for n in logging.root.manager.loggerDict if n.startswith("distributed."))]
+        self.levels = {name: logging.getLogger(name).level for name in names}
+        for name in names:
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+
+    def restore(self) -> None:
+        for name, level in self.levels.items():
+            logging.getLogger(name).setLevel(level)
+
+
 class DaskCluster:
     """A `backends.Backend` on a running Dask scheduler: twice as many cases in flight as the cluster has
-    threads (at least 4); closing cancels the cases still submitted."""
+    threads (at least 4); closing cancels the cases still submitted.  note(message) hears what a user should
+    know while waiting (no workers)."""
 
-    def __init__(self, address: str | None, scheduler_file: str | Path | None = None):
+    def __init__(self, address: str | None, note: Callable[[str], None] = lambda message: None,
+                 scheduler_file: str | Path | None = None):
         from distributed import Client
 
         option = "--scheduler"
         if address is None:
             address, option = scheduler_address(scheduler_file), "--scheduler-file"
+        self.address, self.note = address, note
         try:
-            self.client = Client(address, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError, ValueError) as error:
+            found = _identity(address, CONNECT_TIMEOUT)
+        except TimeoutError:
+            raise BadInput(f"cannot connect to a Dask scheduler at {address}: nothing answered within "
+                           f"{CONNECT_TIMEOUT:g} s (a program that accepts the connection but is no Dask scheduler, "
+                           "or one that is stuck)", option) from None
+        except (OSError, ValueError, TypeError) as error:
             raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", option) from None
-        self.capacity = max(4, 2 * sum(self.client.nthreads().values()))
+        if not isinstance(found, dict) or found.get("type") != "Scheduler":
+            kind = found.get("type", "something else") if isinstance(found, dict) else "something else"
+            raise BadInput(f"{address} is not a Dask scheduler (it answers as {kind})", option)
+        self.quiet = _Quiet()
+        try:
+            self.client = Client(address, timeout=f"{CONNECT_TIMEOUT}s")
+        except (OSError, TimeoutError, ValueError) as error:
+            self.quiet.restore()
+            raise BadInput(f"cannot connect to a Dask scheduler at {address} ({error})", option) from None
+        threads = sum(self.client.nthreads().values())
+        self.capacity = max(4, 2 * threads)
         self.running: dict = {}  # future -> case id
         self.tag = uuid.uuid4().hex[:8]  # keys of this sweep's tasks, apart from any other client's
+        if not threads:
+            self._waiting()
 
     @property
     def busy(self) -> int:
@@ -92,20 +161,53 @@ class DaskCluster:
         future = self.client.submit(solve, problem, key=f"biostudy-{case_id}-{self.tag}", pure=False)
         self.running[future] = case_id
 
+    def _lost(self, error: BaseException) -> SchedulerLost:
+        from concurrent.futures import CancelledError
+
+        reason = ("the connection to it broke" if isinstance(error, CancelledError) or not str(error)
+                  else str(error).splitlines()[0][:200])
+        return SchedulerLost(f"lost the Dask scheduler at {self.address} ({reason})")
+
+    def _waiting(self) -> None:
+        """Say so if the scheduler has no workers (then the cases wait)."""
+        try:
+            workers = self.client.nthreads()
+        except Exception as error:  # the scheduler is gone too
+            raise self._lost(error) from None
+        if not workers:
+            waiting = f" ({len(self.running)} cases submitted wait for them)" if self.running else ""
+            self.note(f"waiting for workers on {self.address}: none is connected{waiting}")
+
     def finished(self) -> list[tuple[str, Outcome]]:
         from distributed import wait
 
-        done = wait(list(self.running), return_when="FIRST_COMPLETED").done
-        return [(self.running.pop(future), self._outcome(future)) for future in done]
+        while True:
+            try:
+                done = wait(list(self.running), timeout=NOTICE_EVERY, return_when="FIRST_COMPLETED").done
+            except TimeoutError:
+                self._waiting()
+                continue
+            except Exception as error:  # cancelled by a lost connection, or the connection's own error
+                raise self._lost(error) from None
+            if done:
+                return [(self.running.pop(future), self._outcome(future)) for future in done]
 
-    @staticmethod
-    def _outcome(future) -> Outcome:
+    def _outcome(self, future) -> Outcome:
+        from concurrent.futures import CancelledError  # what distributed raises for a cancelled future
+
         try:
             return future.result()
+        except CancelledError as error:  # this sweep cancels nothing while it runs: the scheduler went away
+            raise self._lost(error) from None
         except Exception as error:  # e.g. KilledWorker: the case took its worker down
             return Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
 
     def close(self, completed: bool) -> None:
-        if self.running:
-            self.client.cancel(list(self.running))
-        self.client.close()
+        try:
+            if self.running:
+                self.client.cancel(list(self.running))
+            self.client.close(timeout=CONNECT_TIMEOUT)
+        except Exception:
+            pass  # a scheduler already gone: nothing left to cancel
+        finally:
+            self.quiet.restore()

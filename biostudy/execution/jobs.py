@@ -24,6 +24,7 @@ case with it; `dask`: a cluster).  The caller claims the directory first
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -40,7 +41,7 @@ from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
 from . import ownership, pool
 from .backends import Here, windowed
-from .dask import DaskCluster
+from .dask import DaskCluster, SchedulerLost
 from .pool import LocalPool
 from .worker import Outcome
 
@@ -89,9 +90,9 @@ class SweepReport:
         """What a user should know besides the counts: damaged files computed again, outdated cases kept."""
         said = []
         if self.damaged:
-            said.append(f"{len(self.damaged)} finished case files were damaged (their checksums or data did not "
-                        f"read back) and were computed again: {', '.join(self.damaged[:3])}"
-                        f"{', ...' if len(self.damaged) > 3 else ''}")
+            said.append(f"{len(self.damaged)} case file{'s were' if len(self.damaged) > 1 else ' was'} damaged "
+                        f"(could not be read whole: header, attributes or data) and computed again: "
+                        f"{', '.join(self.damaged[:10])}{', ...' if len(self.damaged) > 10 else ''}")
         if self.outdated:
             versions = sorted(set(self.outdated.values()))
             said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
@@ -155,10 +156,12 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
     recorded failure too, unless `execution.retry_failed`) once its data read back with their checksums (a
     damaged file is run again); `execution.rerun_all` runs every job again.  notify(event, id, message) is
-    called with event "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without
-    workers or a scheduler jobs run here, one after another.  The caller holds the directory
-    (`targets.owned`); `tidy`: it holds it alone, and removes the temporaries dead writers left (an array task
-    does not: a writer on another node is alive though no process here has its id).
+    called with event "skip", "start" (once per job to run, before any runs), "done", "failed" or "note" (no
+    id: a message while waiting, e.g. for workers).  Without workers or a scheduler jobs run here, one after
+    another.  The caller holds the directory (`targets.owned`); `tidy`: it holds it alone, and removes the
+    temporaries dead writers left (an array task does not: a writer on another node is alive though no process
+    here has its id).  A case file that exists but that biostudy did not write is `BadInput` before anything
+    runs; a lost Dask scheduler is a `SweepError` that says what was kept.
     """
     workers, scheduler = execution.workers, execution.scheduler or execution.scheduler_file
     if workers and not scheduler:
@@ -172,25 +175,32 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     notify = execution.notify or (lambda *args: None)
     by_id = {job.id: job for job in jobs}
 
-    ids, prints, events = [], {}, []
+    ids, prints, events, foreign = [], {}, [], []
     for job in jobs:
         prints[job.id] = fingerprint(job.scene.problem())
         path = store.case_file(out_dir, job.id)
-        record = None if execution.rerun_all else store.recorded(path)
-        if record and record.get("fingerprint") == prints[job.id] and (
-                record.get("status") == "done" or (record.get("status") == "failed" and not execution.retry_failed)):
-            if store.intact(path):
-                report.skipped.append(job.id)
-                if record.get("status") == "failed":
-                    report.failed[job.id] = str(record.get("message", ""))
-                outdated = _outdated(record)
-                if outdated:
-                    report.outdated[job.id] = outdated
-                events.append(("skip", job.id, str(record.get("status"))))
-                continue
-            report.damaged.append(job.id)
+        record = store.recorded(path)
+        if record is not None and "biostudy_version" not in record:
+            foreign.append(BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it, --force "
+                                    "or not (move it away, or give another -o)", path))
+            continue
+        reusable = record is not None and not execution.rerun_all and record.get("fingerprint") == prints[job.id] \
+            and (record.get("status") == "done" or (record.get("status") == "failed" and not execution.retry_failed))
+        if path.exists() and (record is None or reusable and not store.intact(path)):
+            report.damaged.append(job.id)  # a file that cannot be read whole: its header, attributes or data
+        elif reusable:
+            report.skipped.append(job.id)
+            if record.get("status") == "failed":
+                report.failed[job.id] = str(record.get("message", ""))
+            outdated = _outdated(record)
+            if outdated:
+                report.outdated[job.id] = outdated
+            events.append(("skip", job.id, str(record.get("status"))))
+            continue
         ids.append(job.id)
         events.append(("start", job.id, ""))
+    if foreign:
+        raise BadInput.every(foreign)
 
     estimates = {i: resources.estimate(by_id[i].scene) for i in ids}
     too_big = resources.run_problem(estimates, 0 if scheduler else (workers or 1), out_dir,
@@ -203,16 +213,31 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     def compile_(job_id: str) -> "solver.Problem":
         return by_id[job_id].scene.problem()
 
-    backend = (Here() if not ids else DaskCluster(execution.scheduler, execution.scheduler_file) if scheduler
+    def note(message: str) -> None:
+        notify("note", "", message)
+
+    backend = (Here() if not ids else DaskCluster(execution.scheduler, note, execution.scheduler_file) if scheduler
                else LocalPool(workers) if workers else Here())
-    with contextlib.closing(windowed(ids, compile_, backend)) as results:
-        for job_id, outcome in results:
-            _record(by_id[job_id], out_dir, outcome, prints[job_id])
-            report.ran.append(job_id)
-            if outcome.status != "done":
-                report.failed[job_id] = outcome.message
-            notify(outcome.status, job_id, outcome.message)
+    try:
+        with contextlib.closing(windowed(ids, compile_, backend)) as results:
+            for job_id, outcome in results:
+                _record(by_id[job_id], out_dir, outcome, prints[job_id])
+                report.ran.append(job_id)
+                if outcome.status != "done":
+                    report.failed[job_id] = outcome.message
+                notify(outcome.status, job_id, outcome.message)
+    except SchedulerLost as lost:
+        raise SweepError(f"{lost}; {_kept(report, len(ids))}") from None
     return report
+
+
+def _kept(report: SweepReport, to_run: int) -> str:
+    """What an interrupted sweep kept: '3 cases recorded in DIR/cases are kept (2 of 5 to run did not finish);
+    run the same command again to resume'."""
+    recorded = len(report.ran) + len(report.skipped)
+    return (f"{recorded} case{'s' if recorded != 1 else ''} recorded in {report.study.parent / 'cases'} "
+            f"{'are' if recorded != 1 else 'is'} kept ({to_run - len(report.ran)} of {to_run} to run did not "
+            "finish); run the same command again to resume")
 
 
 def plan_jobs(plan: Plan, **attrs) -> list[Job]:
@@ -242,6 +267,7 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     path = store.case_file(out_dir, job.id)
     try:
         store.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
-    except OSError as error:
-        raise SweepError(f"cannot write {path} ({error.strerror or error}); the cases recorded so far are kept, "
-                         "run again to resume") from None
+    except OSError as error:  # `store.NotWritten`: a full disk says which
+        resume = "run the same command again to resume" + (" once there is room" if error.errno == errno.ENOSPC
+                                                           else "")
+        raise SweepError(f"{error}; the cases recorded before are kept, {resume}") from None

@@ -22,6 +22,12 @@ What makes two runs "the same study" is what they are about, not every
 value: the kind of run, its name, its base scene file and the keys it
 sweeps.  Changed values make stale cases, which the case fingerprints catch
 and run again.
+
+A run that is refused (bad input found after the claim: a foreign file, a
+scheduler that cannot be reached, too little memory) leaves the directory as
+it found it: what the claim made (the directory, its lock file, its owner
+record, an empty ``cases/``) is removed again, and an owner record it
+replaced is put back.
 """
 from __future__ import annotations
 
@@ -34,7 +40,7 @@ import os
 import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 from ..data import store
 from ..errors import BadInput
@@ -73,23 +79,32 @@ def _recorded(directory: Path) -> dict | None:
 
 def _lock(directory: Path, shared: bool = False) -> int:
     """Take the directory's lock (without waiting); returns its file descriptor.  `BadInput` if another
-    process holds it (`shared`: unless the others hold it shared too, as array tasks do)."""
-    fd = os.open(directory / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
-    except BlockingIOError:
-        holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+    process holds it (`shared`: unless the others hold it shared too, as array tasks do).  A lock file
+    removed by a refused run while this one opened it is not a lock: the lock is taken again on the file
+    that is there."""
+    path = directory / LOCK
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+            os.close(fd)
+            raise BadInput(f"another biostudy run is writing into this directory ({holder}); wait for it to finish "
+                           "or stop it, or give another -o", directory) from None
+        try:
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                break
+        except FileNotFoundError:
+            pass
         os.close(fd)
-        raise BadInput(f"another biostudy run is writing into this directory ({holder}); wait for it to finish "
-                       "or stop it, or give another -o", directory) from None
     holder = (f"{'array tasks, the latest ' if shared else ''}pid {os.getpid()} on {os.uname().nodename}, since "
               f"{_dt.datetime.now().isoformat(timespec='seconds')}\n").encode()
     os.pwrite(fd, holder.ljust(200), 0)  # one write of a fixed length: readers never see it half-replaced
     return fd
 
 
-def _check_owner(directory: Path, owner: Owner, force: bool) -> None:
-    recorded = _recorded(directory)
+def _check_owner(directory: Path, owner: Owner, force: bool, recorded: dict | None) -> None:
     if recorded is None:  # (the owner record of an array task starting beside this one may be in flight)
         others = [p.name for p in directory.iterdir() if p.name not in (LOCK, OWNER)
                   and not p.name.startswith(f".{OWNER}.")]
@@ -103,24 +118,81 @@ def _check_owner(directory: Path, owner: Owner, force: bool) -> None:
                        "of the same ids are then replaced), or give another -o", directory)
 
 
+def _missing(directory: Path) -> list[Path]:
+    """`directory` and those of its parents that do not exist yet, deepest first."""
+    missing = []
+    while not directory.exists() and directory != directory.parent:
+        missing.append(directory)
+        directory = directory.parent
+    return missing
+
+
+def _read(path: Path) -> bytes | None:
+    try:
+        return path.read_bytes()
+    except OSError:
+        return None
+
+
 @contextlib.contextmanager
-def claimed(directory: str | Path, owner: Owner, force: bool = False, shared: bool = False) -> Iterator[Path]:
+def claimed(directory: str | Path, owner: Owner, force: bool = False,
+            check: Callable[[Path, bool], None] | None = None, shared: bool = False) -> Iterator[Path]:
     """Lock `directory` (created if needed) for this process and make sure it belongs to `owner` (or take
     it over with `force`); held until the block ends.  `shared`: an array task, which shares the directory
-    with the other tasks of its study (each writes its own cases) but not with a whole sweep."""
+    with the other tasks of its study (each writes its own cases) but not with a whole sweep.
+    check(directory, biostudy's) runs before the owner
+    record is written, told whether a biostudy run owned the directory before (so its damaged files are
+    biostudy's).  `BadInput` from the claim, the check or the block (before it recorded a case) leaves the
+    directory as it was found."""
     directory = Path(directory)
+    made = _missing(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
+        had = {name: (directory / name).exists() for name in (LOCK, "cases")}
+        previous = _read(directory / OWNER)
+        cases = _names(directory / "cases")
         fd = _lock(directory, shared)
     except FileExistsError:
         raise BadInput("is a file, not a directory", directory) from None
     except OSError as error:
         raise BadInput(f"cannot write here ({error.strerror or error})", directory) from None
+    except BadInput:
+        _remove_empty(made)
+        raise
     try:
-        _check_owner(directory, owner, force)
+        recorded = _recorded(directory)
+        _check_owner(directory, owner, force, recorded)
+        if check is not None:
+            check(directory, bool(recorded and "fingerprint" in recorded))
         record = toml_dumps({"owner": owner.describe(), "fingerprint": owner.fingerprint, **asdict(owner),
                              "keys": list(owner.keys)})
         store.write_text(directory / OWNER, record)
         yield directory
+    except BadInput:  # refused: the directory as it was found, unless cases were recorded meanwhile
+        if _names(directory / "cases") - cases:
+            raise
+        if previous is None:
+            (directory / OWNER).unlink(missing_ok=True)
+        else:
+            store.atomic(directory / OWNER, lambda temporary: temporary.write_bytes(previous))
+        if not had["cases"]:
+            _remove_empty([directory / "cases"])
+        if not had[LOCK] and not shared:  # (array tasks beside this one may hold it too)
+            (directory / LOCK).unlink(missing_ok=True)  # still held: no one else has it open and locked
+        _remove_empty(made)
+        raise
     finally:
         os.close(fd)  # releases the lock
+
+
+def _names(directory: Path) -> set[str]:
+    try:
+        return {p.name for p in directory.iterdir()}
+    except OSError:
+        return set()
+
+
+def _remove_empty(directories: list[Path]) -> None:
+    for directory in directories:
+        with contextlib.suppress(OSError):
+            directory.rmdir()

@@ -12,7 +12,7 @@ import contextlib
 from pathlib import Path
 from typing import Iterator
 
-from ..data import store
+from ..data import claims, store
 from ..errors import BadInput
 from ..inputs import resources
 from ..inputs.scene import Scene
@@ -23,10 +23,27 @@ from . import ownership
 def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False,
           shared: bool = False) -> Iterator[Path]:
     """Claim a sweep's directory for `owner` (`ownership.claimed`; `shared`: an array task) and check, before
-    anything runs, that its summary file (study.nc, ...) may be replaced."""
-    with ownership.claimed(out_dir, owner, force, shared) as directory:
-        store.replaceable(directory / summary)
+    anything runs or is
+    recorded there, that its summary file (study.nc, ...) may be replaced, and, in a directory no biostudy run
+    owned before (taken with `force`), that every file in cases/ is a dataset biostudy wrote: a file biostudy
+    cannot prove it wrote is never replaced, `force` or not."""
+    def check(directory: Path, biostudys: bool) -> None:
+        problems = []
+        for path in [directory / summary, *([] if biostudys else sorted(directory.glob("cases/*.nc")))]:
+            try:
+                store.replaceable(path, damaged_ok=biostudys)
+            except BadInput as error:
+                problems.append(error)
+        if problems:
+            raise BadInput.every(problems)
+
+    with ownership.claimed(out_dir, owner, force, check, shared) as directory:
         yield directory
+
+
+def claim_run(target: Path) -> claims.Claim:
+    """The output of one run, reserved for it (`claims.claim`): `BadInput` while another run computes it."""
+    return claims.claim(target)
 
 
 def check_run(scene: Scene, scene_file: Path | None, target: Path, force: bool = False,

@@ -1,28 +1,98 @@
-"""Reading the files a user hands in (scene, study, catalogue files): one clear line when one cannot be read.
+"""Reading the files a user hands in (scene, study, catalogue and mask files): one clear line when one cannot be read.
 
 Every input file is read here, so that what counts as unreadable (missing,
 a directory, not text, not TOML) is told the same way everywhere: a
-`BadInput` naming the file.
+`BadInput` naming the file.  An input file must be a regular file of bounded
+size, checked before it is opened: `/dev/zero` would otherwise fill the
+memory, and a FIFO block the run forever.  TOML files (scene, study,
+catalogue) may hold `TOML_BYTES`, a mask `MASK_BYTES` (a 1000³ boolean grid).
 """
 from __future__ import annotations
 
+import os
+import stat
 import tomllib
 from pathlib import Path
 
 from ..errors import BadInput, from_toml_error
 
+TOML_BYTES = 16 << 20  # 16 MiB: a study listing a hundred thousand values is ~2 MB
+MASK_BYTES = 1 << 30  # 1 GiB
 
-def read_toml(path: str | Path) -> dict:
-    """Parse a TOML file; a missing, unreadable or malformed file is `BadInput`."""
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def size_text(count: int) -> str:
+    """Bytes in binary units for limits: '16 MiB', '1 GiB'."""
+    for unit, scale in (("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if count >= scale:
+            return f"{count / scale:.3g} {unit}"
+    return f"{count} bytes"
+
+
+def checked(path: str | Path, limit: int, what: str) -> os.stat_result:
+    """The status of an input file that may be read: a regular file (a link to one is followed) of at most
+    `limit` bytes; `what` names it in the one-line `BadInput` otherwise (e.g. "a TOML file")."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        found = os.stat(path)
     except FileNotFoundError:
         raise BadInput("no such file", path) from None
-    except IsADirectoryError:
-        raise BadInput("is a directory, not a TOML file", path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise BadInput(f"cannot read: {error}", path) from None
+    except OSError as error:
+        raise BadInput(f"cannot read: {error.strerror or error}", path) from None
+    if not stat.S_ISREG(found.st_mode):
+        raise BadInput(f"is {_kind(found.st_mode)}, not {what}", path)
+    if found.st_size > limit:
+        raise BadInput(f"is {size_text(found.st_size)}; {what} may hold at most {size_text(limit)}", path)
+    return found
+
+
+def read_bytes(path: str | Path, limit: int, what: str) -> bytes:
+    """The contents of an input file (`checked`), read without waiting on a FIFO put there after the check and
+    never beyond `limit` bytes."""
+    checked(path, limit, what)
+    try:
+        handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            if not stat.S_ISREG(os.fstat(handle).st_mode):
+                raise BadInput(f"is not a regular file, not {what}", path)
+            data = _read_all(handle, limit + 1)
+        finally:
+            os.close(handle)
+    except OSError as error:
+        raise BadInput(f"cannot read: {error.strerror or error}", path) from None
+    if len(data) > limit:
+        raise BadInput(f"grew beyond {size_text(limit)} while it was read; {what} may hold at most that", path)
+    return data
+
+
+def _read_all(handle: int, most: int) -> bytes:
+    parts, count = [], 0
+    while count < most:
+        part = os.read(handle, min(1 << 24, most - count))
+        if not part:
+            break
+        parts.append(part)
+        count += len(part)
+    return b"".join(parts)
+
+
+def read_toml(path: str | Path) -> dict:
+    """Parse a TOML file; a missing, unreadable, oversized or malformed file, or one that is no regular file, is
+    `BadInput`."""
+    path = Path(path)
+    data = read_bytes(path, TOML_BYTES, "a TOML file")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise BadInput(f"cannot read: not UTF-8 text ({error.reason} at byte {error.start})", path) from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:

@@ -30,9 +30,10 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, 
 from solver import Grid
 from solver.problem import FACES
 
-from ..errors import InvalidAt, first_line
+from ..errors import BadInput, InvalidAt, first_line
 from ..formatting import value_text
 from . import structures
+from .files import MASK_BYTES, checked
 
 Point = Annotated[list[float], Field(min_length=2, max_length=3)]
 EPS = 1e-9  # relative tolerance of "inside" (cell centres on a boundary count as inside)
@@ -173,19 +174,23 @@ class Cylinder(Shape):
         return _from_gaps(gaps)
 
 
-def input_path(value: str, info: ValidationInfo, what: str) -> str:
+def input_path(value: str, info: ValidationInfo, what: str, kind: str) -> str:
     """A file a scene reads (mask, image), resolved: a relative path is relative to the scene file and must stay
-    inside its folder (no ../), an absolute one (or ~/...) is taken as given; it must be a regular file."""
+    inside its folder (no ../), an absolute one (or ~/...) is taken as given; it must be a regular file of at
+    most `files.MASK_BYTES` (`files.checked`; `kind` names it there, e.g. "a .npy mask file")."""
     base = Path((info.context or {}).get("base", "."))
     given = Path(value).expanduser()
     if not given.is_absolute() and os.path.normpath(given).split(os.sep)[0] == os.pardir:
         raise ValueError(f"{what} {value!r} lies outside the scene's folder {base}; a relative path must "
                          "stay inside it (give an absolute path to read a file elsewhere)")
     path = base / given
-    if not path.is_file():
-        if path.exists():
-            raise ValueError(f"{what} {value!r} is not a regular file ({path})")
+    if not path.exists():
         raise ValueError(f"{what} {value!r} not found (looked for {path})")
+    try:
+        checked(path, MASK_BYTES, kind)
+    except BadInput as error:
+        where = "" if str(path) == value else f" ({path})"
+        raise ValueError(f"{what} {value!r}{where} {error.problem}") from None
     return str(path.resolve())
 
 
@@ -201,7 +206,7 @@ class Mask(Shape):
     @field_validator("path")
     @classmethod
     def _resolve(cls, value: str, info: ValidationInfo) -> str:
-        return input_path(value, info, "mask file")
+        return input_path(value, info, "mask file", "a .npy mask file")
 
     @model_validator(mode="after")
     def _load(self):

@@ -206,7 +206,7 @@ class Image(Shape):
     @field_validator("path")
     @classmethod
     def _resolve(cls, value: str, info: ValidationInfo) -> str:
-        resolved = input_path(value, info, "image file")
+        resolved = input_path(value, info, "image file", "an image file (TIFF, PNG)")
         if Path(resolved).suffix.lower() not in PICTURES:
             raise ValueError(f"image file {value!r} is not a TIFF or PNG file (.tif, .tiff, .png)")
         return resolved

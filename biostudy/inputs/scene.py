@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
 from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
@@ -31,7 +31,7 @@ from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
-from .resources import DEFAULT_OUTPUTS, validation_problem
+from .resources import DEFAULT_OUTPUTS, estimate, run_problem, validation_problem
 from .tomltext import dumps as toml_dumps
 
 CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
@@ -240,10 +240,17 @@ class Scene(BaseModel):
     mechanics: MechanicsSpec | None = Field(None, description="growth mechanics; absent = off")
 
     @model_validator(mode="after")
-    def _fits_the_grid(self):
+    def _fits_the_grid(self, info: ValidationInfo):
         too_big = validation_problem(self)  # before any array of the grid's size is made
         if too_big:
             raise InvalidAt("grid.shape", too_big)
+        if (info.context or {}).get("runs_here"):  # a run here: its whole estimate, before building the masks
+            found = estimate(self)
+            too_big = run_problem({self.name: found}, 1)
+            if too_big:
+                outputs = "time.output_times" if self.time.output_times is not None else "time.outputs"
+                raise InvalidAt("grid.shape" if found.transport + found.mechanics >= found.snapshots else outputs,
+                                too_big)
         grid = self.grid.solver_grid()
         for kind in ("biofilm", "nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):
@@ -327,15 +334,16 @@ def key_info(key: str) -> tuple[str, str]:
     return found.description, str((found.json_schema_extra or {}).get("units", "1"))
 
 
-def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None) -> Scene:
+def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None, runs_here: bool = False) -> Scene:
     """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
-    value that an override gave names that override instead (`origins`)."""
+    value that an override gave names that override instead (`origins`).  `runs_here`: the scene is to run
+    in this process, so a run that could not fit in its memory is refused before the grid's arrays are made."""
     file = Path(file)
     data = copy.deepcopy(data)
     if isinstance(data.get("name", ""), str) and not data.get("name"):
         data["name"] = file.stem
     try:
-        return Scene.model_validate(data, context={"base": file.parent})
+        return Scene.model_validate(data, context={"base": file.parent, "runs_here": runs_here})
     except ValidationError as error:
         raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS), origins) from None
 
@@ -348,10 +356,11 @@ def read_scene_data(path: str | Path) -> dict:
     return data
 
 
-def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
-    """Read, override and validate a scene file: the only way a scene file becomes a `Scene`."""
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Scene:
+    """Read, override and validate a scene file: the only way a scene file becomes a `Scene` (`runs_here`: see
+    `scene_from_data`)."""
     data = read_scene_data(path)
-    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"))
+    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"), runs_here)
 
 
 def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:

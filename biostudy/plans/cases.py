@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from ..errors import BadInput, from_validation_error
 from ..inputs.files import read_toml
-from ..inputs.keys import Origins, apply_overrides, flatten, given_by, parse_override, set_key
+from ..inputs.keys import Origins, apply_overrides, flatten, given_by, key_parts, parse_override, set_key
 from ..inputs.scene import Scene, read_scene_data, scene_from_data
 
 
@@ -150,13 +150,44 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
     origins = {**given_by(spec.set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
     base = scene_from_data(base_data, scene_file, origins)
     spec.check(base_data, scene_file, path)
+    _not_swept(spec, path, overrides)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)
     if repeated:
-        raise BadInput(f"case {repeated} comes twice", path, spec.case_noun())
-    scenes = {case.id: case_scene(base_data, case.values, scene_file, path, case.attrs.get("case_id", case.id),
-                                  origins) for case in cases}
+        twins = [case.values for case in cases if case.id == repeated]
+        raise BadInput(f"case {repeated} comes twice" if all(t == twins[0] for t in twins) else
+                       f"cases {' and '.join(map(str, twins[:2]))} collide as file names: both are case "
+                       f"{repeated} (a case id keeps letters, digits and . + -; others become -)", path,
+                       spec.case_noun())
+    scenes, problems = {}, []
+    for case in cases:  # every case checked, every bad one told (as a scene tells every bad key)
+        try:
+            scenes[case.id] = case_scene(base_data, case.values, scene_file, path,
+                                         case.attrs.get("case_id", case.id), origins)
+        except BadInput as error:
+            problems.append(error)
+    if problems:
+        raise BadInput.every(problems)
     return Plan(path, spec, scene_file, base, cases, scenes, common)
+
+
+def _not_swept(spec: ManyCases, path: Path, overrides) -> None:
+    """`BadInput` for an override ([set] or --set) of a key the cases vary: every case would replace it, while
+    the record would say it was set."""
+    varied = {tuple(key_parts(key)): key for key in spec.varied_keys()}
+    problems = []
+    for where, prefix, keys in ((str(path), "set.", list(spec.set)),
+                                ("--set", "", [parse_override(text)[0] for text in overrides])):
+        for key in keys:
+            parts = tuple(key_parts(key))
+            swept = next((name for v, name in varied.items() if v[:len(parts)] == parts or parts[:len(v)] == v),
+                         None)
+            if swept is not None:
+                problems.append(BadInput(f"is varied by this study ({spec.case_noun()} {swept}), so every case "
+                                         "would replace it; change the study's values instead", where,
+                                         prefix + key))
+    if problems:
+        raise BadInput.every(problems)
 
 

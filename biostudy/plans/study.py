@@ -65,6 +65,11 @@ class Sweep(BaseModel):
             labels = [id_text(v) for v in options]
             repeated = next((v for v, n in zip(options, labels) if labels.count(n) > 1), None)
             if repeated is not None and self.mode == "grid":
+                twins = [v for v, n in zip(options, labels) if n == id_text(repeated)]
+                if any(t != twins[0] for t in twins):
+                    raise InvalidAt(key, f"lists {' and '.join(value_text(t) for t in twins[:2])}, which collide as "
+                                         f"file names: both are {id_text(repeated)} in a case id (a case id keeps "
+                                         "letters, digits and . + -; others become -)")
                 raise InvalidAt(key, f"lists {value_text(repeated)} twice")
         seen: dict[str, str] = {}
         for key in self.values:

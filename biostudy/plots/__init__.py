@@ -16,9 +16,11 @@
 
 Options narrow it down: `variable` draws one field (or one sweep output),
 `time` the output nearest to it, `cut` the plane of a 3-D run.  Bad options
-raise ValueError with a one-line message before anything is drawn.  Every
-figure is drawn before the first is saved, and each is saved atomically:
-a failure leaves no picture of this call behind, complete or partial.
+raise ValueError with a one-line message before anything is drawn; so does
+a picture to be written over a file biostudy did not write (`BadInput`).
+Every figure is drawn before the first is saved, and each is saved
+atomically: a failure leaves no picture of this call behind, complete or
+partial.
 """
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ import xarray as xr
 
 from solver.output import on_output_times
 
+from ..data.claims import foreign
 from ..quantities import observables
 from . import analysis, fields, isosurface, series, sweep, warped
 from .cuts import plane_for
@@ -74,6 +77,7 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
         shown = warped.solved_indices(ds, indices)  # refuses before anything is drawn
         figures.append(("warped", lambda: warped.figure(ds, shown, warp)))
     paths = output_paths(Path(out), [tag for tag, _ in figures])
+    foreign(paths, "a picture")  # before anything is drawn
     drawn = []
     try:
         for _, draw in figures:

@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
+from ..data.claims import mark
 from ..data.store import atomic
 from ..formatting import number, shown_units
 
@@ -128,10 +129,16 @@ def output_paths(out: Path, tags: list[str]) -> list[Path]:
     return [out.with_name(f"{out.stem}_{tag}{out.suffix}") for tag in tags]
 
 
+METADATA_KEY = {"png": "Software", "pdf": "Creator", "svg": "Creator", "ps": "Creator", "eps": "Creator"}
+
+
 def save(fig, path: Path) -> Path:
-    """Write the figure to `path` atomically (a temporary beside it, renamed): complete or absent."""
+    """Write the figure to `path` atomically (a temporary beside it, renamed): complete or absent.  PNG, PDF,
+    SVG and PostScript files carry biostudy's mark in their metadata (`claims.mark`), so that a later plot may
+    replace them."""
+    kind = path.suffix.lstrip(".").lower() or "png"
+    metadata = {METADATA_KEY[kind]: mark()} if kind in METADATA_KEY else None
     try:
-        return atomic(path, lambda temporary: fig.savefig(temporary, dpi=DPI,
-                                                         format=path.suffix.lstrip(".").lower() or "png"))
+        return atomic(path, lambda temporary: fig.savefig(temporary, dpi=DPI, format=kind, metadata=metadata))
     finally:
         plt.close(fig)

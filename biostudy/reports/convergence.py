@@ -126,6 +126,9 @@ def load_reference(path: Path, base: Scene, time: float | None) -> dict:
     ds = store.open_dataset(path)
     if "phi" not in ds:
         raise BadInput("is not a run's dataset (no phi)", path, "--reference")
+    dimensions = sum(axis in ds["phi"].dims for axis in ("x", "y", "z"))
+    if dimensions != len(base.grid.shape):
+        raise BadInput(f"is a {dimensions}-D run; the scene is {len(base.grid.shape)}-D", path, "--reference")
     found = final_state(ds, time)
     extent = tuple(float(e) for e in base.grid.solver_grid().extent)
     if not np.allclose(found["extent"], extent, rtol=1e-9):

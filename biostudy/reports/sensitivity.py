@@ -286,7 +286,9 @@ def _dataset(ds, flat: Cases, names, indices, params, data, used, blocks, confid
 
 def _notes(flat: Cases, design: Sample | None) -> list[str]:
     """What was left out of the analysis and what that does to the indices."""
-    notes = []
+    notes = [f"{name} is categorical ({', '.join(f'{i} = {label}' for i, label in enumerate(labels))}: coded in "
+             f"the order the study lists them); its rank correlations compare the outputs across that order."
+             for name, labels in flat.categories.items()]
     status = flat.status
     total = len(status)
     missing = int((status == "missing").sum())

@@ -1,0 +1,145 @@
+"""Outputs claimed by one writer, and files told apart as biostudy's.
+
+A `Claim` reserves one run's output (`claim`) from before it computes until
+its result is written: its temporary (`store.temporary_name`) is made at
+once and tells other biostudy runs that the output is being computed; the
+result is renamed over the output only if the output is still the file it
+was when claimed, so a result is never silently replaced by another written
+meanwhile.  Every picture and ParaView file biostudy writes carries a `mark`
+(in its metadata or a comment); `foreign` refuses to replace a file of the
+same name without it.
+"""
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import weakref
+from pathlib import Path
+from typing import Iterable
+
+from ..errors import BadInput, Failed
+from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic
+
+
+def mark() -> str:
+    """What every picture and ParaView file biostudy writes carries (in its metadata or a comment), so that it
+    can tell its own files from others' before replacing one."""
+    return f"written by biostudy {version()}"
+
+
+def marked(path: str | Path, most: int = 1 << 25) -> bool:
+    """Whether a file (of at most `most` bytes, a picture or a VTU) carries biostudy's `mark`."""
+    path = Path(path)
+    try:
+        if not path.is_file() or path.stat().st_size > most:
+            return False
+        return b"written by biostudy " in path.read_bytes()
+    except OSError:
+        return False
+
+
+def foreign(paths: Iterable[str | Path], what: str) -> None:
+    """`BadInput` (every one at once) for those of `paths` that exist and do not carry biostudy's `mark`: a
+    file biostudy cannot prove it wrote is never replaced."""
+    found = [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
+                      "output, or remove the file first)", path) for path in paths
+             if Path(path).exists() and not marked(path)]
+    if found:
+        raise BadInput.every(found)
+
+
+def _identity(path: Path) -> tuple | None:
+    """What tells a file from its replacement: device, inode, size, modification time (None: no file)."""
+    try:
+        found = os.stat(path)
+    except FileNotFoundError:
+        return None
+    return found.st_dev, found.st_ino, found.st_size, found.st_mtime_ns
+
+
+@contextlib.contextmanager
+def _directory_locked(directory: Path):
+    """This process alone looks at and renames files in `directory` for the block (a brief flock on the
+    directory itself; where the file system has no such locks, the block runs unlocked)."""
+    handle = os.open(directory, os.O_RDONLY)
+    try:
+        with contextlib.suppress(OSError):
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(handle)  # releases the lock
+
+
+class Claim:
+    """An output reserved for one run until its result is written (`claim`).
+
+    Its temporary (`temporary_name`) is made at once and tells other biostudy runs that the output is being
+    computed; the result is written into it and renamed over the output only if the output is still what it
+    was when claimed (`replace`), so a result is never silently replaced by another written meanwhile."""
+
+    def __init__(self, target: Path, temporary: Path, removed: list[Path], made: list[Path]):
+        self.target, self.temporary, self.removed = target, temporary, removed
+        self.seen = _identity(target)
+        self._release = weakref.finalize(self, _give_up, temporary, made)
+
+    def write_dataset(self, ds) -> Path:
+        """The result, written into the claimed output (`store.write_atomic`, renamed by `replace`)."""
+        return write_atomic(ds, self.target, self.temporary, self.replace)
+
+    def release(self) -> None:
+        """Give the output up: the temporary goes, and the directories made for it if nothing was written there;
+        a written result stays."""
+        self._release()
+
+    def replace(self) -> None:
+        """Rename the written temporary over the output, unless the output changed since it was claimed: then
+        the result is kept beside it under a new name and `Failed` says where."""
+        with _directory_locked(self.target.parent):
+            if _identity(self.target) == self.seen:
+                os.replace(self.temporary, self.target)
+                return
+            for number in range(1, 1000):  # a name nothing has: link() never replaces a file
+                kept = self.target.with_name(f"{self.target.stem}.{number}{self.target.suffix}")
+                with contextlib.suppress(FileExistsError):
+                    os.link(self.temporary, kept)
+                    break
+            self.temporary.unlink()
+        raise Failed(f"{self.target} was changed by another program while this run computed; it is left as it "
+                     f"is, and this run's result is kept in {kept}")
+
+
+def _give_up(temporary: Path | None, made: list[Path]) -> None:
+    """Remove a claim's temporary and the directories made for it (deepest first; one that holds anything
+    stays)."""
+    if temporary is not None:
+        temporary.unlink(missing_ok=True)
+    for directory in made:
+        with contextlib.suppress(OSError):
+            directory.rmdir()
+
+
+def claim(path: str | Path) -> Claim:
+    """Reserve `path` for this process's result: `BadInput` if another running process claimed it (its
+    temporary is there); the temporaries of writers that are gone (killed, even with SIGKILL) are removed."""
+    path = Path(path)
+    made = []
+    ancestor = path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        made.append(ancestor)
+        ancestor = ancestor.parent
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with _directory_locked(path.parent):
+            removed = remove_temporaries(path.parent, of=path.name)
+            running = sorted(pid for _, pid in temporaries(path.parent, path.name) if pid != os.getpid())
+            if running:
+                _give_up(None, made)
+                raise BadInput(f"another biostudy run (pid {running[0]}) is computing this output; wait for it to "
+                               "end, or choose another output", path)
+            temporary = temporary_name(path)
+            os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    except OSError as error:
+        _give_up(None, made)
+        raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
+    return Claim(path, temporary, removed, made)

@@ -1,0 +1,66 @@
+"""netCDF files read and written through netCDF4 itself, under one lock: an interruption anywhere is safe.
+
+xarray opens netCDF files through its file cache and guards them with locks
+of its own, one of them made of two locks taken one after the other in
+Python code.  A KeyboardInterrupt (Ctrl-C, or SIGTERM, which `biostudy`
+turns into one) that lands between the two leaves the first one held, and
+closing the file on the way out then waits for it forever: SIGTERM while
+`run -o` wrote its dataset hung 3 of 8 tries (issue 21).  Here a file is
+opened with `netCDF4.Dataset` and handed to xarray as an open file
+(`DummyFileManager`), guarded by one re-entrant lock implemented in C
+(`HDF5`: held or not, never half), and lazy (dask) data are computed in
+this thread while they are written.  Interrupted at any point, the file is
+closed on the way out (`atomic` removes the temporary) and nothing waits.
+"""
+from __future__ import annotations
+
+import contextlib
+import threading
+from pathlib import Path
+
+import xarray as xr
+from xarray.backends import DummyFileManager, NetCDF4DataStore
+
+HDF5 = threading.RLock()  # the HDF5 library is not thread-safe: threads reading lazily take turns under it
+
+
+def _store(nc) -> NetCDF4DataStore:
+    return NetCDF4DataStore(DummyFileManager(nc, lock=HDF5), lock=HDF5)
+
+
+def open_dataset(path: str | Path, chunks: dict | None = None) -> xr.Dataset:
+    """A netCDF file as a lazy xarray Dataset (`chunks` as for `xr.open_dataset`); its close() closes the file.
+    Errors are netCDF4's (OSError for a file it cannot open, RuntimeError or AttributeError for damage)."""
+    import netCDF4
+
+    with HDF5:
+        nc = netCDF4.Dataset(path)
+    try:
+        return xr.open_dataset(_store(nc), chunks=chunks)
+    except BaseException:
+        with contextlib.suppress(Exception):
+            nc.close()
+        raise
+
+
+def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
+    """`ds` to a new netCDF4 file at `path` with the per-variable `encoding` (as `to_netcdf` takes it)."""
+    import netCDF4
+    from xarray.backends.common import ArrayWriter
+
+    with HDF5:
+        nc = netCDF4.Dataset(path, "w", format="NETCDF4")
+    store = _store(nc)
+    try:
+        writer = ArrayWriter(lock=HDF5)
+        ds.dump_to_store(store, writer=writer, encoding=encoding)  # numpy data are written here
+        if writer.sources:  # lazy data (a study's case files): computed chunk by chunk in this thread
+            import dask
+
+            with dask.config.set(scheduler="synchronous"):
+                writer.sync()
+    except BaseException:
+        with contextlib.suppress(Exception):  # the reason it stopped is what is told, not a failed close
+            store.close()
+        raise
+    store.close()  # flushes: a disk that fills up here is an error too
