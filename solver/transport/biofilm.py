@@ -14,7 +14,9 @@ Face velocity: w_f = r c_f/(k+c_f) (dc/dn)_f / max(|grad c|_f, floor), with
 (dc/dn)_f = (c_b - c_a)/h, the tangential gradient from the mean of the two
 cells' central differences (mirror values at walls and obstacles), and
 floor = gradient_floor * max_f |grad c|_f: where the nutrient is flat the
-direction is undefined and the velocity fades out linearly instead.
+direction is undefined and the velocity fades out linearly instead.  Where it
+is flat everywhere to round-off (max_f |dc| <= ROUNDOFF max c, e.g. g = 0) its
+gradients are solver residue and nothing grows (w = 0).
 
 Schemes, both written in positive-coefficient form sum_N a_PN (phi_P - phi_N)
 with a_PN >= 0 so that, with implicit Euler, the matrix is an M-matrix with
@@ -34,9 +36,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..counters import Count, Counters
-from .bounds import Projection
+from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
+from .kernels import advection_into, face_gradient, face_velocity
 from .linear import jacobi_bicgstab
 from ..problem import Numerics, Parameters
 
@@ -84,24 +87,14 @@ class Velocity:
         if self.r == 0.0:
             return [np.zeros(f.lower.size) for f in fv.faces], None, 0.0
         cell_grad = self.cell_gradient(c)
-        normal, magnitude = [], []
-        for f in fv.faces:
-            dn = (c[f.upper] - c[f.lower]) / h
-            squared = dn * dn
-            for axis, g in enumerate(cell_grad):
-                if axis != f.axis:
-                    t = 0.5 * (g[f.lower] + g[f.upper])
-                    squared += t * t
-            normal.append(dn)
-            magnitude.append(np.sqrt(squared))
+        stacked = np.stack(cell_grad)
+        normal, magnitude = zip(*(face_gradient(c, f.lower, f.upper, f.axis, stacked, h) for f in fv.faces))
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
-        if largest == 0.0:
+        if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0
         floor = self.floor * largest
-        velocities = []
-        for f, dn, m in zip(fv.faces, normal, magnitude):
-            cf = 0.5 * (c[f.lower] + c[f.upper])
-            velocities.append(self.r * cf / (self.k + cf) * dn / np.maximum(m, floor))
+        velocities = [face_velocity(c, f.lower, f.upper, dn, m, self.r, self.k, floor)
+                      for f, dn, m in zip(fv.faces, normal, magnitude)]
         return velocities, cell_grad, floor
 
 
@@ -149,17 +142,16 @@ class Biofilm:
         p = self.pattern
         self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
                                      minlength=p.keys.size)
-        self.face_positions = []
+        self.faces, self.face_positions = [], []  # per axis: (4, m) cells and (6, m) CSR data positions
         for f in fv.faces:
             same = lambda cell: p.position(cell, cell)
             out_lower = np.where(f.lower_out >= 0, f.lower_out, f.lower)
             out_upper = np.where(f.upper_out >= 0, f.upper_out, f.upper)
-            self.face_positions.append(dict(
-                lower=same(f.lower), upper=same(f.upper),
-                upper_lower=p.position(f.upper, f.lower), lower_upper=p.position(f.lower, f.upper),
-                lower_out=p.position(f.lower, out_lower) if self.tvd else None,
-                upper_out=p.position(f.upper, out_upper) if self.tvd else None,
-            ))
+            self.faces.append(np.stack([f.lower, f.upper, f.lower_out, f.upper_out]).astype(np.int64))
+            self.face_positions.append(np.stack([
+                same(f.lower), same(f.upper), p.position(f.upper, f.lower), p.position(f.lower, f.upper),
+                p.position(f.lower, out_lower), p.position(f.upper, out_upper)]).astype(np.int64))
+        self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr), shape=p.matrix.shape)
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
@@ -168,45 +160,19 @@ class Biofilm:
                 **self.projection.counters("phi")}
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
-        """CSR data of the advection operator (per unit volume) for face velocities w."""
-        h = self.fv.grid.spacing
-        positions, values = [], []
-        for f, wf, pos in zip(self.fv.faces, w, self.face_positions):
-            forward = wf > 0  # flow from lower to upper
-            a = np.abs(wf) / h
-            if self.tvd:
-                up = np.where(forward, f.lower, f.upper)
-                down = np.where(forward, f.upper, f.lower)
-                far = np.where(forward, f.lower_out, f.upper_out)
-                num = np.where(far >= 0, phi[up] - phi[np.maximum(far, 0)], 0.0)
-                den = phi[down] - phi[up]
-                smooth = num * den > 0
-                total = np.where(smooth, num + den, 1.0)
-                psi = np.where(smooth, 2.0 * num / total, 0.0)
-                psi_over_r = np.where(smooth, 2.0 * den / total, 0.0)
-                inflow = a * (1.0 - 0.5 * psi)
-                outflow = a * 0.5 * psi_over_r
-            else:
-                inflow, outflow = a, None
-            # inflow: row `down` gets inflow * (phi_down - phi_up)
-            positions += [np.where(forward, pos["upper"], pos["lower"]),
-                          np.where(forward, pos["upper_lower"], pos["lower_upper"])]
-            values += [inflow, -inflow]
-            if outflow is not None:
-                # outflow correction: row `up` gets outflow * (phi_up - phi_far)
-                positions += [np.where(forward, pos["lower"], pos["upper"]),
-                              np.where(forward, pos["lower_out"], pos["upper_out"])]
-                values += [outflow, -outflow]
-        return np.bincount(np.concatenate(positions), weights=np.concatenate(values),
-                           minlength=self.pattern.keys.size)
+        """CSR data of the advection operator (per unit volume) for face velocities w (kernels.advection_into)."""
+        data = np.zeros(self.pattern.keys.size)
+        for faces, positions, wf in zip(self.faces, self.face_positions, w):
+            advection_into(data, faces, positions, np.asarray(wf, dtype=float), phi, self.fv.grid.spacing, self.tvd)
+        return data
 
     def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
         """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
         source = self.params.k_alpha * alpha
-        data = self.diffusion + self.advection(w, phi)
+        matrix = self.matrix  # the kept pattern, its data rewritten
+        data = matrix.data
+        np.add(self.diffusion, self.advection(w, phi), out=data)
         data[self.pattern.diagonal] += 1.0 / dt
-        matrix = sp.csr_matrix((data, self.pattern.matrix.indices, self.pattern.matrix.indptr),
-                               shape=self.pattern.matrix.shape)
         rhs = phi / dt + source
         new, its = jacobi_bicgstab(matrix, rhs, phi, self.tolerance, data[self.pattern.diagonal])
         self.iterations += its
