@@ -39,7 +39,7 @@ from ..counters import Count, Counters
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
-from .kernels import advection_into, face_gradient, face_velocity
+from .kernels import advection_into, central_differences, face_gradient, face_velocity
 from .linear import jacobi_bicgstab
 from ..problem import Numerics, Parameters
 
@@ -53,6 +53,8 @@ class Velocity:
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
         self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
+        self.below = np.stack([below for below, _ in self.neighbours]).astype(np.int64)
+        self.above = np.stack([above for _, above in self.neighbours]).astype(np.int64)
         self.held_faces = []  # Dirichlet faces of the nutrient: (axis, cells beside it, their inner neighbours,
         for face, cells, value in held_faces:  # +1 on a lower face / -1 on an upper one, held value)
             axis = "xyz".index(face[0])
@@ -61,14 +63,13 @@ class Velocity:
             self.held_faces.append((axis, cells, above[cells] if lower else below[cells], 1.0 if lower else -1.0,
                                     value))
 
-    def central_differences(self, q: np.ndarray) -> list[np.ndarray]:
-        """Cell gradient of q per axis; a missing neighbour takes the cell's own value (zero flux)."""
-        h2 = 2.0 * self.fv.grid.spacing
-        return [(q[above] - q[below]) / h2 for below, above in self.neighbours]
+    def central_differences(self, q: np.ndarray) -> np.ndarray:
+        """Cell gradient of q, (ndim, n); a missing neighbour takes the cell's own value (zero flux)."""
+        return central_differences(q, self.below, self.above, 2.0 * self.fv.grid.spacing)
 
-    def cell_gradient(self, c: np.ndarray) -> list[np.ndarray]:
-        """Cell gradient of the nutrient: central differences, and beside a held nutrient face the ghost value
-        2 c_face - c (the held value on the face)."""
+    def cell_gradient(self, c: np.ndarray) -> np.ndarray:
+        """Cell gradient of the nutrient, (ndim, n): central differences, and beside a held nutrient face the
+        ghost value 2 c_face - c (the held value on the face)."""
         h2 = 2.0 * self.fv.grid.spacing
         gradient = self.central_differences(c)
         for axis, cells, inner, sign, value in self.held_faces:
@@ -80,15 +81,14 @@ class Velocity:
         """Face velocities per axis; `phi` is not needed (the front velocity's signature)."""
         return self.field(c)[0]
 
-    def field(self, c: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray] | None, float]:
-        """Face velocities per axis, the cell gradient of c they came from (None when r = 0) and the floor of
+    def field(self, c: np.ndarray) -> tuple[list[np.ndarray], np.ndarray | None, float]:
+        """Face velocities per axis, the cell gradient of c they came from ((ndim, n); None when r = 0) and the floor of
         |grad c| they used (0 where nothing grows: r = 0 or a flat nutrient)."""
         fv, h = self.fv, self.fv.grid.spacing
         if self.r == 0.0:
             return [np.zeros(f.lower.size) for f in fv.faces], None, 0.0
         cell_grad = self.cell_gradient(c)
-        stacked = np.stack(cell_grad)
-        normal, magnitude = zip(*(face_gradient(c, f.lower, f.upper, f.axis, stacked, h) for f in fv.faces))
+        normal, magnitude = zip(*(face_gradient(c, f.lower, f.upper, f.axis, cell_grad, h) for f in fv.faces))
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0

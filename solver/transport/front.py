@@ -48,11 +48,10 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
 from .finite_volume import FiniteVolumeGrid
-from .kernels import extended_faces, front_crossings, subgraph
+from .kernels import extended_faces, front_crossings, nearest_rows, subgraph, within_reach
 
 LEVEL = 0.5  # the front: phi = 1/2
 
@@ -69,7 +68,6 @@ class FrontVelocity:
         weight = np.full(2 * lower.size, fv.grid.spacing)
         self.adjacency = sp.csr_matrix((weight, (np.concatenate([lower, upper]), np.concatenate([upper, lower]))),
                                        shape=(fv.n, fv.n))  # open cells sharing a face, distance h
-        self.cross = ndimage.generate_binary_structure(fv.grid.ndim, 1)
 
     def __call__(self, c: np.ndarray, phi: np.ndarray) -> list[np.ndarray]:
         w, gradient, floor = self.pointwise.field(c)
@@ -79,23 +77,19 @@ class FrontVelocity:
         if front.size == 0:
             return w
         nearest = self._nearest(front, phi >= LEVEL)
-        inside = nearest >= 0
-        extended = np.zeros((self.fv.n, self.fv.grid.ndim))
-        extended[inside] = vectors[nearest[inside]]
         # a face beside a covered cell: the mean of its cells' normal components (one of them where only one is)
-        return [extended_faces(wf, f.lower, f.upper, f.axis, inside, extended) for f, wf in zip(self.fv.faces, w)]
+        return [extended_faces(wf, f.lower, f.upper, f.axis, nearest, vectors) for f, wf in zip(self.fv.faces, w)]
 
-    def _front(self, c: np.ndarray, phi: np.ndarray, gradient: list[np.ndarray], floor: float):
+    def _front(self, c: np.ndarray, phi: np.ndarray, gradient: np.ndarray, floor: float):
         """The vector F N per front cell (rows of `vectors`) and the front cells' active indices, with the
         pointwise velocity's cell gradient of c and floor of |grad c| (the same regularised direction); a
         cell owning several crossings holds their mean (kernels.front_crossings)."""
         fv, velocity = self.fv, self.pointwise
-        grad_c = np.stack(gradient, axis=1)
-        grad_phi = np.stack(velocity.central_differences(phi), axis=1)
+        grad_phi = velocity.central_differences(phi)
         sums = np.zeros((fv.n, fv.grid.ndim))
         count = np.zeros(fv.n, np.int64)
         for f in fv.faces:
-            front_crossings(sums, count, f.lower, f.upper, f.axis, c, phi, grad_c, grad_phi, LEVEL,
+            front_crossings(sums, count, f.lower, f.upper, f.axis, c, phi, gradient, grad_phi, LEVEL,
                             fv.grid.spacing, velocity.r, velocity.k, floor)
         front = np.flatnonzero(count)
         return sums[front] / count[front, None], front
@@ -105,24 +99,15 @@ class FrontVelocity:
         (obstacles are walls), if the cell is on the dense side (phi >= 1/2) or within `band` cells of the front;
         else -1.  Dijkstra on the cells that can qualify: the dense ones and the front's dilation by the band."""
         fv = self.fv
-        reach = int(np.ceil(self.band))
-        near = np.zeros(fv.n, bool)
-        near[front] = True
-        grown = ndimage.binary_dilation(fv.to_full(near.astype(float), fill=0.0) > 0, structure=self.cross,
-                                        iterations=reach)
-        keep = dense | fv.to_active(grown).astype(bool)
+        grown = within_reach(fv.cells[front], np.asarray(fv.grid.cells_shape, np.int64), int(np.ceil(self.band)))
+        keep = dense | grown[fv.cells]
         candidates = np.flatnonzero(keep)
         local = np.full(fv.n, -1, np.int32)
-        local[candidates] = np.arange(candidates.size)
+        local[candidates] = np.arange(candidates.size, dtype=np.int32)
         a = self.adjacency  # its rows and columns of the candidates: adjacency[candidates][:, candidates]
         graph = sp.csr_matrix(subgraph(a.indptr, a.indices, a.data, keep, local)[::-1],
                               shape=(candidates.size, candidates.size))
         distance, _, source = dijkstra(graph, directed=True, indices=local[front], min_only=True,
                                        return_predecessors=True)
-        row = np.full(fv.n, -1, np.int64)
-        row[front] = np.arange(front.size)
-        found = source >= 0
-        covered = found & (dense[candidates] | (distance <= self.band * fv.grid.spacing * (1 + 1e-9)))
-        nearest = np.full(fv.n, -1, np.int64)
-        nearest[candidates[covered]] = row[candidates[source[covered]]]
-        return nearest
+        return nearest_rows(fv.n, front, candidates, dense, distance, source,
+                            self.band * fv.grid.spacing * (1 + 1e-9))

@@ -93,9 +93,9 @@ def front_crossings(sums: np.ndarray, count: np.ndarray, lower: np.ndarray, uppe
     """For every face of one axis that the phi = `level` front crosses: the vector F N at the crossing
     (front.py, step 1), added to `sums` (n, ndim) of the crossing's nearer cell, and that cell's `count`.
 
-    grad_c, grad_phi: (n, ndim) cell gradients; F N is interpolated linearly between the two cells, with
+    grad_c, grad_phi: (ndim, n) cell gradients; F N is interpolated linearly between the two cells, with
     the face-normal component of grad phi from the two cells."""
-    ndim = grad_c.shape[1]
+    ndim = grad_c.shape[0]
     g_phi = np.empty(ndim)
     g_c = np.empty(ndim)
     for f in range(lower.size):
@@ -105,8 +105,8 @@ def front_crossings(sums: np.ndarray, count: np.ndarray, lower: np.ndarray, uppe
         theta = (phi[a] - level) / (phi[a] - phi[b])  # 0 at a, 1 at b
         c_x = (1 - theta) * c[a] + theta * c[b]
         for i in range(ndim):
-            g_c[i] = (1 - theta) * grad_c[a, i] + theta * grad_c[b, i]
-            g_phi[i] = (1 - theta) * grad_phi[a, i] + theta * grad_phi[b, i]
+            g_c[i] = (1 - theta) * grad_c[i, a] + theta * grad_c[i, b]
+            g_phi[i] = (1 - theta) * grad_phi[i, a] + theta * grad_phi[i, b]
         g_phi[axis] = (phi[b] - phi[a]) / h
         norm_phi, norm_c = 0.0, 0.0
         for i in range(ndim):
@@ -124,17 +124,33 @@ def front_crossings(sums: np.ndarray, count: np.ndarray, lower: np.ndarray, uppe
 
 
 @jit
-def extended_faces(w: np.ndarray, lower: np.ndarray, upper: np.ndarray, axis: int, inside: np.ndarray,
+def extended_faces(w: np.ndarray, lower: np.ndarray, upper: np.ndarray, axis: int, nearest: np.ndarray,
                    vectors: np.ndarray) -> np.ndarray:
-    """Face velocities of one axis: the mean of the two cells' extended vectors' `axis` components where
-    both cells are covered by the extension, the one covered cell's where only one is, else `w`."""
+    """Face velocities of one axis: the mean of the two cells' extended vectors' `axis` components (a cell's
+    vector: row nearest[cell] of `vectors`) where both cells are covered by the extension (nearest >= 0), the
+    one covered cell's where only one is, else `w`."""
     out = np.empty(lower.size)
     for f in range(lower.size):
-        a, b = inside[lower[f]], inside[upper[f]]
-        va = vectors[lower[f], axis] if a else 0.0
-        vb = vectors[upper[f], axis] if b else 0.0
-        out[f] = 0.5 * (va + vb) if a and b else (va + vb if a or b else w[f])
+        a, b = nearest[lower[f]], nearest[upper[f]]
+        va = vectors[a, axis] if a >= 0 else 0.0
+        vb = vectors[b, axis] if b >= 0 else 0.0
+        out[f] = 0.5 * (va + vb) if a >= 0 and b >= 0 else (va + vb if a >= 0 or b >= 0 else w[f])
     return out
+
+
+@jit
+def nearest_rows(n: int, front: np.ndarray, candidates: np.ndarray, dense: np.ndarray, distance: np.ndarray,
+                 source: np.ndarray, band: float) -> np.ndarray:
+    """Per cell the row in `front` of the front cell Dijkstra found nearest (`source`, `distance` per candidate,
+    local indices), for candidates on the dense side or within `band` of it; -1 elsewhere."""
+    row = np.full(n, -1, np.int64)
+    for i in range(front.size):
+        row[front[i]] = i
+    nearest = np.full(n, -1, np.int64)
+    for i in range(candidates.size):
+        if source[i] >= 0 and (dense[candidates[i]] or distance[i] <= band):
+            nearest[candidates[i]] = row[candidates[source[i]]]
+    return nearest
 
 
 @jit
@@ -163,3 +179,49 @@ def subgraph(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, keep: np
                 out += 1
     return new_indptr, new_indices, new_data
 
+
+
+@jit
+def central_differences(q: np.ndarray, below: np.ndarray, above: np.ndarray, h2: float) -> np.ndarray:
+    """(ndim, n): per axis (q[above] - q[below]) / h2 for every cell (`below`, `above`: (ndim, n) neighbours)."""
+    ndim, n = below.shape
+    out = np.empty((ndim, n))
+    for k in range(ndim):
+        for i in range(n):
+            out[k, i] = (q[above[k, i]] - q[below[k, i]]) / h2
+    return out
+
+
+@jit
+def within_reach(start: np.ndarray, shape: np.ndarray, reach: int) -> np.ndarray:
+    """Cells of a grid (C order, `shape` (nz, ny, nx) or (ny, nx)) within `reach` face steps of a `start` cell,
+    through every cell of the grid: scipy.ndimage's binary dilation with the cross structure, `reach` times."""
+    total = 1
+    for s in shape:
+        total *= s
+    steps = np.full(total, -1, np.int64)
+    strides = np.ones(shape.size, np.int64)
+    for k in range(shape.size - 2, -1, -1):
+        strides[k] = strides[k + 1] * shape[k + 1]
+    queue = np.empty(total, np.int64)
+    head, tail = 0, 0
+    for cell in start:
+        if steps[cell] < 0:
+            steps[cell] = 0
+            queue[tail] = cell
+            tail += 1
+    while head < tail:
+        cell = queue[head]
+        head += 1
+        if steps[cell] == reach:
+            continue
+        for k in range(shape.size):
+            position = (cell // strides[k]) % shape[k]
+            for move in (-1, 1):
+                if 0 <= position + move < shape[k]:
+                    other = cell + move * strides[k]
+                    if steps[other] < 0:
+                        steps[other] = steps[cell] + 1
+                        queue[tail] = other
+                        tail += 1
+    return steps >= 0
