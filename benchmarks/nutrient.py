@@ -83,7 +83,7 @@ def variants(first):
         cycle = VCycle(pyamg.ruge_stuben_solver(first, max_coarse=50))
 
         def solve(matrix, rhs, x0):
-            x, its, _ = pcg(matrix, rhs, x0.copy(), lambda r: cycle(matrix, r), TOLERANCE * np.linalg.norm(rhs), 500)
+            x, its, _, _ = pcg(matrix, rhs, x0.copy(), lambda r: cycle(matrix, r), TOLERANCE * np.linalg.norm(rhs), 500)
             return x, its
         return solve
 

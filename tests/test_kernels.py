@@ -78,7 +78,9 @@ def test_subgraph_is_scipys_fancy_indexing():
     candidates = np.flatnonzero(keep)
     local = np.full(transport.fv.n, -1, np.int32)
     local[candidates] = np.arange(candidates.size)
-    indptr, indices, data = subgraph(adjacency.indptr, adjacency.indices, adjacency.data, keep, local)
+    indices, data = np.empty(adjacency.nnz, np.int32), np.empty(adjacency.nnz)
+    indptr = subgraph(adjacency.indptr, adjacency.indices, adjacency.data, keep, local, indices, data)
+    indices, data = indices[:indptr[-1]], data[:indptr[-1]]
     expected = adjacency[candidates][:, candidates]
     assert np.array_equal(indptr, expected.indptr) and np.array_equal(indices, expected.indices)
     assert np.array_equal(data, expected.data)

@@ -76,8 +76,8 @@ def test_pcg_drops_a_guess_worse_than_none():
     rhs[0] = 1.0
     cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=50))
     guess = np.full(matrix.shape[0], 1e12)
-    x, iterations, residual = pcg(matrix, rhs, guess, lambda r: cycle(matrix, r), 1e-10, 100)
-    assert residual <= 1e-10 and np.linalg.norm(rhs - matrix @ x) <= 1e-10
+    x, iterations, residual, info = pcg(matrix, rhs, guess, lambda r: cycle(matrix, r), 1e-10, 100)
+    assert info == 0 and residual <= 1e-10 and np.linalg.norm(rhs - matrix @ x) <= 1e-10
 
 
 def test_jacobi_bicgstab_meets_the_true_residual_on_an_advection_matrix():

@@ -88,7 +88,9 @@ class Velocity:
         if self.r == 0.0:
             return [np.zeros(f.lower.size) for f in fv.faces], None, 0.0
         cell_grad = self.cell_gradient(c)
-        normal, magnitude = zip(*(face_gradient(c, f.lower, f.upper, f.axis, cell_grad, h) for f in fv.faces))
+        normal, magnitude = [np.empty(f.lower.size) for f in fv.faces], [np.empty(f.lower.size) for f in fv.faces]
+        for f, dn, m in zip(fv.faces, normal, magnitude):
+            face_gradient(dn, m, c, f.lower, f.upper, f.axis, cell_grad, h)
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0

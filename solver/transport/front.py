@@ -105,8 +105,9 @@ class FrontVelocity:
         local = np.full(fv.n, -1, np.int32)
         local[candidates] = np.arange(candidates.size, dtype=np.int32)
         a = self.adjacency  # its rows and columns of the candidates: adjacency[candidates][:, candidates]
-        graph = sp.csr_matrix(subgraph(a.indptr, a.indices, a.data, keep, local)[::-1],
-                              shape=(candidates.size, candidates.size))
+        indices, data = np.empty(a.nnz, np.int32), np.empty(a.nnz)
+        indptr = subgraph(a.indptr, a.indices, a.data, keep, local, indices, data)
+        graph = sp.csr_matrix((data[:indptr[-1]], indices[:indptr[-1]], indptr), shape=(candidates.size,) * 2)
         distance, _, source = dijkstra(graph, directed=True, indices=local[front], min_only=True,
                                        return_predecessors=True)
         return nearest_rows(fv.n, front, candidates, dense, distance, source,

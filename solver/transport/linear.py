@@ -55,10 +55,10 @@ class ReusedAMG:
     def _cg(self, matrix, rhs, x0):
         x = np.zeros_like(rhs) if x0 is None else np.array(x0, dtype=float)
         with np.errstate(over="ignore", invalid="ignore"):  # overflow shows up in the residual check
-            x, its, residual = pcg(matrix, rhs, x, lambda r: self.cycle(matrix, r),
-                                   self.tolerance * np.linalg.norm(rhs), self.max_iterations)
+            x, its, residual, info = pcg(matrix, rhs, x, lambda r: self.cycle(matrix, r),
+                                         self.tolerance * np.linalg.norm(rhs), self.max_iterations)
         self.iterations += its
-        return x, residual, its
+        return x, residual, its, info
 
     def solve(self, matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Solve the SPD system `matrix x = rhs`; raises StepFailure if CG does not converge."""
@@ -67,16 +67,15 @@ class ReusedAMG:
         target = self.tolerance * np.linalg.norm(rhs)
         if self.cycle is None:
             self._rebuild(matrix)
-            x, residual, its = self._cg(matrix, rhs, x0)
+            x, residual, its, info = self._cg(matrix, rhs, x0)
             self.fresh_iterations = its
         else:
-            x, residual, its = self._cg(matrix, rhs, x0)
-            if not residual <= target or its > max(self.floor, self.growth * self.fresh_iterations):
+            x, residual, its, info = self._cg(matrix, rhs, x0)
+            if not within(residual, target) or its > max(self.floor, self.growth * self.fresh_iterations):
                 self._rebuild(matrix)
-                x, residual, its = self._cg(matrix, rhs, x if residual <= target else x0)
+                x, residual, its, info = self._cg(matrix, rhs, x if within(residual, target) else x0)
                 self.fresh_iterations = max(its, 1)
-        if not residual <= target:  # also NaN: overflow counts as not converged
-            info = 1 if its >= self.max_iterations else -1
+        if not within(residual, target):
             raise StepFailure(not_converged("nutrient CG", matrix, x, rhs, self.tolerance, info, its,
                                             self.max_iterations))
         return x
@@ -115,10 +114,11 @@ class VCycle:
 
 
 def pcg(matrix, rhs: np.ndarray, x: np.ndarray, precondition, target: float,
-        max_iterations: int) -> tuple[np.ndarray, int, float]:
+        max_iterations: int) -> tuple[np.ndarray, int, float, int]:
     """Preconditioned conjugate gradients from `x` (updated in place) until the recursive residual is at most
-    `target`; returns (x, iterations, the true residual's norm |rhs - matrix x|), which the caller judges
-    (a recursion that has drifted below the true residual stops with a true residual above target).
+    `target`; returns (x, iterations, the true residual's norm |rhs - matrix x|, info), which the caller
+    judges (a recursion that has drifted below the true residual stops with a true residual above target);
+    info is 0 when the recursive residual met target, 1 when out of iterations, -1 on a breakdown.
     A starting x whose residual exceeds |rhs| is replaced by 0: from there CG could not reduce the true
     residual to target relative to |rhs| in double precision (measured: d = 1, g = 1e10, one step dt = 1)."""
     r = rhs - matrix @ x
@@ -127,7 +127,7 @@ def pcg(matrix, rhs: np.ndarray, x: np.ndarray, precondition, target: float,
         x[:] = 0.0
         r, size = rhs.copy(), np.linalg.norm(rhs)
     if size <= target:
-        return x, 0, size
+        return x, 0, size, 0
     z = precondition(r)
     p = z.copy()
     rz = r @ z
@@ -135,18 +135,23 @@ def pcg(matrix, rhs: np.ndarray, x: np.ndarray, precondition, target: float,
         q = matrix @ p
         curvature = p @ q
         if not curvature > 0:  # breakdown (or NaN): not converged
-            return x, iteration, size if np.isfinite(size) else np.inf
+            return x, iteration, size if np.isfinite(size) else np.inf, -1
         step = rz / curvature
         x += step * p
         r -= step * q
         size = np.linalg.norm(r)
         if size <= target:
-            return x, iteration, np.linalg.norm(rhs - matrix @ x)
+            return x, iteration, np.linalg.norm(rhs - matrix @ x), 0
         z = precondition(r)
         rz, previous = r @ z, rz
         p *= rz / previous
         p += z
-    return x, max_iterations, size
+    return x, max_iterations, size, 1
+
+
+def within(residual: float, target: float) -> bool:
+    """A residual norm at most `target`, and finite (an overflow never converges)."""
+    return bool(np.isfinite(residual) and residual <= target)
 
 
 class KeptDiagonal:
@@ -205,7 +210,7 @@ def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tole
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # overflow ends as a breakdown
         x, iterations, info = _bicgstab(matrix, rhs, x, inverse, target, max_iterations)
         size = np.linalg.norm(rhs - matrix @ x)
-    if info != 0 or not size <= target:
+    if info != 0 or not within(size, target):
         raise StepFailure(not_converged("biofilm BiCGSTAB", matrix, x, rhs, tolerance, info, iterations,
                                         max_iterations))
     return x, iterations
