@@ -16,12 +16,14 @@ step split into nutrient solve, velocity (growth velocity, with the front
 extension), phi solve and bookkeeping (everything else in the loop:
 expansion, checks, snapshots), CG iterations per nutrient solve, BiCGSTAB
 iterations per phi solve, the one-off setup, the peak memory and the load
-average when the case started (the machine is shared).
+average when the case started (the machine is shared), and the loop's CPU
+time per step: one thread, so equal to the wall time on a quiet machine and
+less disturbed by other jobs on a busy one.
 
 --baseline DIR runs every case also with DIR's `solver` first on the path (for
 instance the commit before issue 20: `git archive 60716c6 | tar -x -C /tmp/old`)
-and prints the ratio baseline / this of the total per step, pair by pair: the
-two versions run one after the other at each size.  The same grid stepped by
+and prints the ratio baseline / this of the total per step (wall and CPU), pair
+by pair: the two versions run one after the other at each size.  The same grid stepped by
 plain FiPy (`tests/fipy_reference.py`, every matrix rebuilt; the pointwise
 growth velocity, as FiPy's terms write it) with CG/GMRES and with FiPy's
 default solver (LU) is run at --fipy-sizes and --fipy-default-sizes.  The cost
@@ -70,15 +72,16 @@ def measure_fast(n: int, steps: int, advection: str, velocity: str, ndim: int) -
     setup = time.perf_counter() - began
     before = dict(run.transport.timings)
     counts = run.report()
-    loop_start = time.perf_counter()
+    loop_start, cpu_start = time.perf_counter(), time.process_time()
     for _ in snapshots:
         pass
-    loop = time.perf_counter() - loop_start
+    loop, cpu = time.perf_counter() - loop_start, time.process_time() - cpu_start
     report = run.report()
     stages = {k: report["timings"].get(k, 0.0) - before.get(k, 0.0) for k in ("nutrient", "velocity", "biofilm")}
     per_step = {k: 1e3 * v / steps for k, v in stages.items()}
     per_step["bookkeeping"] = 1e3 * loop / steps - sum(per_step.values())
     per_step["total"] = 1e3 * loop / steps
+    per_step["cpu"] = 1e3 * cpu / steps
     return {"setup_s": setup, "per_step_ms": per_step,
             "cg_iterations": (report["nutrient_cg_iterations"] - counts["nutrient_cg_iterations"]) / steps,
             "bicgstab_iterations": (report["biofilm_iterations"] - counts["biofilm_iterations"]) / steps,
@@ -174,15 +177,18 @@ def main() -> None:
     print(f"directional scene, mechanics off, dt = {DT:g}, advection = {args.advection}, "
           f"FIPY_SOLVERS = {os.environ['FIPY_SOLVERS']}, OMP_NUM_THREADS = {os.environ['OMP_NUM_THREADS']}")
     print("| cells | growth velocity | version | load | steps | nutrient | velocity | phi solve | bookkeeping "
-          "| **total ms/step** | CG its/solve | BiCGSTAB its | AMG builds | setup s | peak MB | baseline / this |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| **total ms/step** | CPU ms/step | CG its/solve | BiCGSTAB its | AMG builds | setup s | peak MB "
+          "| baseline / this (wall, CPU) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n, ndim, velocity, steps, this, old, _ in rows:
         versions = [("this", this)] + ([("baseline", old)] if old else [])
         for label, r in versions:
             s = r["per_step_ms"]
-            ratio = f"**{old['per_step_ms']['total'] / this['per_step_ms']['total']:.2f}×**" if old and label == "this" else ""
+            ratio = (f"**{old['per_step_ms']['total'] / this['per_step_ms']['total']:.2f}×**, "
+                     f"{old['per_step_ms']['cpu'] / this['per_step_ms']['cpu']:.2f}×") if old and label == "this" else ""
             print(f"| {cells(n, ndim)} | {velocity} | {label} | {r['load']:.1f} | {steps} | {s['nutrient']:.1f} | "
                   f"{s['velocity']:.1f} | {s['biofilm']:.1f} | {s['bookkeeping']:.1f} | **{s['total']:.1f}** | "
+                  f"{s['cpu']:.1f} | "
                   f"{r['cg_iterations']:.1f} | {r.get('bicgstab_iterations', float('nan')):.1f} | {r['amg_rebuilds']} | "
                   f"{r['setup_s']:.2f} | {r['peak_mb']:.0f} | {ratio} |")
     fipy_rows = [(n, velocity, this, fipy) for n, ndim, velocity, _, this, _, fipy in rows if fipy]
