@@ -160,7 +160,8 @@ def tolerance_table(n: int) -> None:
     print(f"bundled directional scene (TVD, front velocity) on {n}^3 cells, its {problem.steps} steps to T* = "
           f"{problem.t_end:g}, mechanics off, against the run at tolerance 1e-13, largest differences over its "
           f"{len(reference)} outputs; load average {os.getloadavg()[0]:.1f}")
-    print("| nutrient tolerance | CG its/solve | max abs(phi - phi_ref) | max abs(c - c_ref) | mean phi difference | s |")
+    print("| nutrient tolerance | CG its/solve | max abs(phi - phi_ref) | max abs(c - c_ref) | mean phi difference "
+          "| s |")
     print("|---|---|---|---|---|---|")
     for tolerance, (snapshots, report, seconds) in runs.items():
         its = report["nutrient_cg_iterations"] / (report["steps_taken"] + 1)

@@ -82,13 +82,14 @@ class Velocity:
         return self.field(c)[0]
 
     def field(self, c: np.ndarray) -> tuple[list[np.ndarray], np.ndarray | None, float]:
-        """Face velocities per axis, the cell gradient of c they came from ((ndim, n); None when r = 0) and the floor of
-        |grad c| they used (0 where nothing grows: r = 0 or a flat nutrient)."""
+        """Face velocities per axis, the cell gradient of c they came from ((ndim, n); None when r = 0) and the
+        floor of |grad c| they used (0 where nothing grows: r = 0 or a flat nutrient)."""
         fv, h = self.fv, self.fv.grid.spacing
         if self.r == 0.0:
             return [np.zeros(f.lower.size) for f in fv.faces], None, 0.0
         cell_grad = self.cell_gradient(c)
-        normal, magnitude = [np.empty(f.lower.size) for f in fv.faces], [np.empty(f.lower.size) for f in fv.faces]
+        normal = [np.empty(f.lower.size) for f in fv.faces]
+        magnitude = [np.empty(f.lower.size) for f in fv.faces]
         for f, dn, m in zip(fv.faces, normal, magnitude):
             face_gradient(dn, m, c, f.lower, f.upper, f.axis, cell_grad, h)
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
@@ -153,7 +154,8 @@ class Biofilm:
             self.face_positions.append(np.stack([
                 same(f.lower), same(f.upper), p.position(f.upper, f.lower), p.position(f.lower, f.upper),
                 p.position(f.lower, out_lower), p.position(f.upper, out_upper)]).astype(np.int64))
-        self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr), shape=p.matrix.shape)
+        self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr),
+                                    shape=p.matrix.shape)  # the phi matrix, its data rewritten every step
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
@@ -171,7 +173,7 @@ class Biofilm:
     def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
         """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
         source = self.params.k_alpha * alpha
-        matrix = self.matrix  # the kept pattern, its data rewritten
+        matrix = self.matrix
         data = matrix.data
         np.add(self.diffusion, self.advection(w, phi), out=data)
         data[self.pattern.diagonal] += 1.0 / dt
