@@ -21,7 +21,7 @@ nothing feeds back from it into phi or c.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -112,7 +112,7 @@ class Clock:
                 self.dt = 0.5 * dt
                 self._check_smallest(state, self.dt, failure.cause, failure.where)
                 continue
-            state = new if abs(new.t - until) > eps else State(until, new.phi, new.alpha, new.c)
+            state = new if abs(new.t - until) > eps else replace(new, t=until)
             self.steps += 1
             if self.progress is not None:
                 self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected))

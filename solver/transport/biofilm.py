@@ -14,7 +14,9 @@ Face velocity: w_f = r c_f/(k+c_f) (dc/dn)_f / max(|grad c|_f, floor), with
 (dc/dn)_f = (c_b - c_a)/h, the tangential gradient from the mean of the two
 cells' central differences (mirror values at walls and obstacles), and
 floor = gradient_floor * max_f |grad c|_f: where the nutrient is flat the
-direction is undefined and the velocity fades out linearly instead.
+direction is undefined and the velocity fades out linearly instead.  Where it
+is flat everywhere to round-off (max_f |dc| <= ROUNDOFF max c, e.g. g = 0) its
+gradients are solver residue and nothing grows (w = 0).
 
 Schemes, both written in positive-coefficient form sum_N a_PN (phi_P - phi_N)
 with a_PN >= 0 so that, with implicit Euler, the matrix is an M-matrix with
@@ -35,9 +37,10 @@ import scipy.sparse as sp
 
 from ..counters import Counters
 from ..problem import Numerics, Parameters
-from .bounds import Projection
+from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
+from .kernels import advection_into, central_differences, face_gradient, face_velocity
 from .linear import jacobi_bicgstab
 
 
@@ -50,6 +53,8 @@ class Velocity:
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
         self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
+        self.below = np.stack([below for below, _ in self.neighbours]).astype(np.int64)
+        self.above = np.stack([above for _, above in self.neighbours]).astype(np.int64)
         self.held_faces = []  # Dirichlet faces of the nutrient: (axis, cells beside it, their inner neighbours,
         for face, cells, value in held_faces:  # +1 on a lower face / -1 on an upper one, held value)
             axis = "xyz".index(face[0])
@@ -58,14 +63,13 @@ class Velocity:
             self.held_faces.append((axis, cells, above[cells] if lower else below[cells], 1.0 if lower else -1.0,
                                     value))
 
-    def central_differences(self, q: np.ndarray) -> list[np.ndarray]:
-        """Cell gradient of q per axis; a missing neighbour takes the cell's own value (zero flux)."""
-        h2 = 2.0 * self.fv.grid.spacing
-        return [(q[above] - q[below]) / h2 for below, above in self.neighbours]
+    def central_differences(self, q: np.ndarray) -> np.ndarray:
+        """Cell gradient of q, (ndim, n); a missing neighbour takes the cell's own value (zero flux)."""
+        return central_differences(q, self.below, self.above, 2.0 * self.fv.grid.spacing)
 
-    def cell_gradient(self, c: np.ndarray) -> list[np.ndarray]:
-        """Cell gradient of the nutrient: central differences, and beside a held nutrient face the ghost value
-        2 c_face - c (the held value on the face)."""
+    def cell_gradient(self, c: np.ndarray) -> np.ndarray:
+        """Cell gradient of the nutrient, (ndim, n): central differences, and beside a held nutrient face the
+        ghost value 2 c_face - c (the held value on the face)."""
         h2 = 2.0 * self.fv.grid.spacing
         gradient = self.central_differences(c)
         for axis, cells, inner, sign, value in self.held_faces:
@@ -77,31 +81,23 @@ class Velocity:
         """Face velocities per axis; `phi` is not needed (the front velocity's signature)."""
         return self.field(c)[0]
 
-    def field(self, c: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray] | None, float]:
-        """Face velocities per axis, the cell gradient of c they came from (None when r = 0) and the floor of
-        |grad c| they used (0 where nothing grows: r = 0 or a flat nutrient)."""
+    def field(self, c: np.ndarray) -> tuple[list[np.ndarray], np.ndarray | None, float]:
+        """Face velocities per axis, the cell gradient of c they came from ((ndim, n); None when r = 0) and the
+        floor of |grad c| they used (0 where nothing grows: r = 0 or a flat nutrient)."""
         fv, h = self.fv, self.fv.grid.spacing
         if self.r == 0.0:
             return [np.zeros(f.lower.size) for f in fv.faces], None, 0.0
         cell_grad = self.cell_gradient(c)
-        normal, magnitude = [], []
-        for f in fv.faces:
-            dn = (c[f.upper] - c[f.lower]) / h
-            squared = dn * dn
-            for axis, g in enumerate(cell_grad):
-                if axis != f.axis:
-                    t = 0.5 * (g[f.lower] + g[f.upper])
-                    squared += t * t
-            normal.append(dn)
-            magnitude.append(np.sqrt(squared))
+        normal = [np.empty(f.lower.size) for f in fv.faces]
+        magnitude = [np.empty(f.lower.size) for f in fv.faces]
+        for f, dn, m in zip(fv.faces, normal, magnitude):
+            face_gradient(dn, m, c, f.lower, f.upper, f.axis, cell_grad, h)
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
-        if largest == 0.0:
+        if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0
         floor = self.floor * largest
-        velocities = []
-        for f, dn, m in zip(fv.faces, normal, magnitude):
-            cf = 0.5 * (c[f.lower] + c[f.upper])
-            velocities.append(self.r * cf / (self.k + cf) * dn / np.maximum(m, floor))
+        velocities = [face_velocity(c, f.lower, f.upper, dn, m, self.r, self.k, floor)
+                      for f, dn, m in zip(fv.faces, normal, magnitude)]
         return velocities, cell_grad, floor
 
 
@@ -149,17 +145,17 @@ class Biofilm:
         p = self.pattern
         self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
                                      minlength=p.keys.size)
-        self.face_positions = []
+        self.faces, self.face_positions = [], []  # per axis: (4, m) cells and (6, m) CSR data positions
         for f in fv.faces:
             same = lambda cell: p.position(cell, cell)
             out_lower = np.where(f.lower_out >= 0, f.lower_out, f.lower)
             out_upper = np.where(f.upper_out >= 0, f.upper_out, f.upper)
-            self.face_positions.append(dict(
-                lower=same(f.lower), upper=same(f.upper),
-                upper_lower=p.position(f.upper, f.lower), lower_upper=p.position(f.lower, f.upper),
-                lower_out=p.position(f.lower, out_lower) if self.tvd else None,
-                upper_out=p.position(f.upper, out_upper) if self.tvd else None,
-            ))
+            self.faces.append(np.stack([f.lower, f.upper, f.lower_out, f.upper_out]).astype(np.int64))
+            self.face_positions.append(np.stack([
+                same(f.lower), same(f.upper), p.position(f.upper, f.lower), p.position(f.lower, f.upper),
+                p.position(f.lower, out_lower), p.position(f.upper, out_upper)]).astype(np.int64))
+        self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr),
+                                    shape=p.matrix.shape)  # the phi matrix, its data rewritten every step
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
@@ -168,45 +164,19 @@ class Biofilm:
                 **self.projection.counters("phi")}
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
-        """CSR data of the advection operator (per unit volume) for face velocities w."""
-        h = self.fv.grid.spacing
-        positions, values = [], []
-        for f, wf, pos in zip(self.fv.faces, w, self.face_positions):
-            forward = wf > 0  # flow from lower to upper
-            a = np.abs(wf) / h
-            if self.tvd:
-                up = np.where(forward, f.lower, f.upper)
-                down = np.where(forward, f.upper, f.lower)
-                far = np.where(forward, f.lower_out, f.upper_out)
-                num = np.where(far >= 0, phi[up] - phi[np.maximum(far, 0)], 0.0)
-                den = phi[down] - phi[up]
-                smooth = num * den > 0
-                total = np.where(smooth, num + den, 1.0)
-                psi = np.where(smooth, 2.0 * num / total, 0.0)
-                psi_over_r = np.where(smooth, 2.0 * den / total, 0.0)
-                inflow = a * (1.0 - 0.5 * psi)
-                outflow = a * 0.5 * psi_over_r
-            else:
-                inflow, outflow = a, None
-            # inflow: row `down` gets inflow * (phi_down - phi_up)
-            positions += [np.where(forward, pos["upper"], pos["lower"]),
-                          np.where(forward, pos["upper_lower"], pos["lower_upper"])]
-            values += [inflow, -inflow]
-            if outflow is not None:
-                # outflow correction: row `up` gets outflow * (phi_up - phi_far)
-                positions += [np.where(forward, pos["lower"], pos["upper"]),
-                              np.where(forward, pos["lower_out"], pos["upper_out"])]
-                values += [outflow, -outflow]
-        return np.bincount(np.concatenate(positions), weights=np.concatenate(values),
-                           minlength=self.pattern.keys.size)
+        """CSR data of the advection operator (per unit volume) for face velocities w (kernels.advection_into)."""
+        data = np.zeros(self.pattern.keys.size)
+        for faces, positions, wf in zip(self.faces, self.face_positions, w):
+            advection_into(data, faces, positions, np.asarray(wf, dtype=float), phi, self.fv.grid.spacing, self.tvd)
+        return data
 
     def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
         """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
         source = self.params.k_alpha * alpha
-        data = self.diffusion + self.advection(w, phi)
+        matrix = self.matrix
+        data = matrix.data
+        np.add(self.diffusion, self.advection(w, phi), out=data)
         data[self.pattern.diagonal] += 1.0 / dt
-        matrix = sp.csr_matrix((data, self.pattern.matrix.indices, self.pattern.matrix.indptr),
-                               shape=self.pattern.matrix.shape)
         rhs = phi / dt + source
         new, its = jacobi_bicgstab(matrix, rhs, phi, self.tolerance, data[self.pattern.diagonal])
         self.iterations += its

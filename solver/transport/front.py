@@ -48,10 +48,10 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
 
 from .finite_volume import FiniteVolumeGrid
+from .kernels import extended_faces, front_crossings, nearest_rows, subgraph, within_reach
 
 LEVEL = 0.5  # the front: phi = 1/2
 
@@ -68,7 +68,6 @@ class FrontVelocity:
         weight = np.full(2 * lower.size, fv.grid.spacing)
         self.adjacency = sp.csr_matrix((weight, (np.concatenate([lower, upper]), np.concatenate([upper, lower]))),
                                        shape=(fv.n, fv.n))  # open cells sharing a face, distance h
-        self.cross = ndimage.generate_binary_structure(fv.grid.ndim, 1)
 
     def __call__(self, c: np.ndarray, phi: np.ndarray) -> list[np.ndarray]:
         w, gradient, floor = self.pointwise.field(c)
@@ -78,69 +77,38 @@ class FrontVelocity:
         if front.size == 0:
             return w
         nearest = self._nearest(front, phi >= LEVEL)
-        inside = nearest >= 0
-        extended = np.zeros((self.fv.n, self.fv.grid.ndim))
-        extended[inside] = vectors[nearest[inside]]
-        faces = []
-        for f, wf in zip(self.fv.faces, w):
-            a, b = inside[f.lower], inside[f.upper]
-            va, vb = extended[f.lower, f.axis], extended[f.upper, f.axis]
-            mean = np.where(a & b, 0.5 * (va + vb), va + vb)  # one of them is 0 where only one is inside
-            faces.append(np.where(a | b, mean, wf))
-        return faces
+        # a face beside a covered cell: the mean of its cells' normal components (one of them where only one is)
+        return [extended_faces(wf, f.lower, f.upper, f.axis, nearest, vectors) for f, wf in zip(self.fv.faces, w)]
 
-    def _front(self, c: np.ndarray, phi: np.ndarray, gradient: list[np.ndarray], floor: float):
+    def _front(self, c: np.ndarray, phi: np.ndarray, gradient: np.ndarray, floor: float):
         """The vector F N per front cell (rows of `vectors`) and the front cells' active indices, with the
-        pointwise velocity's cell gradient of c and floor of |grad c| (the same regularised direction)."""
-        fv, h, velocity = self.fv, self.fv.grid.spacing, self.pointwise
-        grad_c = np.stack(gradient, axis=1)
-        grad_phi = np.stack(velocity.central_differences(phi), axis=1)
-        owners, vectors = [], []
+        pointwise velocity's cell gradient of c and floor of |grad c| (the same regularised direction); a
+        cell owning several crossings holds their mean (kernels.front_crossings)."""
+        fv, velocity = self.fv, self.pointwise
+        grad_phi = velocity.central_differences(phi)
+        sums = np.zeros((fv.n, fv.grid.ndim))
+        count = np.zeros(fv.n, np.int64)
         for f in fv.faces:
-            crossing = (phi[f.lower] >= LEVEL) != (phi[f.upper] >= LEVEL)
-            if not crossing.any():
-                continue
-            a, b = f.lower[crossing], f.upper[crossing]
-            theta = (phi[a] - LEVEL) / (phi[a] - phi[b])  # 0 at a, 1 at b
-            t = theta[:, None]
-            c_x = (1 - theta) * c[a] + theta * c[b]
-            grad_c_x = (1 - t) * grad_c[a] + t * grad_c[b]
-            grad_phi_x = (1 - t) * grad_phi[a] + t * grad_phi[b]
-            grad_phi_x[:, f.axis] = (phi[b] - phi[a]) / h
-            normal = -grad_phi_x / np.linalg.norm(grad_phi_x, axis=1)[:, None]
-            direction = grad_c_x / np.maximum(np.linalg.norm(grad_c_x, axis=1), floor)[:, None]
-            speed = velocity.r * c_x / (velocity.k + c_x) * np.einsum("ij,ij->i", normal, direction)
-            owners.append(np.where(theta < 0.5, a, b))
-            vectors.append(speed[:, None] * normal)
-        if not owners:
-            return np.zeros((0, fv.grid.ndim)), np.zeros(0, np.int64)
-        owners, vectors = np.concatenate(owners), np.concatenate(vectors)
-        front, slot = np.unique(owners, return_inverse=True)
-        count = np.bincount(slot, minlength=front.size)
-        mean = np.stack([np.bincount(slot, weights=vectors[:, i], minlength=front.size) / count
-                         for i in range(vectors.shape[1])], axis=1)
-        return mean, front
+            front_crossings(sums, count, f.lower, f.upper, f.axis, c, phi, gradient, grad_phi, LEVEL,
+                            fv.grid.spacing, velocity.r, velocity.k, floor)
+        front = np.flatnonzero(count)
+        return sums[front] / count[front, None], front
 
     def _nearest(self, front: np.ndarray, dense: np.ndarray) -> np.ndarray:
         """For every active cell, the row in `front` of its nearest front cell, by paths through open cells
         (obstacles are walls), if the cell is on the dense side (phi >= 1/2) or within `band` cells of the front;
         else -1.  Dijkstra on the cells that can qualify: the dense ones and the front's dilation by the band."""
         fv = self.fv
-        reach = int(np.ceil(self.band))
-        near = np.zeros(fv.n, bool)
-        near[front] = True
-        grown = ndimage.binary_dilation(fv.to_full(near.astype(float), fill=0.0) > 0, structure=self.cross,
-                                        iterations=reach)
-        candidates = np.flatnonzero(dense | fv.to_active(grown).astype(bool))
-        local = np.full(fv.n, -1, np.int64)
-        local[candidates] = np.arange(candidates.size)
-        graph = self.adjacency[candidates][:, candidates]
+        grown = within_reach(fv.cells[front], np.asarray(fv.grid.cells_shape, np.int64), int(np.ceil(self.band)))
+        keep = dense | grown[fv.cells]
+        candidates = np.flatnonzero(keep)
+        local = np.full(fv.n, -1, np.int32)
+        local[candidates] = np.arange(candidates.size, dtype=np.int32)
+        a = self.adjacency  # its rows and columns of the candidates: adjacency[candidates][:, candidates]
+        indices, data = np.empty(a.nnz, np.int32), np.empty(a.nnz)
+        indptr = subgraph(a.indptr, a.indices, a.data, keep, local, indices, data)
+        graph = sp.csr_matrix((data[:indptr[-1]], indices[:indptr[-1]], indptr), shape=(candidates.size,) * 2)
         distance, _, source = dijkstra(graph, directed=True, indices=local[front], min_only=True,
                                        return_predecessors=True)
-        row = np.full(fv.n, -1, np.int64)
-        row[front] = np.arange(front.size)
-        found = source >= 0
-        covered = found & (dense[candidates] | (distance <= self.band * fv.grid.spacing * (1 + 1e-9)))
-        nearest = np.full(fv.n, -1, np.int64)
-        nearest[candidates[covered]] = row[candidates[source[covered]]]
-        return nearest
+        return nearest_rows(fv.n, front, candidates, dense, distance, source,
+                            self.band * fv.grid.spacing * (1 + 1e-9))

@@ -35,7 +35,7 @@ from ..errors import StepFailure
 from ..problem import Consumption, Parameters
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
-from .linear import ReusedAMG
+from .linear import KeptDiagonal, ReusedAMG
 
 MAX_ACTIVE_SET_ITERATIONS = 100
 
@@ -64,6 +64,7 @@ class Nutrient:
         lap_free = laplacian[self.free]
         self.stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
         self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held] + face_inflow[self.free]  # b: inflow
+        self.matrix = KeptDiagonal(self.stiffness)  # K + gamma diag(phi), rewritten in place per solve
         self.amg = ReusedAMG(tolerance)
         self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
         self.active_set_iterations = 0
@@ -83,14 +84,14 @@ class Nutrient:
         return ~fed[label]
 
     def solve(self, phi: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
-        """c on the active cells for biofilm density `phi` (active cells); `guess` warm-starts."""
+        """c on the active cells for biofilm density `phi` (active cells); `guess` warm-starts CG (it changes
+        the iterations, not the answer beyond the tolerance)."""
         c = self.c_held.copy()
         if self.free.size:
             x0 = None if guess is None else guess[self.free]
             demand = self.gamma * phi[self.free]
             if self.consumption == "first-order":
-                matrix = self.stiffness + sp.diags(demand)
-                c[self.free] = self.amg.solve(sp.csr_matrix(matrix), self.rhs, x0)
+                c[self.free] = self.amg.solve(self.matrix(demand), self.rhs, x0)
             else:
                 c[self.free] = self._complementarity(demand, x0)
         return self._checked(c)

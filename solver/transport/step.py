@@ -4,7 +4,9 @@ A step of length dt (paper Eqs. 34-36, time homogenised):
   1. the growth velocity from c^n (the nutrient is quasi-steady in phi^n);
   2. phi^{n+1} by implicit Euler with alpha^n as source;
   3. alpha^{n+1} from phi^{n+1};
-  4. c^{n+1} for phi^{n+1}, which the next step starts from.
+  4. c^{n+1} for phi^{n+1}, which the next step starts from; CG starts from c^n
+     extrapolated along its last change, c^n + dt (dc/dt) (measured at 40^3:
+     initial residual 3e-6 against 9e-5 from c^n, 6 CG iterations instead of 8).
 Every stage checks for NaN and bounds and raises `StepFailure`; the clock
 (`timeloop`) decides what to do about it.  Wall time per stage is kept in
 `timings` so that a run can say where its time went.
@@ -27,12 +29,14 @@ from .nutrient import Nutrient
 
 @dataclass(frozen=True)
 class State:
-    """Transport fields on the active cells at time t."""
+    """Transport fields on the active cells at time t; `c_rate` is dc/dt over the step that led here (None
+    at the start, or when c was not solved), for the next nutrient solve's starting guess only."""
 
     t: float
     phi: np.ndarray
     alpha: np.ndarray
     c: np.ndarray | None
+    c_rate: np.ndarray | None = None
 
 
 class Transport:
@@ -77,8 +81,11 @@ class Transport:
         self.timings["velocity"] += after_velocity - start
         self.timings["biofilm"] += after_biofilm - after_velocity
         self.timings["expansion"] += clock() - after_biofilm
-        c = self._nutrient(phi, state.c) if with_nutrient else None
-        return State(state.t + dt, phi, alpha, c)
+        if not with_nutrient:
+            return State(state.t + dt, phi, alpha, None)
+        guess = state.c if state.c_rate is None else state.c + dt * state.c_rate
+        c = self._nutrient(phi, guess)
+        return State(state.t + dt, phi, alpha, c, (c - state.c) / dt)
 
     def counters(self) -> Counters:
         """The nutrient's and the biofilm's counters; upwind runs add their largest numerical diffusion."""
