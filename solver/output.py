@@ -70,7 +70,7 @@ def versions(packages=PACKAGES, python: bool = True) -> dict:
 def _coordinates(problem: Problem) -> dict:
     """Cell centres with their bounds (the cell faces; z points up) and grid nodes, µm."""
     grid = problem.grid
-    coords = {}
+    coords: dict[str, tuple] = {}
     for axis in grid.axes:
         attrs = {"units": "um", "long_name": f"{axis} of cell centre", "axis": axis.upper(),
                  "bounds": f"{axis}_bounds", **({"positive": "up"} if axis == "z" else {})}
@@ -151,7 +151,7 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     volume = grid.cell_volume * (SLAB_THICKNESS if grid.ndim == 2 else 1.0)
     times = np.array([s.time for s in snapshots])
 
-    data = {}
+    data: dict[str, tuple] = {}
     for name in ("phi", "c", "alpha"):
         units, long_name = FIELDS[name]
         data[name] = (("time", *cell_dims), np.stack([getattr(s, name) for s in snapshots]),
@@ -184,11 +184,11 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     data["elapsed"] = ("time", np.array([s.elapsed for s in snapshots]),
                        {"units": "s", "long_name": "wall time since the start of the run"})
     data["obstacle"] = (cell_dims, problem.obstacle.astype(np.int8),
-                        {"units": "1", "long_name": "rigid obstacle cell", "flag_values": np.int8([0, 1]),
-                         "flag_meanings": "open obstacle"})
+                        {"units": "1", "long_name": "rigid obstacle cell",
+                         "flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "open obstacle"})
     data["nutrient_source"] = (cell_dims, problem.nutrient_held.astype(np.int8),
                                {"units": "1", "long_name": "cell where c is held (nutrient source)",
-                                "flag_values": np.int8([0, 1]), "flag_meanings": "free held"})
+                                "flag_values": np.array([0, 1], dtype=np.int8), "flag_meanings": "free held"})
     data.update(parameter_variables(problem))
     coords = _coordinates(problem)
     coords["time"] = ("time", times, TIME_ATTRS, NO_FILL)

@@ -140,9 +140,15 @@ class ParameterInfo:
 
 def parameter_infos(parameters=None) -> tuple[ParameterInfo, ...]:
     """The declared parameters of a `Parameters` class or instance (default: `Parameters`), in order."""
-    return tuple(ParameterInfo(f.name, f.default, f.metadata["units"], f.metadata["long_name"],
-                               dict(f.metadata["bounds"]))
-                 for f in fields(Parameters if parameters is None else parameters) if "units" in f.metadata)
+    found = []
+    for f in fields(Parameters if parameters is None else parameters):
+        if "units" not in f.metadata:
+            continue
+        if not isinstance(f.default, (int, float)):
+            raise TypeError(f"parameter {f.name} is declared without a default value")
+        found.append(ParameterInfo(f.name, float(f.default), f.metadata["units"], f.metadata["long_name"],
+                                   dict(f.metadata["bounds"])))
+    return tuple(found)
 
 
 @dataclass(frozen=True)
@@ -251,9 +257,9 @@ class Problem:
     output_times: np.ndarray
     params: Parameters = field(default_factory=Parameters)
     consumption: Consumption = "first-order"
-    nutrient_value: np.ndarray | None = None
+    nutrient_value: np.ndarray = None  # type: ignore[assignment]  # None: 1 everywhere (__post_init__)
     nutrient_faces: tuple[tuple[str, float], ...] = ()
-    obstacle: np.ndarray | None = None
+    obstacle: np.ndarray = None  # type: ignore[assignment]  # None: no obstacle (__post_init__)
     numerics: Numerics = field(default_factory=Numerics)
     mechanics: MechanicsSetup | None = None
     start_time: float = 0.0

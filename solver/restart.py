@@ -36,12 +36,13 @@ def _cells(da: xr.DataArray) -> np.ndarray:
 def start_state(ds: xr.Dataset) -> dict:
     """The fields of `Problem` that continue the run of `ds` from its last output."""
     last = ds.isel(time=-1)
-    state = {"start_time": float(ds["time"].values[-1]), "phi0": _cells(last["phi"]),
+    start = float(ds["time"].values[-1])
+    state: dict[str, object] = {"start_time": start, "phi0": _cells(last["phi"]),
              "alpha0": _cells(last["alpha"]), "c0": _cells(last["c"])}
     if "next_step" in ds.attrs:
         state["first_step"] = float(ds.attrs["next_step"])
     if "u" in ds and MECHANICS_TIME in ds.dims and ds[MECHANICS_TIME].size \
-            and np.isclose(float(ds[MECHANICS_TIME].values[-1]), state["start_time"]):
+            and np.isclose(float(ds[MECHANICS_TIME].values[-1]), start):
         u = ds["u"].isel({MECHANICS_TIME: -1})
         nodes = [f"{a}_node" for a in ("z", "y", "x") if f"{a}_node" in u.dims]
         state["u0"] = np.nan_to_num(u.transpose(*nodes, "component").values.astype(float))
@@ -64,7 +65,7 @@ def joined(before: xr.Dataset, after: xr.Dataset) -> xr.Dataset:
         if not timed:
             continue
         if name not in before or set(before[name].dims) != set(var.dims):
-            raise ValueError(f"the run continued has no {name} on {', '.join(var.dims)}")
+            raise ValueError(f"the run continued has no {name} on {', '.join(map(str, var.dims))}")
         first = before[name].transpose(*var.dims)
         if name in COUNTED:
             var = var + int(first.values[-1])

@@ -101,7 +101,8 @@ class Clock:
                 dt = until - state.t
             try:
                 new = self._attempt(state, dt)
-            except _Rejected as rejection:
+            except _Rejected as rejection:  # (only error-controlled steps reject: a tolerance is set)
+                assert self.tolerance is not None
                 self.rejected += 1
                 self.dt = dt * max(self.SHRINK, self.SAFETY * np.sqrt(self.tolerance / rejection.error))
                 self._check_smallest(state, self.dt, f"error estimate {rejection.error:.3g} above "
@@ -176,12 +177,14 @@ class Simulation:
                 continue
             with threadpool_limits(limits=1, user_api="blas"):
                 state = clock.advance(state, float(when))
+            assert state.c is not None  # an accepted step ends with its nutrient solved
             snapshot = Snapshot(
                 time=float(when), phi=transport.full(state.phi), c=transport.full(state.c),
                 alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
                 rejected=clock.rejected, elapsed=0.0,
             )
-            if self.mechanics is not None and (index % problem.mechanics.every == 0 or index == last):
+            if self.mechanics is not None and problem.mechanics is not None and (
+                    index % problem.mechanics.every == 0 or index == last):
                 self._solve_mechanics(snapshot)
             snapshot.elapsed = time.perf_counter() - self.started
             yield snapshot

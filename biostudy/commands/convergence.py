@@ -69,7 +69,7 @@ class Convergence:
         with owned(self.directory, owner, "convergence.nc", execution.force):
             report = run_jobs(jobs, self.directory, execution)
             ds = measure(wanted, self.directory, self.levels, self.series, self.base, given, self.time)
-            if self.reference is not None:
+            if self.reference is not None and given is not None:
                 ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()} (T* = {given['time']:g})"
             ds.attrs = store.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
                                               "scene_file": str(self.path.resolve()), "overrides": text})

@@ -101,7 +101,7 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
         ds = solver.simulate(problem, progress=progress)
     except solver.SimulationError as error:
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
-    if loaded.previous is not None:
+    if loaded.previous is not None and loaded.previous_path is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     ds = store.with_observables(ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}

@@ -39,8 +39,8 @@ class ReusedAMG:
         self.max_iterations = max_iterations
         self.growth = growth  # rebuild when iterations exceed growth * (iterations right after the last rebuild)
         self.floor = floor
-        self.cycle = None
-        self.fresh_iterations = None
+        self.cycle: VCycle | None = None
+        self.fresh_iterations = 1
         self.rebuilds = 0
         self.iterations = 0  # total CG iterations, for the cost report
 
@@ -64,7 +64,7 @@ class ReusedAMG:
         """Solve the SPD system `matrix x = rhs`; raises StepFailure if CG does not converge."""
         if not np.any(rhs):
             return np.zeros_like(rhs)
-        target = self.tolerance * np.linalg.norm(rhs)
+        target = self.tolerance * float(np.linalg.norm(rhs))
         if self.cycle is None:
             self._rebuild(matrix)
             x, residual, its, info = self._cg(matrix, rhs, x0)
@@ -122,10 +122,10 @@ def pcg(matrix, rhs: np.ndarray, x: np.ndarray, precondition, target: float,
     A starting x whose residual exceeds |rhs| is replaced by 0: from there CG could not reduce the true
     residual to target relative to |rhs| in double precision (measured: d = 1, g = 1e10, one step dt = 1)."""
     r = rhs - matrix @ x
-    size = np.linalg.norm(r)
+    size = float(np.linalg.norm(r))
     if size > np.linalg.norm(rhs):  # a start worse than none (a giant step's stale guess): start from 0
         x[:] = 0.0
-        r, size = rhs.copy(), np.linalg.norm(rhs)
+        r, size = rhs.copy(), float(np.linalg.norm(rhs))
     if size <= target:
         return x, 0, size, 0
     z = precondition(r)
@@ -139,9 +139,9 @@ def pcg(matrix, rhs: np.ndarray, x: np.ndarray, precondition, target: float,
         step = rz / curvature
         x += step * p
         r -= step * q
-        size = np.linalg.norm(r)
+        size = float(np.linalg.norm(r))
         if size <= target:
-            return x, iteration, np.linalg.norm(rhs - matrix @ x), 0
+            return x, iteration, float(np.linalg.norm(rhs - matrix @ x)), 0
         z = precondition(r)
         rz, previous = r @ z, rz
         p *= rz / previous
@@ -204,12 +204,12 @@ def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tole
     |rhs - matrix x| is too.  Counted in iterations begun (one that converged after its first half counts)."""
     if not np.any(rhs):
         return np.zeros_like(rhs), 0
-    target = tolerance * np.linalg.norm(rhs)
+    target = tolerance * float(np.linalg.norm(rhs))
     inverse = 1.0 / diagonal
     x = np.array(x0, dtype=float)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # overflow ends as a breakdown
         x, iterations, info = _bicgstab(matrix, rhs, x, inverse, target, max_iterations)
-        size = np.linalg.norm(rhs - matrix @ x)
+        size = float(np.linalg.norm(rhs - matrix @ x))
     if info != 0 or not within(size, target):
         raise StepFailure(not_converged("biofilm BiCGSTAB", matrix, x, rhs, tolerance, info, iterations,
                                         max_iterations))
