@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import re
 
-SHOWN_UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "um2/T*": "µm²/T*", "um/T*": "µm/T*"}
+SHOWN_UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "um-1": "µm⁻¹", "um2/T*": "µm²/T*", "um/T*": "µm/T*"}
 _EXPONENT = re.compile(r"e([+-])0*(\d)")
 
 

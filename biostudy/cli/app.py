@@ -102,6 +102,8 @@ def run(
         loaded = command.load(scene, overrides=overrides, output=output, force=force)
         with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
             result = command.compute(loaded, progress=report)
+        for warning in result.warnings():
+            typer.echo(f"warning: {warning}", err=True)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
 
 

@@ -22,6 +22,7 @@ from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text
+from ..quantities import dense
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,11 @@ class Result:
     dataset: xr.Dataset
     target: Path
     replacing: str
+
+    def warnings(self) -> list[str]:
+        """What a user should know about the result besides the summary: a vanished dense biofilm."""
+        said = self.dataset.attrs.get(dense.ATTRIBUTE)
+        return [str(said)] if said else []
 
     def message(self) -> str:
         attrs = self.dataset.attrs
@@ -70,7 +76,8 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     except solver.SimulationError as error:
         raise Failed(f"simulation failed: {loaded.path}: {error}") from None
     text = overrides_text([parse_override(o) for o in loaded.overrides])
-    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path, text, **provenance())
+    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path, text, **provenance(), **loaded.scene.substratum_attrs(),
+                     **dense.attrs(ds))
     try:
         store.write_atomic(ds, loaded.target)
     except OSError as error:  # e.g. the disk filled up while it ran

@@ -38,6 +38,7 @@ from ..errors import BadInput, Failed
 from ..inputs import resources
 from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
+from ..quantities import dense
 from . import ownership, pool
 from .backends import Here, windowed
 from .dask import DaskCluster
@@ -79,6 +80,7 @@ class SweepReport:
     removed: list[Path] = field(default_factory=list)
     damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
     outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
+    vanished: dict[str, str] = field(default_factory=dict)  # cases whose dense biofilm vanished (`quantities.dense`)
 
     @property
     def ok(self) -> bool:
@@ -96,6 +98,11 @@ class SweepReport:
             said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
                         f"({'; '.join(versions[:2])}{'; ...' if len(versions) > 2 else ''}) and were reused; "
                         "--rerun-all computes every case again")
+        if self.vanished:
+            ids = sorted(self.vanished)
+            said.append(f"{len(ids)} cases lost their dense biofilm (phi >= 0.8) while the biofilm grew, likely a "
+                        f"grid artefact ({', '.join(ids[:3])}{', ...' if len(ids) > 3 else ''}): "
+                        f"{self.vanished[ids[0]]}")
         return said
 
 
@@ -175,6 +182,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
                 outdated = _outdated(record)
                 if outdated:
                     report.outdated[job.id] = outdated
+                if record.get(dense.ATTRIBUTE):
+                    report.vanished[job.id] = str(record[dense.ATTRIBUTE])
                 events.append(("skip", job.id, str(record.get("status"))))
                 continue
             report.damaged.append(job.id)
@@ -195,7 +204,9 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     backend = Here() if not ids else DaskCluster(scheduler) if scheduler else LocalPool(workers) if workers else Here()
     with contextlib.closing(windowed(ids, compile_, backend)) as results:
         for job_id, outcome in results:
-            _record(by_id[job_id], out_dir, outcome, prints[job_id])
+            said = _record(by_id[job_id], out_dir, outcome, prints[job_id])
+            if said:
+                report.vanished[job_id] = said
             report.ran.append(job_id)
             if outcome.status != "done":
                 report.failed[job_id] = outcome.message
@@ -217,11 +228,15 @@ def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
     return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
 
 
-def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None:
-    """Write one case's file: its dataset, or the failure record.  A file that cannot be written stops the
-    sweep (`SweepError`): the cases recorded so far are kept."""
-    extra = {**job.attrs, "fingerprint": fingerprint}
+def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> str:
+    """Write one case's file: its dataset, or the failure record; returns what `quantities.dense` says of it.  A
+    file that cannot be written stops the sweep (`SweepError`): the cases recorded so far are kept."""
+    extra = {**job.attrs, "fingerprint": fingerprint, **job.scene.substratum_attrs()}
+    said = ""
     if outcome.status == "done":
+        said = dense.vanished(outcome.dataset)
+        if said:
+            extra[dense.ATTRIBUTE] = said
         ds = store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
                          message="", **extra)
     else:
@@ -233,3 +248,4 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
     except OSError as error:
         raise SweepError(f"cannot write {path} ({error.strerror or error}); the cases recorded so far are kept, "
                          "run again to resume") from None
+    return said
