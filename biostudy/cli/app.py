@@ -323,3 +323,27 @@ def stability(
         return command.load(catalogue, output=output, overrides=overrides)
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)
+
+
+@app.command()
+def calibrate(
+    calibration: Annotated[str, typer.Argument(metavar="FILE.toml", help="calibration file (TOML: scene, [data], "
+                                                                         "[estimate], [method]), or the name of a "
+                                                                         "bundled one")],
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
+                                                   help="directory for cases/, calibration.nc, calibration.md and "
+                                                        "the pictures (default: the calibration's name)")] = None,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    overrides: CaseOverrides = [],
+    force: Force = False,
+    rerun_all: RerunAll = False,
+    quiet: Quiet = False,
+):
+    """Estimate scene parameters from measurements: least squares, profile likelihoods, 95 % intervals."""
+    def load():
+        from ..commands import calibrate as command  # lazily (module docstring)
+
+        return command.load(calibration, output=output, overrides=overrides)
+
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, force=force, rerun_all=rerun_all)

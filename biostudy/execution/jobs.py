@@ -40,7 +40,7 @@ from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
 from ..quantities import dense
 from . import ownership, pool
-from .backends import Here, windowed
+from .backends import Backend, Here, windowed
 from .dask import DaskCluster
 from .pool import LocalPool
 from .worker import Outcome
@@ -147,14 +147,16 @@ def _outdated(record: dict) -> str:
                      f"(now {v})" for k, v in now.items() if k in record and str(record[k]) != v)
 
 
-def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execution()) -> SweepReport:
+def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execution(),
+             backend: Backend | None = None) -> SweepReport:
     """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
 
     A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
     recorded failure too, unless `execution.retry_failed`) once its data read back with their checksums (a
     damaged file is run again); `execution.rerun_all` runs every job again.  notify(event, id, message) is
     called with event "skip", "start" (once per job to run, before any runs), "done" or "failed".  Without
-    workers or a scheduler jobs run here, one after another.  The caller holds the directory
+    workers or a scheduler jobs run here, one after another; `backend` (a `backends.Kept`) runs them on the
+    caller's workers instead of new ones (a calibration's rounds).  The caller holds the directory
     (`targets.owned`).
     """
     workers, scheduler = execution.workers, execution.scheduler
@@ -201,7 +203,9 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     def compile_(job_id: str) -> "solver.Problem":
         return by_id[job_id].scene.problem()
 
-    backend = Here() if not ids else DaskCluster(scheduler) if scheduler else LocalPool(workers) if workers else Here()
+    if backend is None or not ids:
+        backend = (Here() if not ids else DaskCluster(scheduler) if scheduler else LocalPool(workers) if workers
+                   else Here())
     with contextlib.closing(windowed(ids, compile_, backend)) as results:
         for job_id, outcome in results:
             said = _record(by_id[job_id], out_dir, outcome, prints[job_id])

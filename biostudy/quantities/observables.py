@@ -59,6 +59,7 @@ class Observable:
     compute: Callable[[xr.Dataset], np.ndarray]
     needs: tuple[str, ...] = ("phi",)
     needs_attrs: tuple[str, ...] = ()  # attributes of the dataset it is computed from (the substratum)
+    granularity: Callable[[float, int], float] | None = None  # (h, ndim) -> its step: it counts cells; None: sub-cell
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
         volume = self.units == "um3" and ds is not None and "z" not in ds.dims
@@ -78,6 +79,11 @@ def _height(axis: str | None) -> Observable:
 SUBSTRATUM_ATTRS = ("substratum_face", "substratum_threshold")
 
 
+def _one_cell(h: float, ndim: int) -> float:
+    """What a cell count moves by: one cell's volume (2-D: per µm of thickness)."""
+    return h**ndim
+
+
 def _on_substratum(quantity: substratum.Quantity) -> Observable:
     """A COMSTAT observable, per output, on the substratum face and with the threshold the dataset records."""
     def compute(ds: xr.Dataset) -> np.ndarray:
@@ -90,8 +96,8 @@ def _on_substratum(quantity: substratum.Quantity) -> Observable:
 
 REGISTRY: dict[str, Observable] = {o.name: o for o in (
     Observable("biofilm_volume", "um3", "volume of cells with phi >= 0.5",
-               lambda ds: measures.volume(ds, measures.THRESHOLD)),
-    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume),
+               lambda ds: measures.volume(ds, measures.THRESHOLD), granularity=_one_cell),
+    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=_one_cell),
     Observable("phi_mean", "1", "mean biofilm density over non-obstacle cells",
                lambda ds: measures.field_mean(ds, "phi")),
     Observable("phi_max", "1", "largest biofilm density", measures.phi_max),
