@@ -5,7 +5,8 @@
   at the data times joined by a line, and its 95 % band (Jacobian covariance).
 * `profiles_figure`: one panel per parameter: chi² above its minimum along the
   profile (the others re-optimised), the 95 % threshold 3.84, the estimate and
-  the interval; a log axis for a log parameter.
+  the interval; a log axis for a log parameter; the panel spans the profile (its
+  bounds are in the title when the interval reaches one).
 """
 from __future__ import annotations
 
@@ -70,7 +71,6 @@ def profiles_figure(ds: xr.Dataset):
         if str(ds.scale.values[j]) == "log":
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlim(float(ds.low[j]), float(ds.high[j]))
         ax.set_ylim(bottom=-0.2)
         shown = units_text(str(ds.units.values[j]))
         ax.set_xlabel(f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else ""))
