@@ -452,3 +452,30 @@ def test_a_run_whose_dense_biofilm_vanished_warns_and_records_it(write_toml, tmp
                                     'numerics.growth_velocity="front"'])
     assert kept.exit_code == 0 and "warning" not in kept.stderr
     assert "dense_biofilm_vanished" not in xr.open_dataset(tmp_path / "front.nc").attrs
+
+
+def test_a_sweep_records_the_substratum_in_its_cases_and_study_nc_carries_the_observables(write_toml, tmp_path):
+    from typer.testing import CliRunner
+
+    from biostudy.cli import app
+
+    write_toml("agar.toml", AGAR)
+    study = write_toml("sweep.toml", 'scene = "agar.toml"\n[set]\n"substratum.threshold" = 0.4\n[sweep]\n'
+                                     'r = [50.0, 100.0]\n')
+    result = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 0, result.output
+    case = xr.open_dataset(tmp_path / "out" / "cases" / "r=100.nc")
+    assert case.attrs["substratum_face"] == "y-" and case.attrs["substratum_threshold"] == 0.4
+    ds = xr.open_dataset(tmp_path / "out" / "study.nc")
+    assert ds.biomass.dims == ("r", "time") and ds.biomass.attrs["units"] == "um"
+    expected = [sub.biomass(phi, 1.0, "y-", 0.4) for phi in case.phi.isel(r=0).values]
+    np.testing.assert_allclose(ds.biomass.sel(r=100.0).values, expected, rtol=1e-12)
+    assert float(ds.biomass.sel(r=100.0).isel(time=-1)) > float(ds.biomass.sel(r=50.0).isel(time=-1))
+    # another threshold measures the same runs again: nothing is simulated, study.nc follows the scene
+    again = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q", "--set",
+                                     "substratum.threshold=0.3"])
+    assert again.exit_code == 0 and "nothing to run" in again.stderr, again.output
+    lower = [sub.biomass(phi, 1.0, "y-", 0.3) for phi in case.phi.isel(r=0).values]
+    np.testing.assert_allclose(xr.open_dataset(tmp_path / "out" / "study.nc").biomass.sel(r=100.0).values, lower,
+                               rtol=1e-12)
+    assert lower[-1] > expected[-1]
