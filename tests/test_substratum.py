@@ -391,6 +391,14 @@ def test_the_substratum_defaults_to_the_held_face_and_a_run_records_it(write_tom
 
     np.testing.assert_allclose(observables.evaluate(ds, "biomass").values, expected, rtol=1e-12)
     assert expected[-1] > expected[0] > 0
+    import matplotlib.pyplot as plt
+
+    from biostudy.plots import series
+
+    figure = series.figure(ds.load())  # plot's series: a third panel with the substratum's measures
+    lines = {line.get_label(): line.get_ydata() for line in figure.axes[2].lines}
+    np.testing.assert_allclose(lines["biomass"], expected, rtol=1e-12)
+    plt.close(figure)
 
 
 @pytest.mark.parametrize("face, expected", [
