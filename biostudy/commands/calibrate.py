@@ -180,9 +180,8 @@ class Calibrate:
             simulations = Simulations(self.plan, self.directory, execution, backend)
             try:
                 design = starts(len(self.plan.parameters), method.starts, method.seed)
-                speculate = bool(execution.workers and execution.workers > 1) or bool(execution.scheduler)
                 found = least_squares(design, len(simulations.data), simulations.noise(), simulations.evaluate,
-                                      method.profiles, speculate)
+                                      method.profiles, backend.backend.capacity if backend is not None else 1)
             finally:
                 if backend is not None:
                     backend.end()

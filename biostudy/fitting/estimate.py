@@ -42,10 +42,18 @@ def _best_point(problem: Problem) -> tuple[np.ndarray, float] | None:
 
 
 def least_squares(starts: np.ndarray, n: int, noise: np.ndarray, evaluate: Callable[[list[np.ndarray]], list],
-                  with_profiles: bool = True, speculate: bool = False) -> Estimate:
-    """Fit from every start (rows of the unit cube), then profile every parameter of the best fit."""
+                  with_profiles: bool = True, workers: int = 1) -> Estimate:
+    """Fit from every start (rows of the unit cube), then profile every parameter of the best fit; `workers`: how
+    many simulations run at once (a fit asks for a point and its neighbours together when there are enough)."""
     k = starts.shape[1]
     problems: dict[str, Problem] = {}
+    live = {"fits": len(starts)}  # fits in the last round: set between rounds, the same whatever the timing
+
+    def speculate(free: int) -> bool:
+        return workers >= live["fits"] * (free + 1)
+
+    def counted(waiting: list[str], stopped: set[str] = frozenset()) -> None:
+        live["fits"] = max(1, len(set(waiting) - set(stopped)))
 
     def start_task(name: str, start: np.ndarray):
         def task(ask):
@@ -65,6 +73,7 @@ def least_squares(starts: np.ndarray, n: int, noise: np.ndarray, evaluate: Calla
                 if a < b and a not in stopped and b not in stopped:
                     if np.max(np.abs(ends[a][0] - ends[b][0])) < MERGE:
                         stopped.add(b if ends[b][1] >= ends[a][1] else a)
+        counted(waiting, stopped)
         return stopped
 
     outcome = rounds.run(tasks, evaluate, merge)
@@ -88,7 +97,13 @@ def least_squares(starts: np.ndarray, n: int, noise: np.ndarray, evaluate: Calla
     tasks = {name: (lambda ask, j=j, d=d: branch(best, j, d, ask, noise, speculate,
                                                    float(estimate.local.standard_error[j])))
              for name, (j, d) in branches.items()}
-    outcome = rounds.run(tasks, evaluate)
+    live["fits"] = len(tasks)
+
+    def profiles_counted(waiting: list[str]) -> set[str]:
+        counted(waiting)
+        return set()
+
+    outcome = rounds.run(tasks, evaluate, profiles_counted)
     for result in outcome.values():
         if isinstance(result, BaseException):
             raise result

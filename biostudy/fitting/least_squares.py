@@ -7,8 +7,9 @@ coordinate at a bound that the gradient pushes against held there, steps cut bac
 ends when a step would lower chi² by less than `TOLERANCE` (absolute: what matters beside the 3.84 of a
 95 % interval).  scipy's bounded `trf` ended on the size of its steps, which the model's small jumps shrink:
 on the tiny agar twin it stopped at chi² 19 where 3.5 was to be had.  The Jacobian is forward differences
-(backward at an upper bound), their k runs asked for at once, and with `speculate` together with the point
-itself (k + 1 runs in one round: useful when workers would otherwise wait; the path is the same either way).
+(backward at an upper bound), their k runs asked for at once, and when `speculate()` says so together with the
+point itself (k + 1 runs in one round: worth it only when workers would otherwise wait, i.e. when there are at
+least k + 1 workers for each fit asking; the path is the same either way).
 
 The step is chosen against the observables' own resolution (`noise`: per measurement the smallest change
 of the model that is not noise, in residual units): a column whose largest change is less than `SIGNAL`
@@ -24,6 +25,7 @@ away from it); a failed neighbour of a Jacobian leaves that column zero for that
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -62,7 +64,8 @@ class Fit:
 class Problem:
     """The residuals of one fit: asked for in rounds, remembered per point, with finite-difference Jacobians."""
 
-    def __init__(self, ask: Ask, n: int, noise: np.ndarray, steps: np.ndarray, speculate: bool = False):
+    def __init__(self, ask: Ask, n: int, noise: np.ndarray, steps: np.ndarray,
+                 speculate: Callable[[int], bool] = lambda free: False):
         self.ask, self.n, self.noise, self.speculate = ask, n, np.asarray(noise, float), speculate
         self.steps = np.array(steps, dtype=float)
         self.known: dict[tuple, np.ndarray] = {}
@@ -93,7 +96,7 @@ class Problem:
         return moved
 
     def at(self, point: np.ndarray, free: list[int]) -> np.ndarray:
-        points = [point] + ([self.neighbour(point, j) for j in free] if self.speculate else [])
+        points = [point] + ([self.neighbour(point, j) for j in free] if self.speculate(len(free)) else [])
         return self.residuals(points)[0]
 
     def jacobian(self, point: np.ndarray, free: list[int]) -> np.ndarray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -39,7 +40,7 @@ class Branch:
     evaluations: int = 0
 
 
-def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, speculate: bool,
+def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, speculate: Callable[[int], bool],
            standard_error: float) -> Branch:
     """Step the profile of coordinate j from the optimum `best` toward one bound (see the module)."""
     out = Branch(j, direction)
