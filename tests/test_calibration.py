@@ -266,3 +266,41 @@ def test_the_bundled_example_validates():
     plan = load_calibration(bundled.resolve("calibrate-agar"))
     assert [p.name for p in plan.parameters] == ["g", "r"] and len(plan.measurements) >= 10
     assert os.path.samefile(plan.data_file, bundled.studies_dir() / "calibrate-agar.tsv")
+
+
+def test_conditions_share_parameters_unless_they_estimate_their_own(write_toml):
+    from biostudy.plans.calibration import load_calibration
+
+    write_toml("agar.toml", SCENE)
+    write_toml("t.tsv", "observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters\n"
+                        "biomass\tfull\t1\t2.9\t0.15\nbiomass\thalf\t2\t2.5\t0.15\nbiomass\thalf\t4\t3.1\t0.15\n")
+    path = write_toml("c.toml", textwrap.dedent("""\
+        scene = "agar.toml"
+        [data]
+        measurements = "t.tsv"
+        time_unit = "min"
+        t_ref = "20 h"
+        [estimate]
+        g = [1e7, 1e10, "log"]
+        r = [20.0, 250.0, "log"]
+        [conditions.full]
+        [conditions.half]
+        "nutrient.0.value" = 0.5
+        [conditions.half.estimate]
+        r = [20.0, 250.0]
+        """))
+    plan = load_calibration(path)
+    assert [(p.name, p.conditions) for p in plan.parameters] == [("g", ("full", "half")), ("r", ("full",)),
+                                                                  ("r[half]", ("half",))]
+    np.testing.assert_allclose(plan.times, np.array([1.0, 2.0, 4.0]) / 1200)  # minutes over 20 h
+    values = plan.values(np.array([0.5, 0.0, 1.0]))
+    assert values == {"g": pytest.approx(10**8.5), "r": 20.0, "r[half]": 250.0}
+    half = plan.scene_at("half", values)
+    assert half.params.r == 250.0 and half.params.g == pytest.approx(10**8.5) and half.nutrient[0].value == 0.5
+    assert list(half.time.times()) == pytest.approx([2 / 1200, 4 / 1200, 0.2])  # its own times, then t_end
+    full = plan.scene_at("full", values)
+    assert full.params.r == 20.0 and full.nutrient[0].value == 1.0
+    write_toml("c.toml", path.read_text() + '[conditions.third]\n"params.k" = 2.0\n')
+    result = invoke("calibrate", path, "-q")
+    assert result.exit_code == 2 and "c.toml: conditions.third: no row of the measurement table names it" in \
+        result.stderr, result.stderr

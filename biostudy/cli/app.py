@@ -327,15 +327,15 @@ def stability(
 
 @app.command()
 def calibrate(
-    calibration: Annotated[str, typer.Argument(metavar="FILE.toml", help="calibration file (TOML: scene, [data], "
-                                                                         "[estimate], [method]), or the name of a "
-                                                                         "bundled one")],
+    calibration: Annotated[str, typer.Argument(metavar="FILE.toml", help="calibration file (TOML: a scene, the "
+                                                                         "data, the keys to estimate, the method), "
+                                                                         "or the name of a bundled one")],
     output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
                                                    help="directory for cases/, calibration.nc, calibration.md and "
                                                         "the pictures (default: the calibration's name)")] = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
-    overrides: CaseOverrides = [],
+    overrides: Annotated[List[str], overrides("the scene of every simulation")] = [],
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,

@@ -89,6 +89,7 @@ class Kept:
     def __init__(self, backend: Backend):
         self.backend = backend
         self.capacity = backend.capacity
+        self.ended = False
 
     @property
     def busy(self) -> int:
@@ -101,8 +102,11 @@ class Kept:
         return self.backend.finished()
 
     def close(self, completed: bool) -> None:
-        if not completed:
+        if not completed and not self.ended:
+            self.ended = True
             self.backend.close(False)
 
     def end(self) -> None:
-        self.backend.close(True)
+        if not self.ended:
+            self.ended = True
+            self.backend.close(True)

@@ -357,6 +357,9 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             problems.append(BadInput(f"{value_text(m.time)}{unit} is T* = {t:.4g}{reference}, {when}: the scene "
                                      f"runs over T* = 0 to {value_text(t_end)} (time.t_end)", data_file,
                                      f"line {m.line}: time"))
+    named = {m.condition for m in rows}
+    problems += [BadInput("no row of the measurement table names it (simulationConditionId): nothing to fit", path,
+                          f"conditions.{name}") for name in spec.conditions if name not in named]
     if problems:
         raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
