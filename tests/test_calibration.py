@@ -100,6 +100,7 @@ def uninterrupted(folder):
     return result, xr.load_dataset(folder / "once" / "calibration.nc")
 
 
+@pytest.mark.slow
 def test_a_twin_is_recovered_within_its_95_percent_intervals_from_starts_near_the_bounds(folder, uninterrupted):
     result, ds = uninterrupted
     for name, truth in TRUTH.items():
@@ -134,6 +135,7 @@ def _finished(directory: Path) -> dict[str, tuple[int, int]]:
     return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (directory / "cases").glob("*.nc")}
 
 
+@pytest.mark.slow
 def test_a_calibration_killed_at_a_random_moment_resumes_without_repeating_a_simulation(folder, fit_only):
     expected = fit_only
     out = folder / "killed"
