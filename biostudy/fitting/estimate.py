@@ -3,7 +3,10 @@ profile likelihoods, every simulation asked for in rounds (`rounds.run`).
 
 The starts run side by side, one round each at a time; a start whose best point comes within `MERGE` of
 another's (in every coordinate of the unit cube) with a higher chi² is stopped: it is heading for the same
-minimum, and its runs would only repeat the other's.  Then the profiles' 2k branches run side by side.
+minimum, and its runs would only repeat the other's.  Then the profiles' 2k branches run side by side.  A
+start can stop on a flat stretch of chi² (where a parameter hardly matters, the Gauss-Newton step promises
+nothing); when a profile finds a point more than `REFIT` below it, the fit is repeated from that point, the
+estimate and its Jacobian are taken from there, and the intervals are measured against the lowest chi² found.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ from .rounds import Stopped
 from .uncertainty import Local, local
 
 MERGE = 0.05  # starts this close (unit cube, every coordinate) are heading for the same minimum
+REFIT = 0.1  # a profile point this much below the best start's chi²: the fit is repeated from it
 
 
 @dataclass
@@ -32,6 +36,7 @@ class Estimate:
     branches: list[Branch] = field(default_factory=list)
     minimum: float = float("nan")  # the lowest chi² found, profiles included
     lowest: np.ndarray | None = None  # where
+    starts_chi2: float | None = None  # the starts' best chi², when the profiles found lower and the fit was repeated
 
 
 def _best_point(problem: Problem) -> tuple[np.ndarray, float] | None:
@@ -112,6 +117,17 @@ def least_squares(starts: np.ndarray, n: int, noise: np.ndarray, evaluate: Calla
         for _, value, point in b.points:
             if value < estimate.minimum:
                 estimate.minimum, estimate.lowest = value, point
+    if estimate.minimum < best.chi2 - REFIT:
+        live["fits"] = 1
+        lowest = estimate.lowest
+        again = rounds.run({"refit": lambda ask: fit(lowest, Problem(ask, n, noise, best.steps, speculate))},
+                           evaluate, profiles_counted)["refit"]
+        if isinstance(again, BaseException):
+            raise again
+        if again.chi2 < best.chi2:
+            estimate.starts_chi2, estimate.best, estimate.local = best.chi2, again, local(again.jacobian)
+        if again.chi2 < estimate.minimum:
+            estimate.minimum, estimate.lowest = again.chi2, again.x
     estimate.profiles = [profile(best, outcome[f"profile{j}-"], outcome[f"profile{j}+"], estimate.minimum)
-                         for j in range(k)]
+                         for j in range(k)]  # the branches start from `best`, the starts' best
     return estimate

@@ -1,15 +1,16 @@
 """Weighted least squares in the unit cube of the bounds, with finite-difference Jacobians asked for in rounds.
 
-The parameters are mapped onto [0, 1] each (log10 for log bounds: `plans.designs.Range`), so one step size
-and one tolerance fit every parameter.  The residuals are r_i = (model_i - measurement_i) / sigma_i;
-chi² = sum r_i².  `fit` minimises it by Levenberg-Marquardt (damping relative to the diagonal of J^T J, a
-coordinate at a bound that the gradient pushes against held there, steps cut back into the cube), and
-ends when a step would lower chi² by less than `TOLERANCE` (absolute: what matters beside the 3.84 of a
-95 % interval).  scipy's bounded `trf` ended on the size of its steps, which the model's small jumps shrink:
-on the tiny agar twin it stopped at chi² 19 where 3.5 was to be had.  The Jacobian is forward differences
-(backward at an upper bound), their k runs asked for at once, and when `speculate()` says so together with the
-point itself (k + 1 runs in one round: worth it only when workers would otherwise wait, i.e. when there are at
-least k + 1 workers for each fit asking; the path is the same either way).
+The parameters are mapped onto [0, 1] each (log10 for log bounds: `plans.designs.Range`), so one step size and
+one tolerance fit every parameter. The residuals are r_i = (model_i - measurement_i) / sigma_i; chi² = sum r_i².
+`fit` minimises it by Levenberg-Marquardt (damping relative to the diagonal of J^T J, a coordinate at a bound
+that the gradient pushes against held there, steps cut back into the cube), and ends when the undamped Gauss-
+Newton step would lower chi² by less than `TOLERANCE` (absolute: what matters beside the 3.84 of a 95 % interval;
+judged on the damped step, a few rejected steps would end it anywhere). scipy's bounded `trf` ended on the size
+of its steps, which the model's small jumps shrink: on the tiny agar twin it stopped at chi² 19 where 3.5 was to
+be had. The Jacobian is forward differences (backward at an upper bound), their k runs asked for at once, and
+when `speculate()` says so together with the point itself (k + 1 runs in one round: worth it only when workers
+would otherwise wait, i.e. when there are at least k + 1 workers for each fit asking; the path is the same either
+way).
 
 The step is chosen against the observables' own resolution (`noise`: per measurement the smallest change
 of the model that is not noise, in residual units): a column whose largest change is less than `SIGNAL`
@@ -144,11 +145,14 @@ def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = No
     jacobian = problem.jacobian(x, free)
     damping, evaluations, message = DAMPING, 1, f"stopped after {max_iterations} iterations"
     for _ in range(max_iterations):
+        # converged when even the undamped Gauss-Newton step would gain less than the tolerance: judged on the
+        # full step, not on a damped one (which a few rejected steps make small wherever it is)
+        full = _step(x, r, jacobian, free, 0.0)
+        if chi2(r) - chi2(r + jacobian @ full) < tolerance:
+            message = f"converged: a Gauss-Newton step would lower chi² by less than {tolerance:g}"
+            break
         step = _step(x, r, jacobian, free, damping)
         predicted = chi2(r) - chi2(r + jacobian @ step)
-        if predicted < tolerance:
-            message = f"converged: a step would lower chi² by less than {tolerance:g}"
-            break
         trial = x + step
         r_trial = problem.at(trial, free)
         evaluations += 1
@@ -177,5 +181,5 @@ def _step(x: np.ndarray, r: np.ndarray, jacobian: np.ndarray, free: list[int], d
         return step
     a = jacobian[:, moving].T @ jacobian[:, moving]
     scale = np.maximum(np.diag(a), 1e-12 * max(np.max(np.diag(a)), 1e-300))
-    step[moving] = np.linalg.solve(a + damping * np.diag(scale), -gradient[moving])
+    step[moving] = np.linalg.lstsq(a + max(damping, 1e-12) * np.diag(scale), -gradient[moving], rcond=None)[0]
     return np.clip(x + step, 0.0, 1.0) - x

@@ -1,17 +1,17 @@
 """Profile likelihoods (Raue et al. 2009, Bioinformatics 25:1923): an interval that need not be symmetric, and
 whether the data determine a parameter at all.
 
-The profile of parameter j is chi²_PL(u_j) = min over the other parameters of chi²(u) with u_j held: each
-point re-optimises the others (`least_squares.fit` with u_j fixed), starting from the previous point.  From
-the optimum each branch steps outward (one branch per direction, each a fit of its own in the rounds of
-`rounds.run`), adapting its step so that chi² rises by one to two per point (the others start where the last
-two points extrapolate to, along the valley of correlated parameters), until chi²_PL exceeds the
-optimum by `THRESHOLD` (3.84: the 95 % point of chi² with one degree of freedom, a pointwise interval) or the
-branch reaches the bound.  The interval's end is where the profile crosses the threshold, interpolated
-linearly between the two points around it.  A branch that reaches its bound still below the threshold
-leaves the interval open there: the data do not determine the parameter on that side (practical
-non-identifiability; flat everywhere: structural).
-"""
+The profile of parameter j is chi²_PL(u_j) = min over the other parameters of chi²(u) with u_j held: each point
+re-optimises the others (`least_squares.fit` with u_j fixed), starting from the previous point. From the optimum
+each branch steps outward (one branch per direction, each a fit of its own in the rounds of `rounds.run`),
+adapting its step so that chi² rises by one to two per point (the others start where the last two points
+extrapolate to, along the valley of correlated parameters), until chi²_PL exceeds the lowest chi² it has seen by
+`THRESHOLD` (3.84: the 95 % point of chi² with one degree of freedom, a pointwise interval) or the branch reaches
+the bound; a point more than `OVERSHOOT` past the threshold is followed by one half as far from the last point
+below it, so that the crossing is bracketed closely. The interval's end is where the profile crosses the
+threshold, interpolated linearly between the two points around it. A branch that reaches its bound still below
+the threshold leaves the interval open there: the data do not determine the parameter on that side (practical
+non-identifiability; flat everywhere: structural)."""
 from __future__ import annotations
 
 import math
@@ -27,6 +27,7 @@ THRESHOLD = 3.841458820694124  # chi²(1) at 95 %
 MAX_POINTS = 12  # per branch
 FIRST, SMALLEST, LARGEST = 0.05, 0.005, 0.25  # steps along the profiled coordinate (unit cube)
 INNER_TOLERANCE = 0.1  # chi²: the re-optimisations need less than the optimum
+OVERSHOOT = 2.0  # a point this far past the threshold is followed by one half as far from the last below it
 
 
 @dataclass
@@ -47,7 +48,7 @@ def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, specu
     problem = Problem(ask, len(best.residuals), noise, best.steps, speculate)
     # one standard error first (chi² + 1 where the profile is quadratic), then about twice that (+ 4: past 3.84)
     step = FIRST if not math.isfinite(standard_error) else float(np.clip(standard_error, SMALLEST, 2 * FIRST))
-    here, previous = best.x.copy(), best.chi2
+    here, previous, floor = best.x.copy(), best.chi2, best.chi2
     before = None  # the point before `here`
     for _ in range(MAX_POINTS):
         target = here[j] + direction * step
@@ -61,7 +62,11 @@ def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, specu
         found = fit(start, problem, {j: target}, INNER_TOLERANCE, final_jacobian=False)
         out.points.append((target, found.chi2, found.x))
         out.evaluations += found.evaluations
-        rise = found.chi2 - best.chi2
+        floor = min(floor, found.chi2)  # a profile may find lower chi² than the fit did
+        rise = found.chi2 - floor
+        if rise > THRESHOLD + OVERSHOOT and step > 2 * SMALLEST:
+            step /= 2  # far past the threshold: a point between brackets the crossing more closely
+            continue
         if rise > THRESHOLD:
             break
         if at_bound:
@@ -105,7 +110,7 @@ def profile(best: Fit, below: Branch, above: Branch, minimum: float) -> Profile:
     centre = (float(best.x[j]), best.chi2)
     sides = {}
     for side in (below, above):
-        points = [centre] + [(u, c) for u, c, _ in side.points]
+        points = [centre] + sorted(((u, c) for u, c, _ in side.points), key=lambda p: abs(p[0] - centre[0]))
         crossing = _crossing(points, minimum)
         bound = 0.0 if side.direction < 0 else 1.0
         sides[side.direction] = (crossing if crossing is not None else bound, crossing is None)

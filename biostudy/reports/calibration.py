@@ -69,9 +69,12 @@ def statements(plan: CalibrationPlan, found: Estimate) -> list[str]:
             where = f"from its lower bound {number(low)} up to {number(high)}"
         said.append(f"the data do not determine {p.name}: its profile stays within {THRESHOLD:.2f} of the smallest "
                     f"chi² {where}")
+    if found.starts_chi2 is not None:
+        said.append(f"the profiles found chi² = {found.best.chi2:.4g}, below the {found.starts_chi2:.4g} where the "
+                    "starts ended (on a flat stretch of chi²): the estimate is from a fit repeated from there")
     if found.profiles and found.minimum < found.best.chi2 - LOWER:
-        said.append(f"a profile found chi² = {found.minimum:.4g}, below the fit's {found.best.chi2:.4g}: the starts "
-                    "missed the lowest minimum; the intervals are against the lower one (raise [method] starts)")
+        said.append(f"a profile found chi² = {found.minimum:.4g}, below the fit's {found.best.chi2:.4g}: the "
+                    "intervals are against the lower one (more starts may find it: [method] starts)")
     return said
 
 
