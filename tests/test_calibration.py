@@ -106,7 +106,7 @@ def test_a_twin_is_recovered_within_its_95_percent_intervals_from_starts_near_th
     for name, truth in TRUTH.items():
         j = list(ds.parameter.values).index(name)
         assert ds.lower.values[j] <= truth <= ds.upper.values[j], (name, ds.lower.values[j], ds.upper.values[j])
-        assert ds.lower.values[j] < ds.estimate.values[j] < ds.upper.values[j]
+        assert ds.lower.values[j] <= ds.estimate.values[j] <= ds.upper.values[j]  # at a bound, perhaps
         assert ds.standard_error.values[j] > 0
         # an interval reaching a bound is said in words (8 measurements of 5 % noise pin g and r only so far)
         closed = ds.low.values[j] < ds.lower.values[j] and ds.upper.values[j] < ds.high.values[j]
