@@ -86,10 +86,11 @@ def folder(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def fit_only(folder):
-    """r alone from one start without profiles (the kill-and-rerun test runs it twice: what is killed and resumed
+    """r alone (g at its true value) from one start without profiles (the kill-and-rerun test runs it twice: what is killed and resumed
     is the same whatever the number of parameters)."""
     (folder / "fit.toml").write_text(CALIBRATION.replace("starts = 2", "starts = 1").replace(
-        "profiles = true", "profiles = false").replace('g = [1e7, 1e10, "log"]\n', ""))
+        "profiles = true", "profiles = false").replace('g = [1e7, 1e10, "log"]\n', "").replace("[20.0, 250.0", "[50.0, 150.0").replace(
+        '[data]', '[set]\n"params.g" = 1e9\n[data]'))
     result = invoke("calibrate", folder / "fit.toml", "-o", folder / "fit-once", "-q")
     assert result.exit_code == 0, result.output
     return xr.load_dataset(folder / "fit-once" / "calibration.nc")
@@ -142,7 +143,7 @@ def test_a_calibration_killed_at_a_random_moment_resumes_without_repeating_a_sim
     expected = fit_only
     out = folder / "killed"
     seed = random.randrange(1 << 16)
-    wanted = random.Random(seed).randint(1, 6)  # the moment: after this many finished simulations
+    wanted = random.Random(seed).randint(1, 4)  # the moment: after this many finished simulations
     process = subprocess.Popen([sys.executable, "-m", "biostudy", "calibrate", str(folder / "fit.toml"), "-o",
                                 str(out), "-q"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -164,7 +165,7 @@ def test_a_calibration_killed_at_a_random_moment_resumes_without_repeating_a_sim
     ds = xr.load_dataset(out / "calibration.nc")
     assert ds.attrs["simulations"] + ds.attrs["simulations_reused"] >= len(after)
     assert ds.attrs["simulations_reused"] >= len(before) - 1  # the one being written at the kill may be lost
-    assert expected.sizes["parameter"] == 1 and expected.attrs["simulations"] >= 7
+    assert expected.sizes["parameter"] == 1 and expected.attrs["simulations"] >= 5
     for name in ("estimate", "standard_error", "correlation", "fitted", "band_upper"):
         np.testing.assert_array_equal(ds[name].values, expected[name].values, err_msg=f"{name} (seed {seed})")
     assert ds.attrs["chi2"] == expected.attrs["chi2"]
