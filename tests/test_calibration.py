@@ -79,7 +79,7 @@ def folder(tmp_path_factory) -> Path:
     here = tmp_path_factory.mktemp("calibration")
     (here / "agar.toml").write_text(SCENE)
     (here / "twin.tsv").write_text(twin.table(here / "agar.toml", truth=TRUTH, observables_measured=[
-        "biomass", "max_thickness"], times=HOURS, time_factor=1 / 20, noise=0.05, seed=3))
+        "biomass", "max_thickness"], times=HOURS, time_factor=1 / 20, noise=0.05, seed=1001))
     (here / "cal.toml").write_text(CALIBRATION)
     return here
 
