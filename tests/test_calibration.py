@@ -250,12 +250,12 @@ def test_every_problem_of_a_table_at_once_and_a_unit_that_is_not_a_time(write_to
     write_toml("t.tsv", TABLE.replace("2.9", "x").replace("0.18", "0"))
     path = write_toml("c.toml", 'scene = "agar.toml"\n[data]\nmeasurements = "t.tsv"\ntime_unit = "h"\n'
                                 't_ref = "20 h"\n[estimate]\nr = [20.0, 400.0]\n')
-    result = invoke("calibrate", path, "-q")
+    result = invoke("calibrate", path, "-q", "-o", path.parent / "out")
     assert result.exit_code == 2
     assert result.stderr.count("error: ") == 2 and "line 2: measurement" in result.stderr and "line 3: noise" in \
         result.stderr
     path.write_text(path.read_text().replace('t_ref = "20 h"', 't_ref = "20 m"'))
-    result = invoke("calibrate", path, "-q")
+    result = invoke("calibrate", path, "-q", "-o", path.parent / "out")
     assert result.exit_code == 2 and "c.toml: data.t_ref: '20 m' is not a time" in result.stderr, result.stderr
 
 
@@ -307,6 +307,6 @@ def test_conditions_share_parameters_unless_they_estimate_their_own(write_toml):
     full = plan.scene_at("full", values)
     assert full.params.r == 20.0 and full.nutrient[0].value == 1.0
     write_toml("c.toml", path.read_text() + '[conditions.third]\n"params.k" = 2.0\n')
-    result = invoke("calibrate", path, "-q")
+    result = invoke("calibrate", path, "-q", "-o", path.parent / "out")
     assert result.exit_code == 2 and "c.toml: conditions.third: no row of the measurement table names it" in \
         result.stderr, result.stderr

@@ -405,16 +405,17 @@ def test_the_substratum_defaults_to_the_held_face_and_a_run_records_it(write_tom
     ('"z-"', "substratum.face: 'z-' is not a face of a 2-D grid (faces: x-, x+, y-, y+)"),
     ('"w-"', "substratum.face: must be 'x-', 'x+', 'y-', 'y+', 'z-' or 'z+'"),
 ])
-def test_a_wrong_substratum_face_is_one_line(write_toml, face, expected):
+def test_a_wrong_substratum_face_is_one_line(write_toml, tmp_path, face, expected):
     from typer.testing import CliRunner
 
     from biostudy.cli import app
 
     scene = write_toml("agar.toml", AGAR + f"[substratum]\nface = {face}\n")
-    result = CliRunner().invoke(app, ["run", str(scene), "-q"])
+    result = CliRunner().invoke(app, ["run", str(scene), "-q", "-o", str(tmp_path / "out.nc")])
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0] and str(scene) in lines[0], result.stderr
+    assert not (tmp_path / "out.nc").exists()
 
 
 def _series(dense, biofilm):
