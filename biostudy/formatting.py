@@ -18,7 +18,7 @@ import re
 
 from solver.problem import parameter_infos
 
-SHOWN_UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "um2/T*": "µm²/T*", "um/T*": "µm/T*"}
+SHOWN_UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "um-1": "µm⁻¹", "um2/T*": "µm²/T*", "um/T*": "µm/T*"}
 _EXPONENT = re.compile(r"e([+-])0*(\d)")
 
 

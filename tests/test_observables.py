@@ -93,7 +93,8 @@ def test_a_runs_own_series_agree_and_a_study_is_evaluated_case_by_case(tiny_run,
     values = observables.variables(ds)
     for name in ("phi_mean", "c_mean", "biofilm_volume"):
         np.testing.assert_allclose(values[name].values, ds[name].values, rtol=1e-12, err_msg=name)
-    assert set(values) == set(observables.REGISTRY)
+    # a solver's dataset records no substratum: the COMSTAT observables are left out, not guessed
+    assert set(values) == {n for n, o in observables.REGISTRY.items() if not o.needs_attrs}
     assert values["compression_max"].values[-1] == pytest.approx(-float(ds.p.isel(time_mechanics=-1).min()))
     study = xr.concat([ds, ds.assign(phi=ds.phi * 0.5)], dim="case")
     both = observables.evaluate(study, "biofilm_volume")
@@ -122,3 +123,25 @@ def test_a_height_at_the_top_of_the_box_is_marked_saturated(tmp_path):
     shown = CliRunner().invoke(app, ["show", str(path)], env={"COLUMNS": "200"})
     row = next(line for line in shown.stdout.splitlines() if line.strip().startswith("height "))
     assert shown.exit_code == 0 and "4.5 (top: saturated)" in row
+
+
+def test_substratum_observables_from_a_dataset_alone_on_its_recorded_face():
+    """A slab on the x- face whose phi (falling 0.25 per cell, linear between the centres around the crossing)
+    crosses 0.5 at 2.3 cells (then 3.3): the registry computes the COMSTAT
+    observables from the dataset's recorded face and threshold; a dataset without them says what it lacks."""
+    ny, nx = 6, 8
+    x = (np.arange(nx) + 0.5) * H
+    slabs = [np.clip(0.5 + (t * H - x) / (4 * H), 0, 1) * np.ones((ny, 1)) for t in (2.3, 3.3)]
+    ds = xr.Dataset({"phi": (("time", "y", "x"), np.stack(slabs))},
+                    coords={"y": (np.arange(ny) + 0.5) * H, "x": x, "time": [0.0, 1.0]})
+    with pytest.raises(ValueError, match="needs the attribute substratum_face"):
+        observables.evaluate(ds, "biomass")
+    ds.attrs.update(substratum_face="x-", substratum_threshold=0.5, grid_spacing=H)
+    values = observables.variables(ds)
+    np.testing.assert_allclose(values["biomass"].values, [2.3 * H, 3.3 * H], rtol=1e-12)
+    np.testing.assert_allclose(values["max_thickness"].values, [2.3 * H, 3.3 * H], rtol=1e-12)
+    np.testing.assert_allclose(values["coverage"].values, [1.0, 1.0])
+    assert values["surface_to_biovolume"].attrs == {"units": "um-1", "long_name": observables.get(
+        "surface_to_biovolume").long_name}
+    ds.attrs["substratum_threshold"] = 0.25  # phi falls by 0.25 per cell: 0.25 lies one cell beyond 0.5
+    np.testing.assert_allclose(observables.evaluate(ds, "biomass").values, [3.3 * H, 4.3 * H], rtol=1e-12)

@@ -11,6 +11,7 @@ from biostudy.inputs.keys import parse_override
 from biostudy.inputs.scene import Scene, key_info, load_scene
 from biostudy.inputs.tomltext import dumps
 from biostudy.plans import catalogue
+from biostudy.plans.calibration import load_calibration
 from biostudy.plans.study import load_study
 
 
@@ -161,12 +162,14 @@ def test_every_bundled_file_validates():
     entries = bundled.entries()
     assert any(e.kind == "scene" for e in entries) and any(e.kind == "study" for e in entries)
     for entry in entries:
-        assert entry.kind in ("scene", "study", "stability"), entry
+        assert entry.kind in ("scene", "study", "stability", "calibration"), entry
         assert entry.description, entry
         if entry.kind == "scene":
             load_scene(entry.path).problem()
         elif entry.kind == "study":
             assert load_study(entry.path).cases
+        elif entry.kind == "calibration":
+            assert load_calibration(entry.path).measurements
         else:
             plan = catalogue.load(entry.path)
             assert plan.cases

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from biostudy.quantities import substratum as sub
 from biostudy.quantities.substratum import substratum_observables as observe
@@ -340,3 +341,150 @@ def test_table_names_units_and_functions():
         assert q.long_name
         assert q.compute(phi, 1.0, "z-") == pytest.approx(together[q.name], rel=1e-12)
     assert sub.default_face(3) == "z-" and sub.default_face(2) == "y-"
+
+
+# ---- the scene's [substratum], recorded in the datasets; a vanished dense biofilm ---------------------------------
+
+AGAR = """\
+name = "agar-tiny"
+[grid]
+shape = [12, 12]
+[time]
+t_end = 0.1
+steps = 25
+outputs = 3
+[[nutrient]]
+shape = "face"
+face = "y-"
+[[biofilm]]
+shape = "box"
+lower = [3.0, 0.0]
+upper = [9.0, 3.0]
+[numerics]
+advection = "tvd"
+growth_velocity = "front"
+"""
+
+
+def test_the_substratum_defaults_to_the_held_face_and_a_run_records_it(write_toml, tmp_path):
+    from typer.testing import CliRunner
+
+    from biostudy.cli import app
+    from biostudy.inputs.scene import load_scene
+
+    scene = write_toml("agar.toml", AGAR)
+    assert load_scene(scene).substratum_face() == "y-"  # the held nutrient face
+    assert load_scene(scene, ['nutrient.0.face="x+"']).substratum_face() == "x+"
+    assert load_scene(scene, ['substratum.face="x-"']).substratum_face() == "x-"
+    plain = write_toml("plain.toml", AGAR.replace('shape = "face"\nface = "y-"', 'shape = "box"\nlower = [0.0, '
+                                                  '11.0]\nupper = [12.0, 12.0]'))
+    assert load_scene(plain).substratum_face() == "y-"  # no held face: the bottom of a 2-D scene
+    out = tmp_path / "run.nc"
+    result = CliRunner().invoke(app, ["run", str(scene), "-o", str(out), "-q", "--set", "substratum.threshold=0.4"])
+    assert result.exit_code == 0, result.output
+    ds = xr.open_dataset(out)
+    assert ds.attrs["substratum_face"] == "y-" and ds.attrs["substratum_threshold"] == 0.4
+    expected = [sub.biomass(phi, 1.0, "y-", 0.4) for phi in ds.phi.values]
+    shown = CliRunner().invoke(app, ["show", str(out)])
+    assert shown.exit_code == 0 and "biomass" in shown.stdout and "surface_to_biovolume" in shown.stdout
+    from biostudy.quantities import observables
+
+    np.testing.assert_allclose(observables.evaluate(ds, "biomass").values, expected, rtol=1e-12)
+    assert expected[-1] > expected[0] > 0
+    import matplotlib.pyplot as plt
+
+    from biostudy.plots import series
+
+    figure = series.figure(ds.load())  # plot's series: a third panel with the substratum's measures
+    lines = {line.get_label(): line.get_ydata() for line in figure.axes[2].lines}
+    np.testing.assert_allclose(lines["biomass"], expected, rtol=1e-12)
+    plt.close(figure)
+
+
+@pytest.mark.parametrize("face, expected", [
+    ('"z-"', "substratum.face: 'z-' is not a face of a 2-D grid (faces: x-, x+, y-, y+)"),
+    ('"w-"', "substratum.face: must be 'x-', 'x+', 'y-', 'y+', 'z-' or 'z+'"),
+])
+def test_a_wrong_substratum_face_is_one_line(write_toml, tmp_path, face, expected):
+    from typer.testing import CliRunner
+
+    from biostudy.cli import app
+
+    scene = write_toml("agar.toml", AGAR + f"[substratum]\nface = {face}\n")
+    result = CliRunner().invoke(app, ["run", str(scene), "-q", "-o", str(tmp_path / "out.nc")])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0] and str(scene) in lines[0], result.stderr
+    assert not (tmp_path / "out.nc").exists()
+
+
+def _series(dense, biofilm):
+    """A 2-D dataset of 1 µm cells whose phi >= 0.8 and phi >= 0.5 cover the given numbers of cells per output."""
+    phi = np.zeros((len(dense), 10, 10))
+    for t, (d, b) in enumerate(zip(dense, biofilm)):
+        flat = phi[t].reshape(-1)
+        flat[:b] = 0.6
+        flat[:d] = 0.9
+    coords = {"time": np.linspace(0, 1, len(dense)), "y": np.arange(10) + 0.5, "x": np.arange(10) + 0.5}
+    return xr.Dataset({"phi": (("time", "y", "x"), phi)}, coords=coords,
+                      attrs={"grid_shape": np.array([10, 10]), "grid_spacing": 1.0, "steps_nominal": 100})
+
+
+def test_dense_biofilm_vanishing_while_the_biofilm_grew_is_told_with_the_check():
+    from biostudy.quantities import dense
+
+    said = dense.vanished(_series([6, 4, 0, 0], [10, 30, 12, 0]))
+    assert said.startswith("dense biofilm (phi >= 0.8) vanished by T* = 0.667 (it was 6 µm² at T* = 0) while the "
+                           "biofilm (phi >= 0.5) grew from 10 to 30 µm² (T* = 0.333)")
+    assert said.endswith("--set grid.shape=[20,20] --set grid.spacing=0.5 --set time.steps=200")
+    assert dense.vanished(_series([6, 8, 9], [10, 20, 30])) == ""  # kept dense
+    assert dense.vanished(_series([6, 3, 0], [10, 8, 6])) == ""  # everything shrank: not this artefact
+    assert dense.vanished(_series([0, 0, 0], [10, 20, 30])) == ""  # never dense
+
+
+def test_a_run_whose_dense_biofilm_vanished_warns_and_records_it(write_toml, tmp_path):
+    from typer.testing import CliRunner
+
+    from biostudy.cli import app
+
+    # the model as written on 1 µm cells (pointwise velocity) dissolves the dense colony (docs/paper.md)
+    scene = write_toml("agar.toml", AGAR.replace('growth_velocity = "front"', 'growth_velocity = "pointwise"')
+                       .replace("t_end = 0.1\nsteps = 25", "t_end = 0.3\nsteps = 75").replace("outputs = 3",
+                                                                                           "outputs = 7"))
+    out = tmp_path / "run.nc"
+    result = CliRunner().invoke(app, ["run", str(scene), "-o", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    assert "warning: dense biofilm (phi >= 0.8) vanished by T* =" in result.stderr
+    assert "--set grid.shape=[24,24] --set grid.spacing=0.5 --set time.steps=150" in result.stderr
+    assert "vanished" in xr.open_dataset(out).attrs["dense_biofilm_vanished"]
+    kept = CliRunner().invoke(app, ["run", str(scene), "-o", str(tmp_path / "front.nc"), "-q", "--set",
+                                    'numerics.growth_velocity="front"'])
+    assert kept.exit_code == 0 and "warning" not in kept.stderr
+    assert "dense_biofilm_vanished" not in xr.open_dataset(tmp_path / "front.nc").attrs
+
+
+def test_a_sweep_records_the_substratum_in_its_cases_and_study_nc_carries_the_observables(write_toml, tmp_path):
+    from typer.testing import CliRunner
+
+    from biostudy.cli import app
+
+    write_toml("agar.toml", AGAR)
+    study = write_toml("sweep.toml", 'scene = "agar.toml"\n[set]\n"substratum.threshold" = 0.4\n[sweep]\n'
+                                     'r = [50.0, 100.0]\n')
+    result = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 0, result.output
+    case = xr.open_dataset(tmp_path / "out" / "cases" / "r=100.nc")
+    assert case.attrs["substratum_face"] == "y-" and case.attrs["substratum_threshold"] == 0.4
+    ds = xr.open_dataset(tmp_path / "out" / "study.nc")
+    assert ds.biomass.dims == ("r", "time") and ds.biomass.attrs["units"] == "um"
+    expected = [sub.biomass(phi, 1.0, "y-", 0.4) for phi in case.phi.isel(r=0).values]
+    np.testing.assert_allclose(ds.biomass.sel(r=100.0).values, expected, rtol=1e-12)
+    assert float(ds.biomass.sel(r=100.0).isel(time=-1)) > float(ds.biomass.sel(r=50.0).isel(time=-1))
+    # another threshold measures the same runs again: nothing is simulated, study.nc follows the scene
+    again = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q", "--set",
+                                     "substratum.threshold=0.3"])
+    assert again.exit_code == 0 and "nothing to run" in again.stderr, again.output
+    lower = [sub.biomass(phi, 1.0, "y-", 0.3) for phi in case.phi.isel(r=0).values]
+    np.testing.assert_allclose(xr.open_dataset(tmp_path / "out" / "study.nc").biomass.sel(r=100.0).values, lower,
+                               rtol=1e-12)
+    assert lower[-1] > expected[-1]

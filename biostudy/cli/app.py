@@ -144,6 +144,8 @@ def run(
         loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from)
         with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
             result = command.compute(loaded, progress=report)
+        for warning in result.warnings():
+            typer.echo(f"warning: {warning}", err=True)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
 
 
@@ -407,6 +409,32 @@ def stability(
         from ..commands import stability as command  # lazily (module docstring)
 
         return command.load(catalogue, output=output, overrides=overrides)
+
+    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
+                 rerun_all=rerun_all)
+
+
+@app.command()
+def calibrate(
+    calibration: Annotated[str, typer.Argument(metavar="FILE.toml", help="calibration file (TOML: a scene, the "
+                                                                         "data, the keys to estimate, the method), "
+                                                                         "or the name of a bundled one")],
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
+                                                   help="directory for cases/, calibration.nc, calibration.md and "
+                                                        "the pictures (default: the calibration's name)")] = None,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    scheduler_file: SchedulerFile = None,
+    overrides: Annotated[List[str], overrides("the scene of every simulation")] = [],
+    force: Force = False,
+    rerun_all: RerunAll = False,
+    quiet: Quiet = False,
+):
+    """Estimate scene parameters from measurements: least squares, profile likelihoods, 95 % intervals."""
+    def load():
+        from ..commands import calibrate as command  # lazily (module docstring)
+
+        return command.load(calibration, output=output, overrides=overrides)
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
                  rerun_all=rerun_all)

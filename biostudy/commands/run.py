@@ -32,6 +32,7 @@ from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
+from ..quantities import dense
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,11 @@ class Result:
     dataset: xr.Dataset
     target: Path | None
     replacing: str
+
+    def warnings(self) -> list[str]:
+        """What a user should know about the result besides the summary: a vanished dense biofilm."""
+        said = self.dataset.attrs.get(dense.ATTRIBUTE)
+        return [str(said)] if said else []
 
     def message(self) -> str:
         attrs = self.dataset.attrs

@@ -221,6 +221,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         status = str(record.get("status", "missing"))
         if status == "done":
             ds = _as_run(opened.enter_context(netcdf_io.open_dataset(path, chunks={})), coords)
+            ds.attrs.update(plan.scenes[case.id].substratum_attrs())  # as the scene says now (no rerun needed)
             datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
         records[case.id] = (status, str(record.get("message", "")), record)
     done = list(datasets.values())

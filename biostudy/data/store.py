@@ -426,7 +426,8 @@ def recorded(path: str | Path) -> dict | None:
     if attrs is None:
         return None
     return {name: value for name, value in attrs.items()
-            if name in ("status", "message", "error", "fingerprint", "wall_time", "biostudy_version")
+            if name in ("status", "message", "error", "fingerprint", "wall_time", "biostudy_version",
+                        "dense_biofilm_vanished")
             or name.startswith("version_")}
 
 

@@ -80,3 +80,33 @@ def windowed(ids: list[str], compile_: Compile, backend: Backend) -> Iterator[tu
         completed = True
     finally:
         backend.close(completed)
+
+
+class Kept:
+    """A backend kept open over several `windowed` loops (the rounds of a calibration), so that its workers start
+    once: a loop that completes leaves them for the next, one that is interrupted ends them; `end` closes it."""
+
+    def __init__(self, backend: Backend):
+        self.backend = backend
+        self.capacity = backend.capacity
+        self.ended = False
+
+    @property
+    def busy(self) -> int:
+        return self.backend.busy
+
+    def submit(self, case_id: str, problem: "solver.Problem") -> None:
+        self.backend.submit(case_id, problem)
+
+    def finished(self) -> list[tuple[str, Outcome]]:
+        return self.backend.finished()
+
+    def close(self, completed: bool) -> None:
+        if not completed and not self.ended:
+            self.ended = True
+            self.backend.close(False)
+
+    def end(self) -> None:
+        if not self.ended:
+            self.ended = True
+            self.backend.close(True)

@@ -39,8 +39,9 @@ from ..errors import BadInput, Failed
 from ..inputs import resources
 from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
+from ..quantities import dense
 from . import ownership, pool
-from .backends import Here, windowed
+from .backends import Backend, Here, windowed
 from .dask import DaskCluster, SchedulerLost
 from .pool import LocalPool
 from .worker import Outcome
@@ -81,6 +82,7 @@ class SweepReport:
     removed: list[Path] = field(default_factory=list)
     damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
     outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
+    vanished: dict[str, str] = field(default_factory=dict)  # cases whose dense biofilm vanished (`quantities.dense`)
 
     @property
     def ok(self) -> bool:
@@ -98,6 +100,11 @@ class SweepReport:
             said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
                         f"({'; '.join(versions[:2])}{'; ...' if len(versions) > 2 else ''}) and were reused; "
                         "--rerun-all computes every case again")
+        if self.vanished:
+            ids = sorted(self.vanished)
+            said.append(f"{len(ids)} cases lost their dense biofilm (phi >= 0.8) while the biofilm grew, likely a "
+                        f"grid artefact ({', '.join(ids[:3])}{', ...' if len(ids) > 3 else ''}): "
+                        f"{self.vanished[ids[0]]}")
         return said
 
 
@@ -150,7 +157,7 @@ def _outdated(record: dict) -> str:
 
 
 def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execution(),
-             tidy: bool = True) -> SweepReport:
+             *, tidy: bool = True, backend: Backend | None = None) -> SweepReport:
     """Run every job not yet recorded under DIR/cases/ and record each one (dataset or failure).
 
     A case file whose fingerprint matches the job's compiled problem is finished work: it is skipped (a
@@ -158,10 +165,11 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     damaged file is run again); `execution.rerun_all` runs every job again.  notify(event, id, message) is
     called with event "skip", "start" (once per job to run, before any runs), "done", "failed" or "note" (no
     id: a message while waiting, e.g. for workers).  Without workers or a scheduler jobs run here, one after
-    another.  The caller holds the directory (`targets.owned`); `tidy`: it holds it alone, and removes the
-    temporaries dead writers left (an array task does not: a writer on another node is alive though no process
-    here has its id).  A case file that exists but that biostudy did not write is `BadInput` before anything
-    runs; a lost Dask scheduler is a `SweepError` that says what was kept.
+    another; `backend` (a `backends.Kept`) runs them on the caller's workers instead of new ones (a
+    calibration's rounds).  The caller holds the directory (`targets.owned`); `tidy`: it holds it alone, and
+    removes the temporaries dead writers left (an array task does not: a writer on another node is alive though
+    no process here has its id).  A case file that exists but that biostudy did not write is `BadInput` before
+    anything runs; a lost Dask scheduler is a `SweepError` that says what was kept.
     """
     workers, scheduler = execution.workers, execution.scheduler or execution.scheduler_file
     if workers and not scheduler:
@@ -195,6 +203,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
             outdated = _outdated(record)
             if outdated:
                 report.outdated[job.id] = outdated
+            if record.get(dense.ATTRIBUTE):
+                report.vanished[job.id] = str(record[dense.ATTRIBUTE])
             events.append(("skip", job.id, str(record.get("status"))))
             continue
         ids.append(job.id)
@@ -216,12 +226,15 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     def note(message: str) -> None:
         notify("note", "", message)
 
-    backend = (Here() if not ids else DaskCluster(execution.scheduler, note, execution.scheduler_file) if scheduler
-               else LocalPool(workers) if workers else Here())
+    if backend is None or not ids:
+        backend = (Here() if not ids else DaskCluster(execution.scheduler, note, execution.scheduler_file)
+                   if scheduler else LocalPool(workers) if workers else Here())
     try:
         with contextlib.closing(windowed(ids, compile_, backend)) as results:
             for job_id, outcome in results:
-                _record(by_id[job_id], out_dir, outcome, prints[job_id])
+                said = _record(by_id[job_id], out_dir, outcome, prints[job_id])
+                if said:
+                    report.vanished[job_id] = said
                 report.ran.append(job_id)
                 if outcome.status != "done":
                     report.failed[job_id] = outcome.message
@@ -254,11 +267,15 @@ def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
     return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
 
 
-def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None:
-    """Write one case's file: its dataset, or the failure record.  A file that cannot be written stops the
-    sweep (`SweepError`): the cases recorded so far are kept."""
-    extra = {**job.attrs, "fingerprint": fingerprint}
+def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> str:
+    """Write one case's file: its dataset, or the failure record; returns what `quantities.dense` says of it.  A
+    file that cannot be written stops the sweep (`SweepError`): the cases recorded so far are kept."""
+    extra = {**job.attrs, "fingerprint": fingerprint, **job.scene.substratum_attrs()}
+    said = ""
     if outcome.status == "done":
+        said = dense.vanished(outcome.dataset)
+        if said:
+            extra[dense.ATTRIBUTE] = said
         ds = store.stamp(store.with_observables(outcome.dataset), job.scene.to_toml(), job.scene_file, job.overrides,
                          status="done", message="", **extra)
     else:
@@ -271,3 +288,4 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> None
         resume = "run the same command again to resume" + (" once there is room" if error.errno == errno.ENOSPC
                                                            else "")
         raise SweepError(f"{error}; the cases recorded before are kept, {resume}") from None
+    return said

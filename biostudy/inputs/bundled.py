@@ -2,7 +2,8 @@
 
 The directory is `$BIOSTUDY_STUDIES` if set, else `studies/` beside the
 package (a checkout or an editable install), else `./studies`.  A file
-with a ``[grid]`` table is a scene, one with ``scene = ...`` a study.
+with a ``[grid]`` table is a scene, one with ``scene = ...`` a study, and with ``[data]`` too a
+calibration.
 """
 from __future__ import annotations
 
@@ -25,13 +26,19 @@ def studies_dir() -> Path:
 @dataclass(frozen=True)
 class Entry:
     path: Path
-    kind: str  # "scene", "study", "stability" (a catalogue of cases) or "unreadable"
+    kind: str  # "scene", "study", "stability" (a catalogue of cases), "calibration" or "unreadable"
     description: str
 
 
 def kind(data: dict) -> str:
-    """What a TOML file's table is: "scene", "study", "stability" (a catalogue) or "other"."""
-    return "scene" if "grid" in data else "stability" if "case" in data else "study" if "scene" in data else "other"
+    """What a TOML file's table is: "scene", "study", "stability" (a catalogue), "calibration" or "other"."""
+    if "grid" in data:
+        return "scene"
+    if "case" in data:
+        return "stability"
+    if "scene" in data:
+        return "calibration" if "data" in data else "study"
+    return "other"
 
 
 def entries(directory: Path | None = None) -> list[Entry]:
@@ -45,7 +52,7 @@ def entries(directory: Path | None = None) -> list[Entry]:
             found.append(Entry(path, "unreadable", first_line(error)))
             continue
         found.append(Entry(path, kind(data), str(data.get("description", ""))))
-    order = {"scene": 0, "study": 1, "stability": 2}
+    order = {"scene": 0, "study": 1, "calibration": 2, "stability": 3}
     return sorted(found, key=lambda e: (order.get(e.kind, 3), e.path.name))
 
 

@@ -10,7 +10,10 @@ validates; `Scene.problem()` builds the solver's plain description.
 Besides the model's own keys, the ``[numerics]`` and ``[mechanics]`` tables and
 ``[time] output_times`` map onto the solver's settings (`NumericsSpec`,
 `MechanicsSpec`, `Time`: each field says what it does; the README lists them
-all, and `tests/test_docs.py` checks that it does).
+all, and `tests/test_docs.py` checks that it does).  ``[substratum]`` (face,
+threshold) says where and how the COMSTAT observables are measured
+(`biostudy.quantities.substratum`); it changes nothing in the simulation, and
+the datasets record it (`Scene.substratum_attrs`).
 """
 from __future__ import annotations
 
@@ -192,6 +195,17 @@ SHAPES = (*DRAWN, Image)  # what a region of biofilm or nutrient may be; an obst
 AnyShape = Annotated[Union[(*SHAPES, Maze, Grate)], Field(discriminator="shape")]
 
 
+class SubstratumSpec(BaseModel):
+    """Where the COMSTAT observables (biomass, thicknesses, roughness, coverage, surface to biovolume) are measured:
+    the substratum face and the biofilm threshold.  Measurement only: the simulation is the same whatever it says."""
+
+    model_config = CONFIG
+    face: Face | None = Field(None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+); default: "
+                                                "a face where the nutrient is held (the agar), else z- in 3-D, y- "
+                                                "in 2-D")
+    threshold: float = _field(0.5, "biofilm is phi >= threshold for the substratum observables", "1", gt=0, lt=1)
+
+
 def _valued(role: str, description: str, shapes=SHAPES, **extra):
     """The shape union with a `value` key (0..1, default 1) for one kind of region."""
     members = tuple(create_model(f"{role}{shape.__name__}", __base__=shape,
@@ -238,6 +252,7 @@ class Scene(BaseModel):
     obstacle: list[AnyShape] = Field([], description="rigid solids: no phi, no c, no flux")
     numerics: NumericsSpec = Field(default_factory=NumericsSpec)
     mechanics: MechanicsSpec | None = Field(None, description="growth mechanics; absent = off")
+    substratum: SubstratumSpec = Field(default_factory=SubstratumSpec)
 
     @model_validator(mode="after")
     def _fits_the_grid(self, info: ValidationInfo):
@@ -280,6 +295,10 @@ class Scene(BaseModel):
         if self.numerics.max_substeps < self.time.steps:
             raise InvalidAt("numerics.max_substeps", f"must be >= time.steps = {self.time.steps} "
                                                      f"(got {self.numerics.max_substeps})")
+        face = self.substratum.face
+        if face is not None and face[0] not in grid.axes:
+            raise InvalidAt("substratum.face", f"'{face}' is not a face of a {grid.ndim}-D grid (faces: "
+                                               f"{', '.join(f for f in FACES if f[0] in grid.axes)})")
         if self.mechanics is not None:
             for name in ("clamp", "slide"):
                 for face in getattr(self.mechanics, name):
@@ -313,6 +332,18 @@ class Scene(BaseModel):
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
             params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
             numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)
+
+    def substratum_face(self) -> str:
+        """The substratum: the face the scene names, else the first face where it holds the nutrient, else the
+        bottom (z- in 3-D, y- in 2-D)."""
+        if self.substratum.face is not None:
+            return self.substratum.face
+        held = [region.face for region in self.nutrient if isinstance(region, BoundaryFace)]
+        return held[0] if held else ("z-" if len(self.grid.shape) == 3 else "y-")
+
+    def substratum_attrs(self) -> dict:
+        """What a dataset records so that the substratum observables can be computed from it alone."""
+        return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold}
 
     def to_toml(self) -> str:
         """The scene as TOML text (every key, defaults filled in): what the dataset records."""

@@ -71,9 +71,9 @@ class Range:
         return f"[{value_text(self.low)}, {value_text(self.high)}{', log' if self.scale == 'log' else ''}]"
 
 
-def parse_range(key: str, given: Any) -> Range:
-    """[low, high] or [low, high, "log"|"linear"] -> Range; anything else is `InvalidAt` the key."""
-    where = f"ranges.{key}"
+def parse_range(key: str, given: Any, table: str = "ranges") -> Range:
+    """[low, high] or [low, high, "log"|"linear"] -> Range; anything else is `InvalidAt` the key (in `table`)."""
+    where = f"{table}.{key}"
     if not isinstance(given, list) or len(given) not in (2, 3):
         raise InvalidAt(where, f"must be [low, high] or [low, high, \"log\"] (got {value_text(given)})")
     low, high, *scale = given
@@ -220,7 +220,13 @@ def from_attrs(attrs: dict) -> Sample | None:
 def check_ranges(sample: Sample, base_data: dict, scene_file: Path, study_file: Path) -> None:
     """Both ends of every range set into the base scene and validated by the scene's schema.  A range that
     leaves the allowed values is `BadInput` naming `sample.ranges.KEY`."""
-    for key, rng in sample.ranges.items():
+    check_ends(sample.ranges, base_data, scene_file, study_file, "sample.ranges")
+
+
+def check_ends(ranges: dict[str, Range], base_data: dict, scene_file: Path, file: Path, table: str) -> None:
+    """Both ends of every range set into the base scene and validated by the scene's schema; `BadInput` naming
+    `table.KEY` for a range that leaves the allowed values (a study's sample ranges, a calibration's bounds)."""
+    for key, rng in ranges.items():
         integral = takes_integers(Scene, key)
         for end, value in (("low", rng.low), ("high", rng.high)):
             data = copy.deepcopy(base_data)
@@ -230,7 +236,7 @@ def check_ranges(sample: Sample, base_data: dict, scene_file: Path, study_file: 
             except BadInput as error:
                 where = f" ({error.key})" if error.key else ""
                 raise BadInput(f"{end} end {value_text(value)} leaves the allowed values{where}: {error.problem}",
-                               study_file, f"sample.ranges.{key}") from None
+                               file, f"{table}.{key}") from None
 
 
 def case_id(index: int) -> str:

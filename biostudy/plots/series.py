@@ -1,22 +1,30 @@
 """Time series of one run: mean c and mean phi (paper Figs. 4 and 7), and the biofilm volume.
 
 Colours as in the paper: nutrient blue, biofilm red.  The volume (cells with
-phi >= 0.5) gets its own panel because it has units and a scale of its own.
+phi >= 0.5) gets its own panel because it has units and a scale of its own; a
+run that records its substratum gets a third, COMSTAT's biomass, mean and
+maximum thickness (µm), as a confocal time-lapse would measure them.
 """
 from __future__ import annotations
 
 import matplotlib.pyplot as plt
 import xarray as xr
 
+from ..quantities import observables
 from .style import axis_label, run_title, suptitle
+
+ON_SUBSTRATUM = ("biomass", "mean_thickness", "max_thickness")
 
 PHI_RED, C_BLUE = "#d62728", "#1f77b4"
 
 
 def figure(ds: xr.Dataset, marks: list[float] = ()):
-    """Two panels over T*: phi_mean and c_mean; biofilm_volume.  `marks`: times to flag (dotted)."""
-    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.4, 5.2), layout="constrained",
-                                      height_ratios=(3, 2))
+    """Two panels over T*: phi_mean and c_mean; biofilm_volume (and a third: the substratum's biomass and
+    thicknesses, where the run records its substratum).  `marks`: times to flag (dotted)."""
+    substratum = all(observables.available(ds, observables.get(n)) for n in ON_SUBSTRATUM)
+    fig, axes = plt.subplots(3 if substratum else 2, 1, sharex=True, figsize=(6.4, 7.2 if substratum else 5.2),
+                             layout="constrained", height_ratios=(3, 2, 2) if substratum else (3, 2))
+    top, bottom = axes[0], axes[1]
     time = ds["time"].values
     for name, colour in (("c_mean", C_BLUE), ("phi_mean", PHI_RED)):
         if name in ds:
@@ -32,8 +40,16 @@ def figure(ds: xr.Dataset, marks: list[float] = ()):
         bottom.set_ylabel(axis_label(volume))
         bottom.set_title(volume.attrs.get("long_name", ""), fontsize=8)
         bottom.set_ylim(bottom=0)
-    bottom.set_xlabel("normalised time T*")
     bottom.grid(alpha=0.3)
+    if substratum:
+        for name, style in zip(ON_SUBSTRATUM, ("o-", "s--", "^:")):
+            axes[2].plot(time, observables.evaluate(ds, name).values, style, ms=3, label=name)
+        axes[2].set_ylabel("on the substratum (µm)")
+        axes[2].set_title(f"COMSTAT measures on the {ds.attrs['substratum_face']} face", fontsize=8)
+        axes[2].set_ylim(bottom=0)
+        axes[2].legend(fontsize=8)
+        axes[2].grid(alpha=0.3)
+    axes[-1].set_xlabel("normalised time T*")
     for when in marks:
         for ax in (top, bottom):
             ax.axvline(when, color="0.5", ls=":", lw=1)

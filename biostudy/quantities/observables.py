@@ -6,21 +6,33 @@ by `biostudy.measures` (one definition per quantity).  `show` prints them,
 measures their errors, `analyze` their sensitivity to the parameters, and
 `study.nc` carries them per case and time.
 
-=================  =====  =========================================================
-name               units  what
-=================  =====  =========================================================
-biofilm_volume     µm³    volume of cells with phi >= 0.5 (2-D: per µm of thickness)
-dense_volume       µm³    volume of cells with phi >= 0.8 (the paper's isosurface)
-phi_mean           1      mean phi over open cells
-phi_max            1      largest phi
-c_mean             1      mean c over open cells
-nutrient_minimum   1      smallest c
-height             µm     top of phi >= 0.5 along the vertical axis (z in 3-D, y in 2-D);
-                          height_x, height_y, height_z along another axis
-front_advance      µm     how far the phi >= 0.5 front moved toward the nutrient source
-compression_max    Pa     largest compression, -min p (with mechanics; NaN where unsolved)
-tension_max        Pa     largest tension, max p (with mechanics)
-=================  =====  =========================================================
+====================  =====  ======================================================
+name                  units  what
+====================  =====  ======================================================
+biofilm_volume        µm³    volume of cells with phi >= 0.5 (2-D: per µm of thickness)
+dense_volume          µm³    volume of cells with phi >= 0.8 (the paper's isosurface)
+phi_mean              1      mean phi over open cells
+phi_max               1      largest phi
+c_mean                1      mean c over open cells
+nutrient_minimum      1      smallest c
+height                µm     top of phi >= 0.5 along the vertical axis (z in 3-D, y in 2-D);
+                             height_x, height_y, height_z along another axis
+front_advance         µm     how far the phi >= 0.5 front moved toward the nutrient source
+compression_max       Pa     largest compression, -min p (with mechanics; NaN where unsolved)
+tension_max           Pa     largest tension, max p (with mechanics)
+biomass               µm     biovolume per substratum area (COMSTAT), sub-cell
+mean_thickness        µm     mean biofilm thickness over the substratum (COMSTAT)
+max_thickness         µm     largest biofilm thickness above the substratum (COMSTAT)
+roughness             1      roughness coefficient Ra* of the thickness (COMSTAT)
+coverage              1      fraction of the substratum's first cell layer that is biofilm
+surface_to_biovolume  µm⁻¹   biofilm-liquid interface per biovolume (COMSTAT)
+====================  =====  ======================================================
+
+The last six are measured on the substratum the run's dataset records (attributes
+`substratum_face`, `substratum_threshold`: the scene's ``[substratum]``) by
+`biostudy.quantities.substratum`; they change continuously with the parameters
+(sub-cell level sets), so they are the ones to fit.  A dataset written before
+they existed lacks those attributes and has none of them.
 """
 from __future__ import annotations
 
@@ -31,7 +43,7 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
-from . import measures
+from . import measures, substratum
 from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
@@ -47,6 +59,8 @@ class Observable:
     long_name: str
     compute: Callable[[xr.Dataset], np.ndarray]
     needs: tuple[str, ...] = ("phi",)
+    needs_attrs: tuple[str, ...] = ()  # attributes of the dataset it is computed from (the substratum)
+    granularity: Callable[[float, int], float] | None = None  # (h, ndim) -> its step: it counts cells; None: sub-cell
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
         volume = self.units == "um3" and ds is not None and "z" not in ds.dims
@@ -63,10 +77,28 @@ def _height(axis: str | None) -> Observable:
                       lambda ds: measures.height(ds, axis or _vertical(ds)))
 
 
+SUBSTRATUM_ATTRS = ("substratum_face", "substratum_threshold")
+
+
+def _one_cell(h: float, ndim: int) -> float:
+    """What a cell count moves by: one cell's volume (2-D: per µm of thickness)."""
+    return h**ndim
+
+
+def _on_substratum(quantity: substratum.Quantity) -> Observable:
+    """A COMSTAT observable, per output, on the substratum face and with the threshold the dataset records."""
+    def compute(ds: xr.Dataset) -> np.ndarray:
+        face, threshold = str(ds.attrs["substratum_face"]), float(ds.attrs["substratum_threshold"])
+        phi = ds["phi"].transpose("time", *(d for d in CELL_DIMS if d in ds.dims)).values
+        return np.array([quantity.compute(field, measures.spacing(ds), face, threshold) for field in phi])
+
+    return Observable(quantity.name, quantity.units, quantity.long_name, compute, ("phi",), SUBSTRATUM_ATTRS)
+
+
 REGISTRY: dict[str, Observable] = {o.name: o for o in (
     Observable("biofilm_volume", "um3", "volume of cells with phi >= 0.5",
-               lambda ds: measures.volume(ds, measures.THRESHOLD)),
-    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume),
+               lambda ds: measures.volume(ds, measures.THRESHOLD), granularity=_one_cell),
+    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=_one_cell),
     Observable("phi_mean", "1", "mean biofilm density over non-obstacle cells",
                lambda ds: measures.field_mean(ds, "phi")),
     Observable("phi_max", "1", "largest biofilm density", measures.phi_max),
@@ -81,6 +113,7 @@ REGISTRY: dict[str, Observable] = {o.name: o for o in (
                lambda ds: measures.stress_extremes(ds)[0], ("p",)),
     Observable("tension_max", "Pa", "largest tension of the biofilm: max p (hydrostatic stress)",
                lambda ds: measures.stress_extremes(ds)[1], ("p",)),
+    *(_on_substratum(q) for q in substratum.QUANTITIES.values()),
 )}
 
 # The columns `show` gives each case of a study, and the outputs a sweep's picture draws by default.
@@ -112,6 +145,10 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     missing = [v for v in observable.needs if v not in ds]
     if missing:
         raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
+    unrecorded = [a for a in observable.needs_attrs if a not in ds.attrs]
+    if unrecorded:
+        raise ValueError(f"{name} needs the attribute {', '.join(unrecorded)} (the scene's [substratum]), which "
+                         "the dataset does not record (written before substratum observables existed: run it again)")
     extra = [d for d in ds[observable.needs[0]].dims if d not in ("time", "time_mechanics", *CELL_DIMS)]
     if not extra:
         values = observable.compute(ds)
@@ -126,7 +163,12 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
 def variables(ds: xr.Dataset) -> dict[str, xr.DataArray]:
     """Every observable this run's fields give, as time series with units and long_name (for study.nc)."""
     fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})].load()  # each read once
-    return {n: evaluate(fields, n) for n, o in REGISTRY.items() if all(v in ds for v in o.needs)}
+    return {n: evaluate(fields, n) for n, o in REGISTRY.items() if available(ds, o)}
+
+
+def available(ds: xr.Dataset, observable: Observable) -> bool:
+    """Whether the dataset has what the observable is computed from."""
+    return all(v in ds for v in observable.needs) and all(a in ds.attrs for a in observable.needs_attrs)
 
 
 def value(ds: xr.Dataset, name: str, index: int = -1) -> float:

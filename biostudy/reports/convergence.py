@@ -8,9 +8,10 @@ e.g. the pointwise growth velocity on 1/16 µm cells as the yardstick of the
 front velocity on 1 µm cells.  Errors at the final output time (or the output
 nearest `time`): phi in L1 and L2 on the series' coarsest grid (finer fields
 restricted by cell averaging), p in L2 when the mechanics is on, the
-observables biofilm_volume and dense_volume (relative), phi_max, height and
-c_mean (`biostudy.quantities.observables`, with their units), and the front
-position (`measures.front_position`; the observable front_advance is its gain
+observables biofilm_volume and dense_volume (relative), phi_max, height,
+c_mean, and the substratum's biomass and mean_thickness
+(`biostudy.quantities.observables`, with their units), and the front position
+(`measures.front_position`; the observable front_advance is its gain
 since T* = 0, which starts elsewhere on every grid).  The observed order p is
 fitted to the differences between successive levels, |q_l - q_(l+1)| ~ size^p
 (unbiased, unlike errors against a finite reference); the error of the
@@ -38,7 +39,8 @@ from ..plans.refinement import Refinement
 from ..quantities import measures, observables
 
 EXACT = 1e-9  # differences below this are round-off: no order to fit
-OBSERVED = ("biofilm_volume", "dense_volume", "phi_max", "height", "c_mean")  # observables compared
+# observables compared (biomass and mean_thickness: the COMSTAT ones a calibration fits, on the recorded substratum)
+OBSERVED = ("biofilm_volume", "dense_volume", "phi_max", "height", "c_mean", "biomass", "mean_thickness")
 RELATIVE = ("biofilm_volume", "dense_volume")  # compared relative to the reference's value
 
 
@@ -87,7 +89,8 @@ def final_state(ds: xr.Dataset, time: float | None = None) -> dict:
     last = on_output_times(ds).isel(time=index)
     return {
         "phi": last["phi"].values, "p": last["p"].values if "p" in ds else None,
-        **{q: observables.value(ds, q, index) for q in OBSERVED},
+        **{q: observables.value(ds, q, index) if observables.available(ds, observables.get(q)) else float("nan")
+           for q in OBSERVED},
         "front_position": measures.front_position(ds, index), "wall_time": float(ds.attrs["wall_time"]),
         "steps_taken": int(ds.attrs["steps_taken"]), "t_end": float(ds["time"].values[-1]),
         "time": float(ds["time"].values[index]),

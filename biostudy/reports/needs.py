@@ -10,6 +10,7 @@ from ..inputs import bundled, resources
 from ..inputs.files import read_toml
 from ..inputs.scene import load_scene
 from ..plans import catalogue
+from ..plans.calibration import load_calibration
 from ..plans.study import load_study
 
 
@@ -27,6 +28,16 @@ def needs(path) -> str:
             f"on disk       {resources.size(sum(e.disk for e in found.values()))} of case files, as much again "
             "for study.nc",
             f"here          {available}; N local workers need about N times the largest case"])
+    if what == "calibration":
+        plan = load_calibration(path)
+        found = {name: resources.estimate(scene) for name, scene in plan.plan.scenes.items()}
+        largest = max(found, key=lambda i: found[i].memory)
+        return "\n".join([
+            f"{plan.spec.name}: {len(plan.parameters)} parameters, {len(plan.measurements)} measurements, "
+            f"{len(found)} conditions of {plan.plan.scene_file.name}",
+            f"one simulation {resources.size(found[largest].memory)} of memory ({found[largest].parts()}), "
+            f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/)",
+            f"here          {available}; N local workers need about N times one simulation"])
     scene = load_scene(path)
     found = resources.estimate(scene)
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"

@@ -1,0 +1,169 @@
+"""What a calibration costs, and how often its 95 % intervals hold the truth (issue 18, "Cost" and "Verified by").
+
+    .venv/bin/python benchmarks/calibration.py                  # both parts
+    .venv/bin/python benchmarks/calibration.py --only cost      # the bundled example, 4 ways
+    .venv/bin/python benchmarks/calibration.py --only coverage --seeds 20
+    .venv/bin/python benchmarks/calibration.py --only noise     # the observables' resolution
+
+cost: the bundled two-parameter twin (`studies/calibrate-agar.toml`: the 2-D agar colony on 20 x 40 cells,
+150 steps, g and r from biomass and max_thickness at six times) without and with profiles, serially and on 2
+local workers, each into a fresh directory: simulations, rounds, wall time and where it went (the rounds'
+simulations, reading the observables back, the rest: fitting, writing, pictures), the mean simulation's own
+wall time, and the speed-up of 2 workers.
+
+coverage: the tiny twin of tests/test_calibration.py (12 x 16 cells, 40 steps, g = 1e9, r = 100, 8 measurements
+of 5 % noise) calibrated with profiles for each of `--seeds` noise draws: how often each parameter's 95 % profile
+interval, and the Jacobian's estimate ± 1.96 standard errors, hold the truth.  Reported as measured.
+
+noise: how smoothly the sub-cell observables follow a parameter (what the finite-difference steps are chosen
+against): the bundled example's scene at g = 1e8 (1 + i eps), i = 1..4, for eps = 1e-8 ... 1e-2: the relative
+change of biomass and max_thickness at T* = 0.2, 0.4, 0.6 divided by i eps (constant where the observable is
+smooth; scattered where the solver's discrete events, a cell joining the front band, make it jump).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("FIPY_SOLVERS", "scipy")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+
+from biostudy.commands import calibrate, twin  # noqa: E402
+from biostudy.execution.jobs import Execution  # noqa: E402
+from biostudy.inputs import bundled  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+
+def load_average() -> str:
+    return ", ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def run(path: Path, out: Path, workers: int | None, profiles: bool) -> xr.Dataset:
+    job = calibrate.load(path, output=out)
+    job.plan.spec.method.profiles = profiles
+    job.run(Execution(workers=workers))
+    return xr.load_dataset(out / "calibration.nc")
+
+
+def cost() -> None:
+    source = bundled.resolve("calibrate-agar")
+    print(f"## cost: {source.name} (load average at the start: {load_average()})\n")
+    print("| profiles | workers | simulations | rounds | wall s | in rounds s | reading s | rest s | mean run s | "
+          "g | r |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    walls = {}
+    for profiles in (False, True):
+        for workers in (None, 2):
+            with tempfile.TemporaryDirectory() as scratch:
+                out = Path(scratch) / "out"
+                began = time.perf_counter()
+                ds = run(source, out, workers, profiles)
+                wall = time.perf_counter() - began
+                runs = [float(xr.open_dataset(p).attrs["wall_time"]) for p in (out / "cases").glob("*.nc")]
+            walls[(profiles, workers)] = wall
+            a = ds.attrs
+            rest = wall - a["wall_time_simulations"] - a["wall_time_reading"]
+            interval = [f"{ds.estimate.values[j]:.4g} [{ds.lower.values[j]:.4g}, {ds.upper.values[j]:.4g}]"
+                        if profiles else f"{ds.estimate.values[j]:.4g} ± {ds.standard_error.values[j]:.2g}"
+                        for j in range(2)]
+            print(f"| {'yes' if profiles else 'no'} | {workers or 'serial'} | {a['simulations']} | {a['rounds']} | "
+                  f"{wall:.1f} | {a['wall_time_simulations']:.1f} | {a['wall_time_reading']:.1f} | {rest:.1f} | "
+                  f"{np.mean(runs):.2f} | {interval[0]} | {interval[1]} |", flush=True)
+    for profiles in (False, True):
+        print(f"\nspeed-up on 2 workers, {'with' if profiles else 'without'} profiles: "
+              f"{walls[(profiles, None)] / walls[(profiles, 2)]:.2f}x")
+    print(f"\nload average at the end: {load_average()}\n")
+
+
+def coverage(seeds: int, workers: int | None) -> None:
+    from test_calibration import CALIBRATION, HOURS, SCENE, TRUTH
+
+    print(f"## coverage: tiny twin, {seeds} noise seeds (load average at the start: {load_average()})\n")
+    hits = {name: [0, 0] for name in TRUTH}  # profile, Jacobian
+    closed = {name: 0 for name in TRUTH}
+    simulations, began = 0, time.perf_counter()
+    with tempfile.TemporaryDirectory() as scratch:
+        here = Path(scratch)
+        (here / "agar.toml").write_text(SCENE)
+        (here / "cal.toml").write_text(CALIBRATION)
+        for seed in range(seeds):
+            (here / "twin.tsv").write_text(twin.table(here / "agar.toml", truth=TRUTH, observables_measured=[
+                "biomass", "max_thickness"], times=HOURS, time_factor=1 / 20, noise=0.05, seed=1000 + seed))
+            shutil.rmtree(here / "out", ignore_errors=True)
+            ds = run(here / "cal.toml", here / "out", workers, True)
+            simulations += ds.attrs["simulations"]
+            row = []
+            for j, name in enumerate(ds.parameter.values):
+                truth = TRUTH[str(name)]
+                inside = ds.lower.values[j] <= truth <= ds.upper.values[j]
+                scaled, error = float(ds.estimate_scaled.values[j]), float(ds.standard_error_scaled.values[j])
+                jacobian = abs(math.log10(truth) - scaled) <= 1.96 * error
+                hits[str(name)][0] += inside
+                hits[str(name)][1] += jacobian
+                closed[str(name)] += bool(ds.identifiable.values[j])
+                row.append(f"{name} {ds.estimate.values[j]:.3g} [{ds.lower.values[j]:.3g}, {ds.upper.values[j]:.3g}]"
+                           f"{'' if inside else ' MISSED'}")
+            print(f"seed {seed}: chi² {ds.attrs['chi2']:.2f}, " + "; ".join(row), flush=True)
+    wall = time.perf_counter() - began
+    print("\n| parameter | profile interval holds the truth | estimate ± 1.96 SE holds it | interval closed "
+          "(identifiable) |")
+    print("|---|---|---|---|")
+    for name in TRUTH:
+        print(f"| {name} | {hits[name][0]}/{seeds} | {hits[name][1]}/{seeds} | {closed[name]}/{seeds} |")
+    print(f"\n{simulations} simulations, {wall:.0f} s; load average at the end: {load_average()}")
+
+
+def noise() -> None:
+    import solver
+    from biostudy.inputs.scene import load_scene
+    from biostudy.quantities import substratum
+
+    print(f"## noise: relative change per relative change of g (load average at the start: {load_average()})\n")
+    given = ["grid.shape=[20,40]", "time.steps=150", "time.t_end=0.6", 'numerics.growth_velocity="front"',
+             "time.output_times=[0.2,0.4,0.6]"]
+    scene = bundled.resolve("agar2d")
+
+    def measure(g: float) -> np.ndarray:
+        ds = solver.simulate(load_scene(scene, [*given, f"g={g!r}"]).problem())
+        phi = ds.phi.values  # the outputs at T* = 0.2, 0.4, 0.6 (explicit output times: no T* = 0)
+        return np.array([substratum.biomass(f, 1.0, "y-") for f in phi] +
+                        [substratum.max_thickness(f, 1.0, "y-") for f in phi])
+
+    base = measure(1e8)
+    names = [f"{q} T*={t}" for q in ("biomass", "max_thickness") for t in (0.2, 0.4, 0.6)]
+    print("| eps | " + " | ".join(names) + " |")
+    print("|---|" + "---|" * len(names))
+    for eps in (1e-8, 1e-6, 1e-4, 1e-3, 1e-2):
+        slopes = np.array([(measure(1e8 * (1 + i * eps)) - base) / base / (i * eps) for i in range(1, 5)])
+        print(f"| {eps:g} | " + " | ".join(" ".join(f"{v:.3f}" for v in column) for column in slopes.T) + " |",
+              flush=True)
+    print(f"\nload average at the end: {load_average()}\n")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="calibration cost and interval coverage")
+    parser.add_argument("--only", choices=("cost", "coverage", "noise"))
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--workers", type=int, default=2, help="coverage: local workers per calibration")
+    args = parser.parse_args()
+    if args.only in (None, "cost"):
+        cost()
+    if args.only in (None, "coverage"):
+        coverage(args.seeds, args.workers if args.workers > 1 else None)
+    if args.only in (None, "noise"):
+        noise()
+
+
+if __name__ == "__main__":
+    main()

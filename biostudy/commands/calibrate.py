@@ -1,0 +1,234 @@
+"""`biostudy calibrate FILE.toml`: parameter values from measurements, with honest uncertainty.
+
+Every simulation goes through the sweep machinery (`execution.jobs.run_jobs`): a
+case file under DIR/cases/ per condition and parameter point, reused by its
+fingerprint, so a re-run or a resumed calibration never repeats one; a failed
+simulation is recorded and counts as a penalty in the fit.  The fit itself is
+`fitting.estimate.least_squares` (multi-start, finite-difference Jacobians of
+k + 1 runs a round, profile likelihoods); `reports.calibration` writes
+DIR/calibration.nc and calibration.md, `plots.calibration` the pictures.  DIR
+belongs to this calibration (`targets.owned`: locked, owned).  `load` and
+`Calibrate.run` take keyword-only options, so a Python API can wrap them.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import qmc
+
+from ..data import store
+from ..execution.backends import Kept
+from ..execution.jobs import Execution, Job, run_jobs
+from ..execution.ownership import Owner
+from ..execution.targets import owned
+from ..fitting.estimate import least_squares
+from ..inputs import bundled
+from ..inputs.keys import id_text
+from ..inputs.scene import overrides_text
+from ..plans.calibration import SCENE, CalibrationPlan, load_calibration
+from ..plots.calibration import fit_figure, profiles_figure
+from ..plots.style import save
+from ..quantities import observables
+from ..reports.calibration import dataset, table_text
+from .finished import Finished
+
+# Relative noise of the sub-cell observables under tiny parameter changes: jumps when a discrete event of the
+# solver moves (a cell joining the front band), measured up to 1e-4 (biomass) and 1e-3 (max_thickness) on the agar
+# colony (docs/calibration.md).  The finite-difference steps are chosen against it (`fitting.least_squares`).
+MODEL_NOISE = 1e-3
+DESIGN_MARGIN = 0.05  # the starts' Latin hypercube fills [0.05, 0.95] of every range
+
+
+@dataclass
+class Simulations:
+    """The calibration's simulations: points of the unit cube -> weighted residuals, through `run_jobs`."""
+
+    plan: CalibrationPlan
+    directory: Path
+    execution: Execution
+    backend: Kept | None = None
+    models: dict[str, np.ndarray | None] = field(default_factory=dict)  # job id -> model at its rows (None: failed)
+    ran: list[str] = field(default_factory=list)
+    reused: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+    vanished: dict[str, str] = field(default_factory=dict)
+    warned: list[str] = field(default_factory=list)
+    rounds: int = 0
+    seconds_running: float = 0.0
+    seconds_reading: float = 0.0
+
+    def __post_init__(self):
+        rows = self.plan.measurements
+        self.data = np.array([m.value for m in rows])
+        self.sigma = np.array([m.sigma for m in rows])
+        self.rows = {c: [i for i, m in enumerate(rows) if (m.condition or SCENE) == c] for c in self.plan.conditions}
+
+    def job(self, condition: str, values: dict[str, float]) -> Job:
+        own = [p for p in self.plan.parameters if condition in p.conditions]
+        job_id = "_".join([condition, *(f"{p.name}={id_text(values[p.name])}" for p in own)])
+        scene = self.plan.scene_at(condition, values)
+        return Job(job_id, scene, self.plan.plan.scene_file, overrides_text(self.plan.overrides(condition, values)),
+                   {"case_id": job_id, "calibration_file": str(self.plan.file.resolve()), "condition": condition})
+
+    def evaluate(self, points: list[np.ndarray]) -> list[np.ndarray | None]:
+        """The weighted residuals (model - measurement) / sigma at every point; None where a simulation failed."""
+        wanted = [[self.job(c, self.plan.values(p)) for c in self.plan.conditions] for p in points]
+        new = {job.id: job for jobs in wanted for job in jobs if job.id not in self.models}
+        if new:
+            began = time.perf_counter()
+            report = run_jobs(list(new.values()), self.directory, self.execution, backend=self.backend)
+            self.seconds_running += time.perf_counter() - began
+            self.rounds += 1
+            self.ran += report.ran
+            self.reused += report.skipped
+            self.vanished.update(report.vanished)
+            began = time.perf_counter()
+            for job in new.values():
+                self.models[job.id] = self._model(job, report.failed.get(job.id))
+            self.seconds_reading += time.perf_counter() - began
+        out = []
+        for jobs in wanted:
+            model = np.full(len(self.data), np.nan)
+            for condition, job in zip(self.plan.conditions, jobs):
+                values = self.models[job.id]
+                if values is not None:
+                    model[self.rows[condition]] = values
+            out.append(None if np.isnan(model).any() else (model - self.data) / self.sigma)
+        return out
+
+    def model_at(self, point: np.ndarray) -> np.ndarray:
+        """The model at every measurement (NaN where its simulation failed), from the runs already made."""
+        model = np.full(len(self.data), np.nan)
+        for condition in self.plan.conditions:
+            values = self.models.get(self.job(condition, self.plan.values(point)).id)
+            if values is not None:
+                model[self.rows[condition]] = values
+        return model
+
+    def _model(self, job: Job, failure: str | None) -> np.ndarray | None:
+        """A finished simulation's observables at its condition's measurements; None (and why, in `failed`)
+        for a failed one or an observable that is NaN there."""
+        if failure is not None:
+            self.failed[job.id] = failure
+            return None
+        ds = store.open_dataset(store.case_file(self.directory, job.id))
+        ds.attrs.update(job.scene.substratum_attrs())  # as the scene says now
+        condition = str(job.attrs["condition"])
+        rows = self.rows[condition]
+        series = {name: observables.evaluate(ds, name).values
+                  for name in dict.fromkeys(self.plan.measurements[i].observable for i in rows)}
+        times = ds["time"].values
+        values = []
+        for i in rows:
+            index = int(np.argmin(np.abs(times - self.plan.times[i])))
+            value = float(series[self.plan.measurements[i].observable][index])
+            if not np.isfinite(value):
+                self.failed[job.id] = (f"{self.plan.measurements[i].observable} is {value} at T* = "
+                                       f"{times[index]:.4g} (line {self.plan.measurements[i].line} of the table)")
+                return None
+            values.append(value)
+        return np.array(values)
+
+    def noise(self) -> np.ndarray:
+        """Per measurement, the smallest model change that is not noise, in residual units: one cell for an
+        observable that counts cells, else `MODEL_NOISE` of the measured value."""
+        noise = MODEL_NOISE * np.abs(self.data)
+        for i, m in enumerate(self.plan.measurements):
+            observable = observables.get(m.observable)
+            if observable.granularity is not None:
+                grid = self.plan.plan.scenes[m.condition or SCENE].grid
+                step = observable.granularity(grid.spacing, len(grid.shape))
+                noise[i] = max(noise[i], step)
+                said = (f"{m.observable} counts cells: it moves in steps of {step:g} as a parameter changes, so its "
+                        "finite differences are coarse; fit a sub-cell observable (biomass, mean_thickness) instead")
+                if said not in self.warned:
+                    self.warned.append(said)
+        return np.maximum(noise, 1e-12) / self.sigma
+
+
+def starts(k: int, n: int, seed: int) -> np.ndarray:
+    """n starts in the unit cube: a scrambled Latin hypercube over [DESIGN_MARGIN, 1 - DESIGN_MARGIN]^k."""
+    design = qmc.LatinHypercube(d=k, scramble=True, rng=seed).random(n)
+    return DESIGN_MARGIN + (1 - 2 * DESIGN_MARGIN) * design
+
+
+@dataclass
+class Calibrate:
+    """A calibration, validated, nothing run yet (a `commands.finished.JobCommand`)."""
+
+    plan: CalibrationPlan
+    directory: Path
+    noun: str = "simulations"
+
+    @property
+    def title(self) -> str:
+        return f"calibrate {self.plan.spec.name}"
+
+    def owner(self) -> Owner:
+        return Owner("calibration", self.plan.spec.name, str(self.plan.plan.scene_file.resolve()),
+                     tuple(p.name for p in self.plan.parameters))
+
+    def run(self, execution: Execution = Execution()) -> Finished:
+        """Fit, write DIR/calibration.nc, calibration.md and the pictures; the table is the result's summary."""
+        began = time.perf_counter()
+        method = self.plan.spec.method
+        with owned(self.directory, self.owner(), "calibration.nc", execution.force):
+            backend = _backend(execution)
+            simulations = Simulations(self.plan, self.directory, execution, backend)
+            try:
+                design = starts(len(self.plan.parameters), method.starts, method.seed)
+                found = least_squares(design, len(simulations.data), simulations.noise(), simulations.evaluate,
+                                      method.profiles, backend.backend.capacity if backend is not None else 1)
+            finally:
+                if backend is not None:
+                    backend.end()
+            cost = {"simulations": len(simulations.ran), "simulations_reused": len(simulations.reused),
+                    "rounds": simulations.rounds, "wall_time": time.perf_counter() - began,
+                    "wall_time_simulations": simulations.seconds_running,
+                    "wall_time_reading": simulations.seconds_reading}
+            ds = dataset(self.plan, found, design, simulations.model_at(found.best.x), cost, simulations.failed,
+                         list(simulations.vanished))
+            table = table_text(ds)
+            store.write_atomic(ds, self.directory / "calibration.nc")
+            store.write_text(self.directory / "calibration.md", table)
+            save(fit_figure(ds), self.directory / "calibration_fit.png")
+            if method.profiles:
+                save(profiles_figure(ds), self.directory / "calibration_profiles.png")
+        warnings = list(simulations.warned)
+        if simulations.vanished:
+            ids = sorted(simulations.vanished)
+            warnings.append(f"{len(ids)} of its simulations lost their dense biofilm (phi >= 0.8) while the biofilm "
+                            f"grew, likely a grid artefact: a fit to them fits the grid ({', '.join(ids[:3])}"
+                            f"{', ...' if len(ids) > 3 else ''}); {simulations.vanished[ids[0]]}")
+        if simulations.failed:
+            warnings.append(f"{len(simulations.failed)} simulations failed and counted as penalties: "
+                            + "; ".join(f"{k}: {v}" for k, v in list(simulations.failed.items())[:2]))
+        pictures = "calibration_fit.png" + (", calibration_profiles.png" if method.profiles else "")
+        summary = (f"{len(simulations.ran)} simulations run, {len(simulations.reused)} reused (finished before); "
+                   f"wrote {self.directory / 'calibration.nc'}, calibration.md, {pictures}")
+        return Finished(summary, {}, len(simulations.ran) + len(simulations.reused), table, self.noun, warnings,
+                        result=ds)
+
+
+def _backend(execution: Execution) -> Kept | None:
+    """The calibration's workers, started once for all its rounds (None: here, one simulation at a time)."""
+    if execution.scheduler:
+        from ..execution.dask import DaskCluster
+
+        return Kept(DaskCluster(execution.scheduler))
+    if execution.workers:
+        from ..execution.pool import LocalPool
+
+        return Kept(LocalPool(execution.workers))
+    return None
+
+
+def load(calibration: str | Path, *, output: Path | None = None,
+         overrides: tuple[str, ...] | list[str] = ()) -> Calibrate:
+    """Read and validate a calibration file (a path or a bundled name), its scene, conditions and measurements;
+    bad input is `BadInput`."""
+    plan = load_calibration(bundled.resolve(calibration), overrides)
+    return Calibrate(plan, Path(output) if output is not None else Path(plan.spec.name))

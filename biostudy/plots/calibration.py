@@ -1,0 +1,85 @@
+"""Pictures of a calibration (DIR/calibration.nc): the data against the fitted model, and the profiles.
+
+* `fit_figure`: one panel per observable and condition: the measurements with
+  error bars (± sigma) at their times (the table's own unit), the fitted model
+  at the data times joined by a line, and its 95 % band (Jacobian covariance).
+* `profiles_figure`: one panel per parameter: chi² above its minimum along the
+  profile (the others re-optimised), the 95 % threshold 3.84, the estimate and
+  the interval; a log axis for a log parameter; the panel spans the profile (its
+  bounds are in the title when the interval reaches one).
+"""
+from __future__ import annotations
+
+import math
+
+import matplotlib.pyplot as plt
+import numpy as np
+import xarray as xr
+from matplotlib.ticker import NullFormatter
+
+from ..fitting.profiles import THRESHOLD
+from ..formatting import number, units_text
+
+
+def _grid(count: int) -> tuple[int, int]:
+    columns = min(count, 3)
+    return math.ceil(count / columns), columns
+
+
+def fit_figure(ds: xr.Dataset):
+    """Measurements with error bars against the fitted model and its band, per observable and condition."""
+    pairs = list(dict.fromkeys(zip(ds.observable.values, ds.condition.values)))
+    rows, columns = _grid(len(pairs))
+    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows), squeeze=False)
+    unit = ds.attrs.get("time_unit", "T*")
+    for ax, (observable, condition) in zip(axes.flat, pairs):
+        at = np.flatnonzero((ds.observable.values == observable) & (ds.condition.values == condition))
+        at = at[np.argsort(ds.time_measured.values[at])]
+        t = ds.time_measured.values[at]
+        ax.fill_between(t, ds.band_lower.values[at], ds.band_upper.values[at], color="C1", alpha=0.3, lw=0,
+                        label="95 % band of the fit")
+        ax.plot(t, ds.fitted.values[at], "-", color="C1", label="fitted model")
+        ax.errorbar(t, ds.measured.values[at], yerr=ds.sigma.values[at], fmt="o", ms=3.5, color="C0", capsize=2,
+                    label="measured ± σ")
+        shown = units_text(str(ds.measurement_units.values[at[0]]))
+        ax.set_xlabel(f"time ({unit})")
+        ax.set_ylabel(f"{observable}" + (f" ({shown})" if shown else ""))
+        ax.set_title(f"{observable}" + (f", condition {condition}" if condition else ""), fontsize=10)
+    for ax in list(axes.flat)[len(pairs):]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(f"{ds.attrs.get('title', 'calibration')}: chi² = {number(ds.attrs['chi2'], 3)} for "
+                 f"{ds.attrs['dof']} degrees of freedom", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+def profiles_figure(ds: xr.Dataset):
+    """chi² - its minimum along each parameter's profile, the 95 % threshold and interval."""
+    k = ds.sizes["parameter"]
+    rows, columns = _grid(k)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows), squeeze=False)
+    minimum = float(ds.attrs["chi2_minimum"])
+    for j, ax in enumerate(list(axes.flat)[:k]):
+        value, chi2 = ds.profile_value.values[j], ds.profile_chi2.values[j]
+        keep = np.isfinite(value) & np.isfinite(chi2)
+        ax.plot(value[keep], chi2[keep] - minimum, "o-", ms=3.5, color="C0", label="profile")
+        ax.axhline(THRESHOLD, color="0.4", ls="--", lw=1, label="95 % threshold (3.84)")
+        ax.axvline(float(ds.estimate[j]), color="C1", lw=1, label="estimate")
+        for end in (float(ds.lower[j]), float(ds.upper[j])):
+            ax.axvline(end, color="C2", lw=1, ls=":")
+        if str(ds.scale.values[j]) == "log":
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylim(bottom=-0.2)
+        shown = units_text(str(ds.units.values[j]))
+        ax.set_xlabel(f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else ""))
+        ax.set_ylabel("chi² - minimum")
+        verdict = "" if bool(ds.identifiable[j]) else " (not determined)"
+        ax.set_title(f"{ds.parameter.values[j]}: [{number(ds.lower[j], 3)}, {number(ds.upper[j], 3)}]{verdict}",
+                     fontsize=10)
+    for ax in list(axes.flat)[k:]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
