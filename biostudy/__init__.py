@@ -12,15 +12,16 @@ From Python (a notebook, a script; README, "From Python"):
     ds.phi_mean.plot()
     study = biostudy.sweep("directional-sweep", "sweep", workers=2)
     same = biostudy.open("sweep/cases/g=1e+08_r=50.nc")
+    fit = biostudy.calibrate("calibrate-agar", "fit", workers=2)
 
-`run`, `sweep` and `open` (`biostudy.api`) are imported when first used, so
+`run`, `sweep`, `calibrate` and `open` (`biostudy.api`) are imported when first used, so
 ``import biostudy`` (which the command line does) costs nothing.
 """
 from __future__ import annotations
 
 __all__ = ["run", "sweep", "open", "calibrate", "BadInput", "Failed"]
 
-_API = {"run": "run", "sweep": "sweep", "open": "open_result"}
+_API = {"run": "run", "sweep": "sweep", "calibrate": "calibrate", "open": "open_result"}
 
 
 def __getattr__(name: str):
@@ -32,15 +33,6 @@ def __getattr__(name: str):
         from . import errors
 
         return getattr(errors, name)
-    if name == "calibrate":
-        # the place of the calibration work (its own issue): biostudy.commands.calibrate, once it exists
-        import importlib
-        import importlib.util
-
-        if importlib.util.find_spec("biostudy.commands.calibrate") is None:
-            raise AttributeError("biostudy.calibrate is not in this version: calibration comes with its own "
-                                 "issue (biostudy.commands.calibrate)")
-        return importlib.import_module("biostudy.commands.calibrate").calibrate
     raise AttributeError(f"module 'biostudy' has no attribute {name!r}")
 
 

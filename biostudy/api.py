@@ -1,4 +1,4 @@
-"""The Python API (`biostudy.run`, `biostudy.sweep`, `biostudy.open`): the commands, called from a notebook.
+"""The Python API (`biostudy.run`, `sweep`, `calibrate`, `open`): the commands, called from a notebook.
 
 Each function calls the same `biostudy.commands` function as the command
 line, so a dataset made here is the one `biostudy run` writes (the scene, its
@@ -95,6 +95,30 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     if finished.failures:
         warnings.warn(finished.failure_line(), stacklevel=2)
     return store.open_dataset(Path(directory) / "study.nc")
+
+
+def calibrate(calibration: str | Path, directory: str | Path | None = None, *, workers: int | None = None,
+              scheduler: str | None = None, scheduler_file: str | Path | None = None, set: Overrides = None,  # noqa: A002
+              rerun_all: bool = False, force: bool = False) -> xr.Dataset:
+    """Estimate scene parameters from measurements (as ``biostudy calibrate FILE.toml -o DIR``) and return its
+    calibration.nc: estimates, standard errors, 95 % profile intervals, which parameters the data determine,
+    the data beside the fitted observables.  Simulations finished before (in DIR/cases/) are reused; workers
+    and a Dask cluster as for `sweep`.  Warnings say which simulations failed or lost their dense biofilm."""
+    from .commands import calibrate as command
+    from .execution.dask import check_choice
+    from .execution.jobs import Execution
+
+    worker.pin_solvers()
+    check_choice(workers, scheduler, scheduler_file)
+    with netcdf.called(_call("calibrate", calibration, directory, workers=workers, scheduler=scheduler,
+                             scheduler_file=scheduler_file, set=set)):
+        job = command.load(calibration, output=None if directory is None else Path(directory),
+                           overrides=_overrides(set))
+        finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+                                     rerun_all=rerun_all, force=force))
+    for said in finished.warnings:
+        warnings.warn(said, stacklevel=2)
+    return store.open_dataset(job.directory / "calibration.nc")
 
 
 def open_result(path: str | Path) -> xr.Dataset:

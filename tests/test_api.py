@@ -1,5 +1,4 @@
 """The Python API (`biostudy.run`, `sweep`, `open`) and the notebook in docs/examples that uses it."""
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -61,15 +60,15 @@ def test_sweep_and_open_of_cases_and_studies(tiny_study, tmp_path):
         biostudy.open(tmp_path / "foreign.nc")
 
 
-def test_import_is_cheap_and_calibrate_has_its_place():
+def test_import_is_cheap_and_calibrate_is_there(tmp_path):
     probe = ("import sys, biostudy, biostudy.cli; heavy = [m for m in ('xarray', 'pydantic', 'fipy', 'dask', "
              "'matplotlib', 'skimage', 'scipy', 'rich') if m in sys.modules]; print(heavy)")
     shown = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     assert shown.stdout.strip() == "[]", shown.stdout
     assert {"run", "sweep", "open", "calibrate"} <= set(dir(biostudy))
-    if importlib.util.find_spec("biostudy.commands.calibrate") is None:  # until the calibration work lands
-        with pytest.raises(AttributeError, match="calibration comes with its own issue"):
-            biostudy.calibrate  # noqa: B018
+    (tmp_path / "fit.toml").write_text('scene = "nowhere.toml"\n')
+    with pytest.raises(biostudy.BadInput, match="fit.toml"):  # the command's own validation, one line
+        biostudy.calibrate(tmp_path / "fit.toml", tmp_path / "fit")
 
 
 def test_the_notebook_runs_and_records_the_api_call(tmp_path, monkeypatch):

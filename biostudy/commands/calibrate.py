@@ -215,10 +215,10 @@ class Calibrate:
 
 def _backend(execution: Execution) -> Kept | None:
     """The calibration's workers, started once for all its rounds (None: here, one simulation at a time)."""
-    if execution.scheduler:
+    if execution.scheduler or execution.scheduler_file:
         from ..execution.dask import DaskCluster
 
-        return Kept(DaskCluster(execution.scheduler))
+        return Kept(DaskCluster(execution.scheduler, scheduler_file=execution.scheduler_file))
     if execution.workers:
         from ..execution.pool import LocalPool
 
