@@ -4,7 +4,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 # bottom to top: a module may import its own stage and the stages below it, never one above
-STAGES = ["solver", "biostudy.formatting", "biostudy.errors", "biostudy.inputs", "biostudy.quantities", "biostudy.data",
+STAGES = ["solver", "biostudy.formatting", "biostudy.errors", "biostudy.fitting", "biostudy.inputs",
+          "biostudy.quantities", "biostudy.data",
           "biostudy.plans", "biostudy.execution", "biostudy.reports", "biostudy.plots", "biostudy.commands",
           "biostudy.cli", "biostudy"]
 

@@ -109,9 +109,10 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
     if loaded.previous is not None and loaded.previous_path is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
-    ds = store.with_observables(ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
-    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance())
+    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
+                     **loaded.scene.substratum_attrs(), **dense.attrs(ds))
+    ds = store.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]

@@ -276,8 +276,8 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> str:
         said = dense.vanished(outcome.dataset)
         if said:
             extra[dense.ATTRIBUTE] = said
-        ds = store.stamp(store.with_observables(outcome.dataset), job.scene.to_toml(), job.scene_file, job.overrides,
-                         status="done", message="", **extra)
+        ds = store.with_observables(store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides,
+                                                status="done", message="", **extra))  # the substratum's: stamped
     else:
         ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
                                   job.scene_file, job.overrides, error=outcome.error, **extra)
