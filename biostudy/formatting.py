@@ -16,8 +16,6 @@ from __future__ import annotations
 import math
 import re
 
-from solver.problem import parameter_infos
-
 SHOWN_UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "um-1": "µm⁻¹", "um2/T*": "µm²/T*", "um/T*": "µm/T*"}
 _EXPONENT = re.compile(r"e([+-])0*(\d)")
 
@@ -66,5 +64,7 @@ def units_text(units: str) -> str:
 def shown_units(name: str, units: str) -> str:
     """The units of a dataset variable as people read them: a model parameter's own (per T*: 'r' -> 'µm/T*'),
     else `units_text`."""
+    from solver.problem import parameter_infos  # lazily: the command line imports this module at start-up
+
     declared = {info.name: info.units for info in parameter_infos()}
     return units_text(declared.get(name, units))
