@@ -57,7 +57,7 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
     Keys that `set` overrides are scalar coordinates of the dataset (in the file: dimensions of length 1,
     so that runs with different values combine with ``xr.open_mfdataset``).
     """
-    from .commands import run as command
+    from .commands import run as command  # lazily: `import biostudy` stays cheap (module docstring)
 
     worker.pin_solvers()
     overrides = _overrides(set)
@@ -79,7 +79,7 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     `scheduler` address or the `scheduler_file` its scheduler wrote.  Cases finished before are skipped.
     A case that fails is recorded (``status``, ``message``) and the others go on; a warning says which.
     """
-    from .commands import sweep as command
+    from .commands import sweep as command  # lazily, as in `run`
     from .execution.dask import check_choice
     from .execution.jobs import Execution
 
@@ -104,7 +104,7 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
     calibration.nc: estimates, standard errors, 95 % profile intervals, which parameters the data determine,
     the data beside the fitted observables.  Simulations finished before (in DIR/cases/) are reused; workers
     and a Dask cluster as for `sweep`.  Warnings say which simulations failed or lost their dense biofilm."""
-    from .commands import calibrate as command
+    from .commands import calibrate as command  # lazily, as in `run`
     from .execution.dask import check_choice
     from .execution.jobs import Execution
 

@@ -237,7 +237,7 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
     if len(paths) > 1:
         with _guarded():
             from ..data.store import open_result  # lazily (module docstring)
-            from ..reports.compare import show_compared
+            from ..reports.compare import show_compared  # lazily (module docstring)
 
             runs = [open_result(p, ("run",), "show of several files sets runs side by side") for p in paths]
             show_compared(runs, paths, progress.out())
@@ -255,8 +255,8 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
         if at_a_glance is not None:
             progress.out().print(at_a_glance)
             return
-        from ..data.store import open_result
-        from ..reports.show import summarize
+        from ..data.store import open_result  # lazily (module docstring)
+        from ..reports.show import summarize  # lazily
 
         summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
                               "study.nc"), progress.out())
@@ -337,11 +337,11 @@ def export(
         ds = open_result(path, ("run",), "export writes one run's fields")
         try:
             if format is ExportFormat.tiff:
-                from ..data.tiff import export_tiff
+                from ..data.tiff import export_tiff  # lazily (module docstring)
 
                 written = export_tiff(ds, directory, str(path))
             else:
-                from ..data.export import export as write
+                from ..data.export import export as write  # lazily (module docstring)
 
                 written = write(ds, directory)
         except ValueError as error:

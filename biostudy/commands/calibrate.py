@@ -216,11 +216,11 @@ class Calibrate:
 def _backend(execution: Execution) -> Kept | None:
     """The calibration's workers, started once for all its rounds (None: here, one simulation at a time)."""
     if execution.scheduler or execution.scheduler_file:
-        from ..execution.dask import DaskCluster
+        from ..execution.dask import DaskCluster  # lazily: Dask only when a cluster is asked for
 
         return Kept(DaskCluster(execution.scheduler, scheduler_file=execution.scheduler_file))
     if execution.workers:
-        from ..execution.pool import LocalPool
+        from ..execution.pool import LocalPool  # lazily: workers only when asked for
 
         return Kept(LocalPool(execution.workers))
     return None

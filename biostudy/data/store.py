@@ -108,7 +108,7 @@ def with_observables(ds: xr.Dataset) -> xr.Dataset:
     """A run's dataset with every observable its fields give as a variable (those it has are kept), listed in
     its ``observables`` attribute in the registry's order (`quantities.observables`): the file says what it
     holds, and `show` reads them without computing anything (`reports.glance`)."""
-    from ..quantities import observables
+    from ..quantities import observables  # lazily: scipy and xarray only where a run's dataset is made
 
     found = observables.variables(ds)
     ds = ds.assign({name: values for name, values in found.items() if name not in ds})

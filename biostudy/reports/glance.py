@@ -23,7 +23,7 @@ def glance(path: str | Path) -> Group | None:
     """The summary of a run, a case or a failed case's record, or None when the full reader must do it."""
     import netCDF4
 
-    from ..data.store import intact
+    from ..data.store import intact  # lazily: only to tell a damaged file
 
     try:
         with netCDF4.Dataset(path) as nc:

@@ -130,7 +130,7 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
 
 def study_summary(ds: xr.Dataset) -> Group:
     """A study.nc: what was swept, how many cases finished, one row per case."""
-    from ..quantities import observables
+    from ..quantities import observables  # lazily: `show` at a glance needs none (reports.glance)
 
     attrs = ds.attrs
     dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
