@@ -1,16 +1,17 @@
-"""A real SIGTERM at many points of a dataset's write (run by tests/test_faults_hostile.py in a process of its own).
+"""A real SIGTERM (or SIGINT, Ctrl-C) at many points of a dataset's write (run by tests/test_faults_hostile.py
+in a process of its own).
 
-    python interrupted_writes.py DIR KIND:TRIALS...
+    python interrupted_writes.py DIR KIND:TRIALS[:SIGNAL]...
 
 KIND ``run``: ``biostudy run SCENE -o DIR/out.nc`` with the simulation replaced by a dataset made beforehand
-(64² cells, 40 outputs), so that writing it is most of what the command does; ``study``: ``biostudy sweep``
-of a study whose cases are finished (two, 24², 10 outputs), so that it reads them back and writes study.nc.
-This process imports and prepares once, then forks one child per trial, which runs the command in-process
-as `biostudy` does; the parent sends the child SIGTERM after a delay spread evenly over the time an
-uninterrupted child takes (a sweep: over its second half, where it writes), and waits at most HANG seconds
-for it to end (then kills it: a hang).  One JSON line per trial: the delay, the seconds the child took to
-end after the signal (null: it hung), its exit status, the temporaries left behind, and whether the output
-is there and reads back whole.
+(64² cells, 40 outputs), so that writing it is most of what the command does; ``study``: ``biostudy sweep`` of
+a study whose cases are finished (two, 24², 10 outputs), so that it reads them back and writes study.nc. This
+process imports and prepares once, then forks one child per trial, which runs the command in-process as
+`biostudy` does; the parent sends the child SIGNAL (TERM unless given: TERM or INT) after a delay spread
+evenly over the time an uninterrupted child takes (a sweep: over its second half, where it writes), and waits
+at most HANG seconds for it to end (then kills it: a hang).  One JSON line per trial: the delay, the seconds
+the child took to end after the signal (null: it hung), its exit status, the temporaries left behind, and
+whether the output is there and reads back whole.
 """
 from __future__ import annotations
 
@@ -78,11 +79,11 @@ def output(directory: Path, kind: str) -> Path:
     return directory / ("out.nc" if kind == "run" else "out/study.nc")
 
 
-def main(directory: Path, kind: str, trials: int) -> None:
+def main(directory: Path, kind: str, trials: int, sent_signal: signal.Signals = signal.SIGTERM) -> None:
     from biostudy.cli import app
     from biostudy.data import store
 
-    directory = directory / kind
+    directory = directory / f"{kind}-{sent_signal.name}"
     directory.mkdir()
     args = prepare(directory, kind)
     began = time.monotonic()
@@ -101,7 +102,7 @@ def main(directory: Path, kind: str, trials: int) -> None:
                 os._exit(end.code if isinstance(end.code, int) else 1)
             os._exit(0)
         time.sleep(delay)
-        os.kill(pid, signal.SIGTERM)
+        os.kill(pid, sent_signal)
         sent = time.monotonic()
         status = None
         while time.monotonic() - sent < HANG:
@@ -115,12 +116,13 @@ def main(directory: Path, kind: str, trials: int) -> None:
             os.kill(pid, signal.SIGKILL)
             os.waitpid(pid, 0)
         target = output(directory, kind)
-        print(json.dumps({"kind": kind, "delay": delay, "took": took, "ended": ended, "status": status,
+        print(json.dumps({"kind": kind, "signal": sent_signal.name, "delay": delay, "took": took, "ended": ended,
+                          "status": status,
                           "temporaries": sorted(p.name for p in target.parent.glob(".*.tmp")),
                           "output": target.exists(), "whole": target.exists() and store.intact(target)}), flush=True)
 
 
 if __name__ == "__main__":
     for given in sys.argv[2:]:
-        name, count = given.split(":")
-        main(Path(sys.argv[1]), name, int(count))
+        name, count, *sent = given.split(":")
+        main(Path(sys.argv[1]), name, int(count), signal.Signals["SIG" + (sent[0] if sent else "TERM")])

@@ -260,18 +260,19 @@ def test_a_damaged_or_foreign_netcdf_is_never_replaced_force_or_not(finished, tm
 
 
 # ---------------------------------------------------------------------------------------------
-# 4. SIGTERM while a dataset is written ends the run at once; a killed run's temporary is cleaned up (item 2)
+# 4. SIGTERM (or Ctrl-C) while a dataset is written ends the run at once; a killed run's temporary is cleaned up
 
 
 def test_sigterm_at_many_points_of_a_write_ends_the_run_and_leaves_the_old_file_or_the_new_one(tmp_path):
-    process = subprocess.run([sys.executable, str(HERE / "interrupted_writes.py"), str(tmp_path), "run:10", "study:3"],
-                             capture_output=True, text=True, timeout=300)
+    process = subprocess.run([sys.executable, str(HERE / "interrupted_writes.py"), str(tmp_path), "run:10", "study:3",
+                              "run:6:INT"], capture_output=True, text=True, timeout=300)
     assert process.returncode == 0, process.stderr
     trials = [json.loads(line) for line in process.stdout.splitlines()]
-    assert len(trials) == 13
+    assert len(trials) == 19
+    assert {t["signal"] for t in trials} == {"SIGTERM", "SIGINT"}
     for trial in trials:
         assert trial["ended"] is not None, trial  # not hung (the guard is 20 s; it ends in well under 1 s)
-        assert trial["status"] in (0, 130, -signal.SIGTERM), trial
+        assert trial["status"] in (0, 130, -signal.SIGTERM, -signal.SIGINT), trial
         assert trial["temporaries"] == [], trial
         assert trial["whole"] == trial["output"], trial  # the old file or the new one, complete
     assert all(t["output"] for t in trials if t["kind"] == "study")  # study.nc was there before: never lost
