@@ -87,7 +87,8 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     check_choice(workers, scheduler, scheduler_file)
     with netcdf.called(_call("sweep", study, directory, workers=workers, scheduler=scheduler,
                              scheduler_file=scheduler_file, set=set)):
-        job = command.load(study, output=Path(directory), overrides=_overrides(set))
+        job = command.load(study, output=Path(directory), overrides=_overrides(set),
+                           runs_here=not (scheduler or scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      retry_failed=retry_failed, rerun_all=rerun_all, force=force))
     for said in finished.warnings:
@@ -113,7 +114,7 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
     with netcdf.called(_call("calibrate", calibration, directory, workers=workers, scheduler=scheduler,
                              scheduler_file=scheduler_file, set=set)):
         job = command.load(calibration, output=None if directory is None else Path(directory),
-                           overrides=_overrides(set))
+                           overrides=_overrides(set), runs_here=not (scheduler or scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      rerun_all=rerun_all, force=force))
     for said in finished.warnings:

@@ -335,6 +335,24 @@ def test_a_run_too_big_for_this_machine_is_refused_before_its_arrays_are_built(t
     assert os.listdir(tmp_path) == ["cube.toml"]
 
 
+def test_a_sweep_too_big_for_this_machine_is_refused_before_its_arrays_are_built(tmp_path, monkeypatch):
+    monkeypatch.setattr(resources, "available_memory", lambda: 8e9)
+    (tmp_path / "cube.toml").write_text(CUBE_SCENE)
+    study = tmp_path / "study.toml"
+    study.write_text('scene = "cube.toml"\n[sweep]\ng = [1e8, 1e9]\n')
+    tracemalloc.start()
+    try:
+        result = invoke("sweep", study, "-o", tmp_path / "out", "--set", "grid.shape=[400, 400, 400]")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    line = one_line(result)
+    assert line.startswith("error: --set: grid.shape: needs ~")
+    assert "of memory, 8 GB available (cube: transport ~" in line
+    assert peak < 400 ** 3  # no case's masks were made
+    assert sorted(os.listdir(tmp_path)) == ["cube.toml", "study.toml"]
+
+
 # ---------------------------------------------------------------------------------------------
 # 6. Dask: a silent address, a scheduler without workers, a scheduler lost mid-sweep
 
@@ -489,7 +507,7 @@ def test_refused_sweeps_leave_no_claim_behind(finished, tmp_path, monkeypatch):
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
     line = one_line(invoke("sweep", finished["study"], "-o", ".", "-q", "--scheduler", "tcp://127.0.0.1:9"))
     assert "cannot connect to a Dask scheduler at tcp://127.0.0.1:9" in line and os.listdir(here) == []
-    monkeypatch.setattr(resources, "available_memory", lambda: 1e6)
+    monkeypatch.setattr(resources, "available_memory", lambda: 3e8)  # one run (~200 MB) fits, two do not
     for target in (".", "new/deeper"):
         line = one_line(invoke("sweep", finished["study"], "-o", target, "-q", "--workers", "2"))
         assert "use fewer workers" in line and os.listdir(here) == []

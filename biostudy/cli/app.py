@@ -205,7 +205,7 @@ def sweep(
         from ..commands import sweep as command  # lazily (module docstring)
 
         return command.load(study, output=output, overrides=overrides, cases=cases, task=task, tasks=tasks,
-                            combine_only=combine_only)
+                            combine_only=combine_only, runs_here=not (scheduler or scheduler_file))
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  retry_failed=retry_failed, force=force, rerun_all=rerun_all)
@@ -408,7 +408,7 @@ def stability(
     def load():
         from ..commands import stability as command  # lazily (module docstring)
 
-        return command.load(catalogue, output=output, overrides=overrides)
+        return command.load(catalogue, output=output, overrides=overrides, runs_here=not (scheduler or scheduler_file))
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
                  rerun_all=rerun_all)
@@ -434,7 +434,8 @@ def calibrate(
     def load():
         from ..commands import calibrate as command  # lazily (module docstring)
 
-        return command.load(calibration, output=output, overrides=overrides)
+        return command.load(calibration, output=output, overrides=overrides,
+                            runs_here=not (scheduler or scheduler_file))
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
                  rerun_all=rerun_all)

@@ -227,8 +227,8 @@ def _backend(execution: Execution) -> Kept | None:
 
 
 def load(calibration: str | Path, *, output: Path | None = None,
-         overrides: tuple[str, ...] | list[str] = ()) -> Calibrate:
+         overrides: tuple[str, ...] | list[str] = (), runs_here: bool = False) -> Calibrate:
     """Read and validate a calibration file (a path or a bundled name), its scene, conditions and measurements;
-    bad input is `BadInput`."""
-    plan = load_calibration(bundled.resolve(calibration), overrides)
+    bad input is `BadInput` (`runs_here`: as for `commands.sweep.load`)."""
+    plan = load_calibration(bundled.resolve(calibration), overrides, runs_here)
     return Calibrate(plan, Path(output) if output is not None else Path(plan.spec.name))

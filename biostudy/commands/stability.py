@@ -55,8 +55,10 @@ class Stability:
                         failed, ds.sizes["case"], table, warnings=report.warnings(), result=ds)
 
 
-def load(path: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = ()) -> Stability:
-    """Read and validate a catalogue (a path or a bundled name) and every case; bad input is `BadInput`."""
+def load(path: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = (),
+         runs_here: bool = False) -> Stability:
+    """Read and validate a catalogue (a path or a bundled name) and every case; bad input is `BadInput`
+    (`runs_here`: as for `commands.sweep.load`)."""
     path = bundled.resolve(path)
-    return Stability(catalogue.load(path, overrides), path,
+    return Stability(catalogue.load(path, overrides, runs_here), path,
                      Path(output) if output is not None else Path(f"{path.stem}-results"))

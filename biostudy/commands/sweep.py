@@ -133,10 +133,11 @@ def _statuses(study: Path) -> str:
 
 def load(study: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = (),
          cases: tuple[str, ...] | list[str] = (), task: int | None = None, tasks: int | None = None,
-         combine_only: bool = False) -> Sweep:
+         combine_only: bool = False, runs_here: bool = False) -> Sweep:
     """Read and validate a study (a path or a bundled name) and every case, and which cases to run (`cases`,
-    or share `task` of `tasks`; `combine_only`: none); bad input is `BadInput`."""
-    plan = load_study(bundled.resolve(study), overrides)
+    or share `task` of `tasks`; `combine_only`: none); bad input is `BadInput`.  `runs_here`: the cases run on
+    this machine, so one too big for its memory is refused by its estimate before its masks are made."""
+    plan = load_study(bundled.resolve(study), overrides, runs_here and not combine_only)
     share = None
     if cases or task is not None or tasks is not None:
         if cases and (task is not None or tasks is not None):

@@ -365,11 +365,12 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
 
 
-def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> CalibrationPlan:
+def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+                     runs_here: bool = False) -> CalibrationPlan:
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
-    `BadInput` (every problem of the table at once)."""
+    `BadInput` (every problem of the table at once; `runs_here`: as for `load_plan`)."""
     path = Path(path)
-    plan = load_plan(path, Calibration, overrides, _wrong_kind)
+    plan = load_plan(path, Calibration, overrides, _wrong_kind, runs_here)
     spec = plan.spec
     assert isinstance(spec, Calibration)
     _, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)

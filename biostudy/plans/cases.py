@@ -117,24 +117,27 @@ def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) 
 
 
 def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
-               origins: Origins | None = None) -> Scene:
+               origins: Origins | None = None, runs_here: bool = False) -> Scene:
     """One case's validated scene: the base data with the case's values; errors name the case, and the
-    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault."""
+    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault (`runs_here`:
+    as for `scene_from_data`)."""
     data = copy.deepcopy(base_data)
     try:
         for key, value in values.items():
             set_key(data, key, value)
-        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)})
+        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)}, runs_here)
     except BadInput as error:
         raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
                               lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
 
 
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
-              wrong_kind: Callable[[dict], str] = lambda data: "") -> Plan:
+              wrong_kind: Callable[[dict], str] = lambda data: "", runs_here: bool = False) -> Plan:
     """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
 
     wrong_kind(data) says why the file is not of this kind ("" if it is), before it is validated.
+    runs_here: the cases are to run on this machine (not on a Dask cluster), so a case too big for its
+    memory is refused by its estimate before its masks are made (`scene_from_data`).
     """
     path = Path(path)
     data = read_toml(path)
@@ -148,7 +151,7 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
         raise from_validation_error(error, path, known_keys=model.model_fields) from None
     scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
     origins = {**given_by(spec.set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
-    base = scene_from_data(base_data, scene_file, origins)
+    base = scene_from_data(base_data, scene_file, origins, runs_here)
     spec.check(base_data, scene_file, path)
     _not_swept(spec, path, overrides)
     cases = spec.cases()
@@ -164,7 +167,7 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
     for case in cases:  # every case checked, every bad one told (as a scene tells every bad key)
         try:
             scenes[case.id] = case_scene(base_data, case.values, scene_file, path,
-                                         case.attrs.get("case_id", case.id), origins)
+                                         case.attrs.get("case_id", case.id), origins, runs_here)
         except BadInput as error:
             problems.append(error)
     if problems:

@@ -48,7 +48,9 @@ def job_id(name: str) -> str:
     return re.sub(r"[^\w.+=-]", "_", name)
 
 
-def load(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
-    """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case."""
+def load(path: Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Plan:
+    """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case (`runs_here`:
+    as for `load_plan`)."""
     return load_plan(path, Catalogue, overrides,
-                     lambda data: "" if "case" in data else "not a stability catalogue (it has no [[case]] list)")
+                     lambda data: "" if "case" in data else "not a stability catalogue (it has no [[case]] list)",
+                     runs_here)

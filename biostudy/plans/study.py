@@ -134,7 +134,8 @@ def expand(sweep: Sweep) -> list[Case]:
     return cases
 
 
-def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
-    """Read a study file, its base scene and every case; any bad input is a `BadInput`."""
+def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Plan:
+    """Read a study file, its base scene and every case; any bad input is a `BadInput` (`runs_here`: as for
+    `load_plan`)."""
     return load_plan(path, Study, overrides, lambda data: "this is a scene file (it has [grid]); run it with "
-                     "`biostudy run`" if "grid" in data and "scene" not in data else "")
+                     "`biostudy run`" if "grid" in data and "scene" not in data else "", runs_here)
