@@ -66,10 +66,10 @@ def compare(this: str, old: str) -> dict:
     with xr.open_dataset(this) as a, xr.open_dataset(old) as b:
         if not np.array_equal(a["time"].values, b["time"].values):
             raise SystemExit(f"{this} and {old}: different output times")
-        shared = [k for k in a.data_vars if k in b.data_vars and "time" in a[k].dims
-                  and np.issubdtype(a[k].dtype, np.number)]
-        fields = {k: largest(a[k], b[k]) for k in shared if "x" in a[k].dims}
-        observables = {k: largest(a[k], b[k]) for k in shared if "x" not in a[k].dims and k != "elapsed"}
+        timed = [k for k in a.data_vars if k in b.data_vars and {"time", "time_mechanics"} & set(a[k].dims)
+                 and np.issubdtype(a[k].dtype, np.number)]  # the mechanics' fields at their own times
+        fields = {k: largest(a[k], b[k]) for k in timed if {"x", "x_node"} & set(a[k].dims)}
+        observables = {k: largest(a[k], b[k]) for k in timed if k not in fields and k != "elapsed"}
         iterations = tuple(int(d.attrs.get("nutrient_cg_iterations", -1)) for d in (a, b))
     worst = max(observables, key=observables.get) if observables else None
     return {"fields": fields, "observables": observables, "worst": worst, "iterations": iterations}
