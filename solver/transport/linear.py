@@ -30,9 +30,11 @@ from pyamg.amg_core import gauss_seidel
 from ..counters import Counters
 from ..errors import StepFailure
 
-
-COARSEST = 200  # rows of the level solved by its pseudo-inverse: 40^3 stops at 152 rows, not 19 (one level
-#                 fewer, 5.55 instead of 5.69 CG iterations per solve, 4 % faster; 20^3 the same: docs/transport.md)
+# The hierarchy's choices, measured at 40^3 on a recorded run (benchmarks/nutrient.py, docs/transport.md):
+COARSEST = 200  # rows of the level solved by its pseudo-inverse: one level fewer (152 rows, not 19), 5.55
+#                 instead of 5.69 CG iterations per solve
+STRENGTH = ("classical", {"theta": 0.1})  # pyamg's default 0.25 coarsens the deeper levels less well here:
+#                 5.08 instead of 5.55 iterations (20^3 and 2-D the same)
 
 
 class ReusedAMG:
@@ -53,7 +55,7 @@ class ReusedAMG:
                 f"{prefix}_amg_rebuilds": self.rebuilds}
 
     def _rebuild(self, matrix: sp.csr_matrix):
-        self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=COARSEST))
+        self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=COARSEST, strength=STRENGTH))
         self.rebuilds += 1
 
     def _cg(self, matrix, rhs, x0):
