@@ -158,8 +158,8 @@ def solver_table(n: int, steps: int) -> None:
 
 def bundled_directional(n: int):
     """studies/directional.toml on n^3 cells of 20/n µm, its 1000 steps, mechanics off."""
-    from biostudy import bundled
-    from biostudy.scene import load_scene
+    from biostudy.inputs import bundled
+    from biostudy.inputs.scene import load_scene
 
     overrides = [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}", "mechanics.enabled=false"]
     return load_scene(bundled.resolve("directional"), overrides).problem()
