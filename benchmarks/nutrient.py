@@ -11,8 +11,13 @@ each from the previous step's c, by
     hierarchy's own fine matrix) -- the solve before issue 20;
   * the same with one forward sweep before and one backward sweep after;
   * solver.transport.linear's PCG and VCycle (those sweeps, the fine level on
-    the matrix being solved), started from c^n and from c^n extrapolated along
-    its last change (c^n + (c^n - c^(n-1)), what Transport.step does);
+    the matrix being solved), every level smoothed, started from c^n and from
+    c^n extrapolated along its last change (c^n + (c^n - c^(n-1)));
+  * the cycle passing through Ruge-Stueben's first coarse level, with the
+    coarsest level at most 50 or 200 rows, from the line and from the parabola
+    through the last three c's (3 c^n - 3 c^(n-1) + c^(n-2): what
+    Transport.step does), at pyamg's default strength 0.25 and at 0.1 (now);
+  * that cycle on Ruge-Stueben's second pass (rejected);
   * pyamg's smoothed aggregation, and Ruge-Stueben with strength 0.5;
 each with its CG iterations, ms per solve and relative initial residual, at
 tolerance 1e-10 (the true residual checked).  Also the cost of forming
@@ -42,6 +47,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 from transport import directional  # noqa: E402
 
 TOLERANCE = 1e-10
+DEFAULT = ("classical", {"theta": 0.25})  # pyamg's default strength of connection
 
 
 def record(n: int, steps: int):
@@ -72,7 +78,7 @@ def scipy_cg(matrix, rhs, x0, hierarchy):
 
 
 def variants(first):
-    from solver.transport.linear import VCycle, pcg
+    from solver.transport.linear import COARSEST, STRENGTH, VCycle, pcg
 
     forward, backward = ("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"})
 
@@ -80,8 +86,16 @@ def variants(first):
         hierarchy = build(first)
         return lambda matrix, rhs, x0: scipy_cg(matrix, rhs, x0, hierarchy)
 
-    def own():
-        cycle = VCycle(pyamg.ruge_stuben_solver(first, max_coarse=50))
+    def own(passed=(1,), coarsest=COARSEST, strength=STRENGTH):
+        cycle = VCycle(pyamg.ruge_stuben_solver(first, max_coarse=coarsest, strength=strength), passed)
+
+        def solve(matrix, rhs, x0):
+            x, its, _, _ = pcg(matrix, rhs, x0.copy(), lambda r: cycle(matrix, r), TOLERANCE * np.linalg.norm(rhs), 500)
+            return x, its
+        return solve
+
+    def own_with(**kw):
+        cycle = VCycle(pyamg.ruge_stuben_solver(first, max_coarse=COARSEST, strength=STRENGTH, **kw))
 
         def solve(matrix, rhs, x0):
             x, its, _, _ = pcg(matrix, rhs, x0.copy(), lambda r: cycle(matrix, r), TOLERANCE * np.linalg.norm(rhs), 500)
@@ -90,16 +104,21 @@ def variants(first):
 
     rs = lambda **kw: lambda m: pyamg.ruge_stuben_solver(m, max_coarse=50, **kw)  # noqa: E731
     return [
-        ("scipy CG, pyamg RS V-cycle, symmetric GS (before)", with_pyamg(rs()), False),
+        ("scipy CG, pyamg RS V-cycle, symmetric GS (before issue 20)", with_pyamg(rs()), 0),
         ("scipy CG, pyamg RS V-cycle, forward/backward GS", with_pyamg(rs(presmoother=forward, postsmoother=backward)),
-         False),
-        ("own PCG + VCycle, from c^n", own(), False),
-        ("own PCG + VCycle, from c^n extrapolated (now)", own(), True),
+         0),
+        ("own PCG + VCycle, every level smoothed, from c^n", own((), 50, DEFAULT), 0),
+        ("the same from c^n extrapolated along dc/dt (before the level was passed)", own((), 50, DEFAULT), 1),
+        ("passing level 1, from the line", own((1,), 50, DEFAULT), 1),
+        ("passing level 1, coarsest level <= 200 rows, from the line", own(strength=DEFAULT), 1),
+        ("passing level 1, coarsest level <= 200 rows, from the parabola", own(strength=DEFAULT), 2),
+        ("the same with strength 0.1 (now)", own(), 2),
+        ("now, but Ruge-Stueben's second pass", own_with(CF=("RS", {"second_pass": True})), 2),
         ("scipy CG, pyamg smoothed aggregation", with_pyamg(lambda m: pyamg.smoothed_aggregation_solver(
-            m, max_coarse=50)), False),
+            m, max_coarse=50)), 0),
         ("scipy CG, pyamg RS strength 0.5, fw/bw GS", with_pyamg(rs(strength=("classical", {"theta": 0.5}),
                                                                    presmoother=forward, postsmoother=backward)),
-         False),
+         0),
     ]
 
 
@@ -112,20 +131,22 @@ def solver_table(n: int, steps: int) -> None:
     solves = range(len(phis) // 2, len(phis))
     print(f"directional scene {n}^3 (TVD, front velocity), nutrient solves {solves.start}-{solves.stop - 1} of "
           f"{len(phis)}, tolerance {TOLERANCE:g}, load average {os.getloadavg()[0]:.1f}")
-    print("| solver | CG its/solve | ms/solve | initial residual / |b| |")
+    print("| solver | CG its/solve | ms/solve (CPU) | initial residual / |b| |")
     print("|---|---|---|---|")
     norm = np.linalg.norm(rhs)
     with threadpool_limits(limits=1, user_api="blas"):
-        for name, solve, extrapolate in variants(matrices[0]):
-            its, residuals, began = 0, [], time.perf_counter()
+        for name, solve, order in variants(matrices[0]):  # order of the extrapolation in time: 0, 1, 2
+            its, residuals, began, cpu = 0, [], time.perf_counter(), time.process_time()
             for k in solves:
-                x0 = (2 * cs[k - 1] - cs[k - 2] if extrapolate else cs[k - 1])[free]
+                x0 = (cs[k - 1], 2 * cs[k - 1] - cs[k - 2], 3 * cs[k - 1] - 3 * cs[k - 2] + cs[k - 3])[order][free]
                 residuals.append(np.linalg.norm(rhs - matrices[k] @ x0) / norm)
                 x, count = solve(matrices[k], rhs, x0)
                 its += count
                 assert np.linalg.norm(rhs - matrices[k] @ x) <= TOLERANCE * norm, name
             ms = 1e3 * (time.perf_counter() - began) / len(solves)
-            print(f"| {name} | {its / len(solves):.2f} | {ms:.1f} | {np.median(residuals):.1e} |", flush=True)
+            cpu_ms = 1e3 * (time.process_time() - cpu) / len(solves)
+            print(f"| {name} | {its / len(solves):.2f} | {ms:.1f} ({cpu_ms:.1f}) | {np.median(residuals):.1e} |",
+                  flush=True)
         kept, demand = KeptDiagonal(K), gamma * phis[-1][free]
         for name, build in (("K + diag(gamma phi) as a new CSR matrix", lambda: sp.csr_matrix(K + sp.diags(demand))),
                             ("kept matrix, diagonal rewritten (KeptDiagonal)", lambda: kept(demand))):
@@ -137,8 +158,8 @@ def solver_table(n: int, steps: int) -> None:
 
 def bundled_directional(n: int):
     """studies/directional.toml on n^3 cells of 20/n µm, its 1000 steps, mechanics off."""
-    from biostudy import bundled
-    from biostudy.scene import load_scene
+    from biostudy.inputs import bundled
+    from biostudy.inputs.scene import load_scene
 
     overrides = [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}", "mechanics.enabled=false"]
     return load_scene(bundled.resolve("directional"), overrides).problem()

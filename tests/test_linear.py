@@ -1,4 +1,6 @@
 """The transport's linear-algebra parts (solver/transport/linear.py) against plain scipy answers."""
+import copy
+
 import numpy as np
 import pyamg
 import pytest
@@ -93,3 +95,31 @@ def test_jacobi_bicgstab_meets_the_true_residual_on_an_advection_matrix():
     assert 1 <= iterations < 20
     again, none = jacobi_bicgstab(matrix, rhs, x, 1e-12, matrix.diagonal())  # already converged: no iteration
     assert none == 0 and np.array_equal(again, x)
+
+
+def test_a_passed_level_is_the_hierarchy_without_it():
+    """Passing level 1 is the cycle of the hierarchy with level 1 removed and P_01 P_12 as the first
+    interpolation, built here by hand from pyamg's levels; and on the 7-point operator it lowers the work of a
+    solve from zero, CG iterations times the nonzeros a cycle reads (per smoothed level two sweeps and a
+    residual of A, a restriction and an interpolation of P; the fine matrix once more for CG's product),
+    against smoothing every level (here 16 against 12 iterations, 1.1e6 against 1.35e6)."""
+    matrix, demand = nutrient_like(12, seed=7)
+    hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=50)
+    assert len(hierarchy.levels) >= 4
+    shortened = copy.deepcopy(hierarchy)
+    shortened.levels[0].P = hierarchy.levels[0].P @ hierarchy.levels[1].P
+    del shortened.levels[1]
+    fine = KeptDiagonal(matrix)(demand)
+    r = np.random.default_rng(8).normal(size=matrix.shape[0])
+    passed, by_hand = VCycle(hierarchy)(fine, r), VCycle(shortened, passed=())(fine, r)
+    assert np.abs(passed - by_hand).max() <= 1e-12 * np.abs(by_hand).max()
+    rhs = np.zeros(matrix.shape[0])
+    rhs[0] = 2.0
+    work = []
+    for cycle in (VCycle(hierarchy), VCycle(hierarchy, passed=())):
+        x, iterations, residual, info = pcg(fine, rhs, np.zeros_like(rhs), lambda v, c=cycle: c(fine, v),
+                                            1e-10 * np.linalg.norm(rhs), 100)
+        assert info == 0 and residual <= 1e-10 * np.linalg.norm(rhs)
+        per_cycle = fine.nnz + sum(3 * a.nnz + 2 * p.nnz for a, p in zip(cycle.operators, cycle.prolongations))
+        work.append(iterations * per_cycle)
+    assert work[0] < work[1]

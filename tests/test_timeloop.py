@@ -107,3 +107,21 @@ def test_two_dimensional_scene_is_solved_in_two_dimensions():
         for layer in range(3):
             np.testing.assert_allclose(flat[name].values, thick[name].values[:, layer], rtol=0, atol=1e-9)
     assert float(flat.phi_mean[-1]) > float(flat.phi_mean[0])  # it grows
+
+
+def test_the_nutrient_guess_is_exact_for_a_parabola_in_time():
+    """The starting guess of the next nutrient solve (State.c_guess) is Newton's parabola through the last
+    three c's: exact for c quadratic in t, also for unequal steps; after one step the line through two."""
+    def c(t):
+        return np.array([1.0 + 2.0 * t - 3.0 * t**2, 0.5 - t + 4.0 * t**2])
+
+    times = [0.0, 0.1, 0.25, 0.27]  # steps 0.1, 0.15, 0.02
+    state = State(times[0], None, None, c(times[0]))
+    assert np.array_equal(state.c_guess(0.1), c(0.0))  # no history: c itself
+    state = state.after(times[1] - times[0], None, None, c(times[1]))
+    line = c(times[1]) + 0.15 * (c(times[1]) - c(times[0])) / 0.1
+    assert np.allclose(state.c_guess(0.15), line, rtol=0, atol=1e-14)
+    state = state.after(times[2] - times[1], None, None, c(times[2]))
+    assert np.allclose(state.c_guess(times[3] - times[2]), c(times[3]), rtol=0, atol=1e-14)
+    state = state.after(times[3] - times[2], None, None, c(times[3]))
+    assert np.allclose(state.c_guess(0.5), c(times[3] + 0.5), rtol=0, atol=1e-13)

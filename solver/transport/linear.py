@@ -11,6 +11,9 @@
   backward sweep after: the cycle is symmetric, as CG needs, and costs half
   of pyamg's default symmetric sweeps on both sides (measured at 40^3: 6
   iterations instead of 5 from the same start, 33 against 41 ms per solve).
+  It passes through the first coarse level unsmoothed (see `VCycle`), and the
+  hierarchy is built with strength 0.1 down to at most 200 rows: 5.1 instead of
+  6.0 iterations and 24 against 42 ms per solve at 40^3 (docs/transport.md).
 * `jacobi_bicgstab`: the biofilm matrix is dominated by 1/dt, so a diagonal
   preconditioner is enough (2-5 iterations at the nominal step).
 * `KeptDiagonal`: a matrix that changes only on its diagonal, kept in CSR and
@@ -29,6 +32,12 @@ from pyamg.amg_core import gauss_seidel
 
 from ..counters import Counters
 from ..errors import StepFailure
+
+# The hierarchy's choices, measured at 40^3 on a recorded run (benchmarks/nutrient.py, docs/transport.md):
+COARSEST = 200  # rows of the level solved by its pseudo-inverse: one level fewer (152 rows, not 19), 5.55
+#                 instead of 5.69 CG iterations per solve
+STRENGTH = ("classical", {"theta": 0.1})  # pyamg's default 0.25 coarsens the deeper levels less well here:
+#                 5.08 instead of 5.55 iterations (20^3 and 2-D the same)
 
 
 class ReusedAMG:
@@ -49,7 +58,7 @@ class ReusedAMG:
                 f"{prefix}_amg_rebuilds": self.rebuilds}
 
     def _rebuild(self, matrix: sp.csr_matrix):
-        self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=50))
+        self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=COARSEST, strength=STRENGTH))
         self.rebuilds += 1
 
     def _cg(self, matrix, rhs, x0):
@@ -82,17 +91,31 @@ class ReusedAMG:
 
 
 class VCycle:
-    """One V-cycle of a pyamg hierarchy as a symmetric preconditioner: per level a forward Gauss-Seidel sweep,
-    the coarse correction, a backward sweep; pseudo-inverse on the coarsest level (pyamg's 'pinv').
+    """One V-cycle of a pyamg hierarchy as a symmetric preconditioner: per smoothed level a forward
+    Gauss-Seidel sweep, the coarse correction, a backward sweep; pseudo-inverse on the coarsest level
+    (pyamg's 'pinv').
 
     The finest level smooths on the matrix being solved (passed per call), the coarser levels keep the
-    operators of the matrix the hierarchy was built from."""
+    operators of the matrix the hierarchy was built from.  Levels in `passed` are not smoothed: the cycle
+    goes through them, its interpolation the product of theirs (P_01 P_12 ...), its restriction the
+    transpose.  Ruge-Stueben's first coarse level of a 7-point (5-point) operator is the red-black half of
+    the cells with 18 (8) neighbours each, more nonzeros than the finest level in 3-D; its sweeps were a
+    third of a cycle and bought no iteration (measured at 40^3: 6.0 CG iterations per solve with and
+    without, 33 against 23 ms per solve; docs/transport.md), so it is passed through by default."""
 
-    def __init__(self, hierarchy):
+    def __init__(self, hierarchy, passed: tuple[int, ...] = (1,)):
         levels = hierarchy.levels
-        self.operators = [sp.csr_matrix(level.A) for level in levels[:-1]]
-        self.prolongations = [sp.csr_matrix(level.P) for level in levels[:-1]]
-        self.restrictions = [sp.csr_matrix(level.R) for level in levels[:-1]]
+        self.operators, self.prolongations = [], []
+        index = 0
+        while index < len(levels) - 1:
+            prolongation = sp.csr_matrix(levels[index].P)
+            self.operators.append(sp.csr_matrix(levels[index].A))
+            index += 1
+            while index in passed and index < len(levels) - 1:
+                prolongation = sp.csr_matrix(prolongation @ levels[index].P)
+                index += 1
+            self.prolongations.append(prolongation)
+        self.restrictions = [sp.csr_matrix(p.T) for p in self.prolongations]
         self.coarsest = np.linalg.pinv(np.asarray(levels[-1].A.toarray()))
 
     def __call__(self, matrix: sp.csr_matrix, residual: np.ndarray) -> np.ndarray:
