@@ -1,0 +1,165 @@
+"""The posterior of the parameters given the data, sampled on a Gaussian-process surrogate of the simulator.
+
+Why a surrogate: emcee needs ~1e4 evaluations of the likelihood for two parameters; one simulation of the
+bundled example takes ~0.6 s, so directly on the simulator that is hours (docs/calibration.md).  The route:
+
+1. The box: the least-squares estimate ± `box` of its standard errors (Jacobian) per coordinate of the unit
+   cube, cut to the bounds (the whole range of a coordinate whose standard error is not finite).  The
+   likelihood is taken as zero outside it: in the local approximation chi² there is at least `box`² above
+   its minimum.  Where the posterior reaches a face of the box that is not a bound, `verdicts` says so.
+2. Training: a scrambled Latin hypercube of `design` simulations in the box, with every simulation of the
+   least-squares fit that lies inside it (they are already done); failed ones are left out (counted).
+3. A first pass of the sampler on the surrogate's mean, its own predictive variance added to sigma²:
+   log L = -1/2 sum_i [m_i(u)² / (1 + v_i(u)) + log(1 + v_i(u))] (residual units, v_i the GP's variance).
+4. Held out: `held_out` simulations at points drawn from that first posterior (where its error matters),
+   not used for training; per residual the root-mean-square error e_i of the surrogate's mean there.
+5. The posterior: emcee on log L = -1/2 sum_i m_i(u)² / (1 + e_i²): the measured surrogate error added to the
+   measurement variance, sigma_i² -> sigma_i² + (sigma_i e_i)²; prior uniform on the unit cube of the bounds
+   (log-uniform in a log parameter's own units).
+6. The band: the surrogate's mean of every observable at the data times over the posterior samples, its
+   2.5 % and 97.5 % quantiles (the model's band, the measurement noise not added).
+
+Every simulation is asked for through `evaluate` (points -> weighted residuals, None for a failed run), so
+the command's case files and fingerprints serve here as in least squares.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.stats import qmc
+
+from .sampling import Chains, sample
+from .surrogate import HeldOut, Surrogate, held_out, train
+
+SMALL = 0.3  # the surrogate's held-out error (units of sigma) beyond which it is said to widen the posterior
+EDGE = 0.01  # samples this close to a face of the box (fraction of its width) ...
+EDGE_SHARE = 0.01  # ... in this share of the samples: the posterior reaches the box
+BAND_SAMPLES = 1000
+
+
+@dataclass(frozen=True)
+class Options:
+    design: int = 30
+    held_out: int = 8
+    walkers: int = 16
+    steps: int = 3000
+    box: float = 6.0
+    seed: int = 0
+
+
+@dataclass
+class Posterior:
+    """What sampling found, and what it rests on."""
+
+    chains: Chains
+    surrogate: Surrogate
+    held: HeldOut
+    low: np.ndarray  # the box (unit cube)
+    high: np.ndarray
+    inflation: np.ndarray  # e_i² per residual: added to 1 (sigma²) in the likelihood
+    trained_on: int  # simulations the surrogate was trained on
+    from_fit: int  # of which the least-squares fit's own
+    failed: int  # design or held-out simulations that failed (left out)
+    band: np.ndarray  # 2 x residuals: the 2.5 % and 97.5 % quantiles of the predicted residuals
+    first: Chains  # the first pass (held-out points drawn from it)
+    verdicts: list[str] = field(default_factory=list)
+
+
+def box(centre: np.ndarray, standard_error: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """centre ± width standard errors, cut to [0, 1]; [0, 1] where a standard error is not finite."""
+    se = np.where(np.isfinite(standard_error), standard_error, np.inf)
+    low = np.clip(centre - width * se, 0.0, 1.0)
+    high = np.clip(centre + width * se, 0.0, 1.0)
+    narrow = high - low < 1e-3
+    return np.where(narrow, np.clip(centre - 5e-4, 0, 1), low), np.where(narrow, np.clip(centre + 5e-4, 0, 1), high)
+
+
+def _inside(u: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    return np.all((u >= low) & (u <= high), axis=-1)
+
+
+def _starts(centre, standard_error, low, high, walkers, rng) -> np.ndarray:
+    """Walkers in a small ball around the least-squares estimate (a quarter of a standard error), inside the box."""
+    spread = np.where(np.isfinite(standard_error), 0.25 * standard_error, 0.1 * (high - low))
+    spread = np.minimum(spread, 0.1 * (high - low))
+    inner = low + 1e-6 * (high - low), high - 1e-6 * (high - low)
+    return np.clip(centre + spread * rng.standard_normal((walkers, len(centre))), *inner)
+
+
+def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, standard_error: np.ndarray,
+              known: list[tuple[np.ndarray, np.ndarray | None]], options: Options,
+              names: list[str]) -> Posterior:
+    """Sample the posterior (module docstring): `centre`, `standard_error` the least-squares estimate and its
+    standard errors (unit cube); `known` the simulations already made (point, residuals or None)."""
+    k = len(centre)
+    rng = np.random.default_rng(options.seed)
+    low, high = box(np.asarray(centre, float), np.asarray(standard_error, float), options.box)
+    design = low + (high - low) * qmc.LatinHypercube(d=k, scramble=True, rng=options.seed).random(options.design)
+    ran = evaluate(list(design))
+    failed = sum(r is None for r in ran)
+    training: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+    for point, result in known:
+        if result is not None and _inside(point, low, high):
+            training[tuple(np.round(point, 12))] = (np.asarray(point), np.asarray(result))
+    from_fit = len(training)
+    for point, result in zip(design, ran):
+        if result is not None:
+            training[tuple(np.round(point, 12))] = (point, np.asarray(result))
+    points = np.array([p for p, _ in training.values()])
+    residuals = np.array([r for _, r in training.values()])
+    surrogate = train(points, residuals, low, high)
+
+    def first_pass(u: np.ndarray) -> np.ndarray:
+        mean, variance = surrogate.predict(u)
+        total = 1.0 + variance
+        value = -0.5 * np.sum(mean**2 / total + np.log(total), axis=1)
+        return np.where(_inside(u, low, high), value, -np.inf)
+
+    start = _starts(np.asarray(centre, float), np.asarray(standard_error, float), low, high, options.walkers, rng)
+    first = sample(first_pass, start, options.steps, options.seed)
+    picked = first.samples[rng.choice(len(first.samples), size=min(options.held_out, len(first.samples)),
+                                      replace=False)]
+    answers = evaluate(list(picked))
+    failed += sum(r is None for r in answers)
+    good = [(p, r) for p, r in zip(picked, answers) if r is not None]
+    verdicts = []
+    if good:
+        held = held_out(surrogate, np.array([p for p, _ in good]), np.array([r for _, r in good]))
+        inflation = held.error**2
+    else:
+        _, variance = surrogate.predict(picked)
+        held = HeldOut(np.full(residuals.shape[1], np.nan), np.sqrt(np.mean(variance, axis=0)), 0)
+        inflation = np.mean(variance, axis=0)
+        verdicts.append("no held-out simulation succeeded: the surrogate's error is its own predicted variance, "
+                        "not measured")
+
+    def log_probability(u: np.ndarray) -> np.ndarray:
+        mean, _ = surrogate.predict(u, variance=False)
+        value = -0.5 * np.sum(mean**2 / (1.0 + inflation), axis=1)
+        return np.where(_inside(u, low, high), value, -np.inf)
+
+    chains = sample(log_probability, start, options.steps, options.seed + 1)
+    shown = chains.samples[rng.choice(len(chains.samples), size=min(BAND_SAMPLES, len(chains.samples)),
+                                      replace=False)]
+    band = np.quantile(surrogate.predict(shown, variance=False)[0], [0.025, 0.975], axis=0)
+    verdicts += chains.verdicts(names)
+    worst = float(np.sqrt(np.max(inflation)))
+    if worst > SMALL:
+        verdicts.append(f"the surrogate's error on held-out simulations reaches {worst:.2g} sigma (measurement "
+                        f"{int(np.argmax(inflation)) + 1} of the table): not small against the data's noise, it "
+                        f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %); "
+                        "more training runs ([method] design) would shrink it")
+    width = high - low
+    for j, name in enumerate(names):
+        for face, bound, sign in ((low[j], 0.0, 1), (high[j], 1.0, -1)):
+            if face == bound:
+                continue
+            near = np.mean(sign * (chains.samples[:, j] - face) < EDGE * width[j])
+            if near > EDGE_SHARE:
+                verdicts.append(f"the posterior of {name} reaches the {'lower' if sign > 0 else 'upper'} edge of the "
+                                f"surrogate's box ({options.box:g} standard errors of least squares; {100 * near:.0f} "
+                                "% of the samples at it): widen it ([method] box)")
+    return Posterior(chains, surrogate, held, low, high, inflation, len(points), from_fit, failed, band, first,
+                     verdicts)
