@@ -9,7 +9,8 @@ bundled example takes ~0.6 s, so directly on the simulator that is hours (docs/c
    its minimum.  Where the posterior reaches a face of the box that is not a bound, `verdicts` says so.
 2. Training: a scrambled Latin hypercube of `design` simulations in the box, with every simulation of the
    least-squares fit that lies inside it (they are already done); failed ones are left out (counted).
-3. A first pass of the sampler on the surrogate's mean, its own predictive variance added to sigma²:
+3. A first, shorter pass of the sampler (a quarter of the steps) on the surrogate's mean, its own predictive
+   variance added to sigma²:
    log L = -1/2 sum_i [m_i(u)² / (1 + v_i(u)) + log(1 + v_i(u))] (residual units, v_i the GP's variance).
 4. Held out: `held_out` simulations at points drawn from that first posterior (where its error matters),
    not used for training; per residual the root-mean-square error e_i of the surrogate's mean there.
@@ -37,6 +38,7 @@ SMALL = 0.3  # the surrogate's held-out error (units of sigma) beyond which it i
 EDGE = 0.01  # samples this close to a face of the box (fraction of its width) ...
 EDGE_SHARE = 0.01  # ... in this share of the samples: the posterior reaches the box
 BAND_SAMPLES = 1000
+FIRST_STEPS = 200  # the first pass only picks the held-out points: a quarter of the steps, at least these
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,7 @@ class Posterior:
     band: np.ndarray  # 2 x residuals: the 2.5 % and 97.5 % quantiles of the predicted residuals
     first: Chains  # the first pass (held-out points drawn from it)
     verdicts: list[str] = field(default_factory=list)
+    seconds: float = 0.0  # wall time of the surrogate and the sampler (the simulations not included)
 
 
 def box(centre: np.ndarray, standard_error: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -118,7 +121,7 @@ def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, 
         return np.where(_inside(u, low, high), value, -np.inf)
 
     start = _starts(np.asarray(centre, float), np.asarray(standard_error, float), low, high, options.walkers, rng)
-    first = sample(first_pass, start, options.steps, options.seed)
+    first = sample(first_pass, start, max(FIRST_STEPS, options.steps // 4), options.seed)
     picked = first.samples[rng.choice(len(first.samples), size=min(options.held_out, len(first.samples)),
                                       replace=False)]
     answers = evaluate(list(picked))
@@ -149,8 +152,8 @@ def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, 
     if worst > SMALL:
         verdicts.append(f"the surrogate's error on held-out simulations reaches {worst:.2g} sigma (measurement "
                         f"{int(np.argmax(inflation)) + 1} of the table): not small against the data's noise, it "
-                        f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %); "
-                        "more training runs ([method] design) would shrink it")
+                        f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %), "
+                        "and more training runs ([method] design) would shrink it")
     width = high - low
     for j, name in enumerate(names):
         for face, bound, sign in ((low[j], 0.0, 1), (high[j], 1.0, -1)):
@@ -159,7 +162,7 @@ def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, 
             near = np.mean(sign * (chains.samples[:, j] - face) < EDGE * width[j])
             if near > EDGE_SHARE:
                 verdicts.append(f"the posterior of {name} reaches the {'lower' if sign > 0 else 'upper'} edge of the "
-                                f"surrogate's box ({options.box:g} standard errors of least squares; {100 * near:.0f} "
+                                f"surrogate's box ({options.box:g} standard errors of least squares, {100 * near:.0f} "
                                 "% of the samples at it): widen it ([method] box)")
     return Posterior(chains, surrogate, held, low, high, inflation, len(points), from_fit, failed, band, first,
                      verdicts)
