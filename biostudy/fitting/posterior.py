@@ -6,7 +6,11 @@ bundled example takes ~0.6 s, so directly on the simulator that is hours (docs/c
 1. The box: the least-squares estimate ± `box` of its standard errors (Jacobian) per coordinate of the unit
    cube, cut to the bounds (the whole range of a coordinate whose standard error is not finite).  The
    likelihood is taken as zero outside it: in the local approximation chi² there is at least `box`² above
-   its minimum.  Where the posterior reaches a face of the box that is not a bound, `verdicts` says so.
+   its minimum.  The Jacobian's standard errors can understate an asymmetric posterior (measured on the
+   bundled example: the box cut g's lower tail), so where the first pass (3.) finds the posterior's density
+   at a face that is not a bound still above `EDGE_DENSITY` of its peak, that side's distance from the estimate
+   is doubled, `design` / 2 more simulations fill the wider box, and 2.-3. are repeated (at most `WIDENINGS`
+   times); still cut after that, `verdicts` says so.
 2. Training: a scrambled Latin hypercube of `design` simulations in the box, with every simulation of the
    least-squares fit that lies inside it (they are already done); failed ones are left out (counted).
 3. A first, shorter pass of the sampler (a quarter of the steps) on the surrogate's mean, its own predictive
@@ -35,9 +39,10 @@ from .sampling import Chains, sample
 from .surrogate import HeldOut, Surrogate, held_out, train
 
 SMALL = 0.3  # the surrogate's held-out error (units of sigma) beyond which it is said to widen the posterior
-EDGE = 0.01  # samples this close to a face of the box (fraction of its width) ...
-EDGE_SHARE = 0.01  # ... in this share of the samples: the posterior reaches the box
+EDGE_BINS = 20  # the posterior's density per twentieth of the box ...
+EDGE_DENSITY = 0.02  # ... at a face above this share of its peak: the box cuts the posterior (a Gaussian: < 2.8 SE)
 BAND_SAMPLES = 1000
+WIDENINGS = 3  # times the box may be widened where the first pass finds the posterior cut by it
 FIRST_STEPS = 200  # the first pass only picks the held-out points: a quarter of the steps, at least these
 
 
@@ -62,6 +67,8 @@ class Posterior:
     high: np.ndarray
     inflation: np.ndarray  # e_i² per residual: added to 1 (sigma²) in the likelihood
     trained_on: int  # simulations the surrogate was trained on
+    designed: int  # of which the design's (the first and those of every widening)
+    widened: int  # times the box was widened
     from_fit: int  # of which the least-squares fit's own
     failed: int  # design or held-out simulations that failed (left out)
     band: np.ndarray  # 2 x residuals: the 2.5 % and 97.5 % quantiles of the predicted residuals
@@ -91,37 +98,64 @@ def _starts(centre, standard_error, low, high, walkers, rng) -> np.ndarray:
     return np.clip(centre + spread * rng.standard_normal((walkers, len(centre))), *inner)
 
 
+def _cut(samples: np.ndarray, low: np.ndarray, high: np.ndarray) -> list[tuple[int, int]]:
+    """(coordinate, -1 lower / +1 upper) of every face of the box, not a bound, where the samples' density is still
+    more than `EDGE_DENSITY` of its peak: the box cuts the posterior there."""
+    cut = []
+    for j in range(samples.shape[1]):
+        counts = np.histogram(samples[:, j], bins=EDGE_BINS, range=(low[j], high[j]))[0]
+        for face, bound, count, side in ((low[j], 0.0, counts[0], -1), (high[j], 1.0, counts[-1], 1)):
+            if face != bound and count > EDGE_DENSITY * counts.max():
+                cut.append((j, side))
+    return cut
+
+
 def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, standard_error: np.ndarray,
               known: list[tuple[np.ndarray, np.ndarray | None]], options: Options,
               names: list[str]) -> Posterior:
     """Sample the posterior (module docstring): `centre`, `standard_error` the least-squares estimate and its
     standard errors (unit cube); `known` the simulations already made (point, residuals or None)."""
     k = len(centre)
+    centre, standard_error = np.asarray(centre, float), np.asarray(standard_error, float)
     rng = np.random.default_rng(options.seed)
-    low, high = box(np.asarray(centre, float), np.asarray(standard_error, float), options.box)
-    design = low + (high - low) * qmc.LatinHypercube(d=k, scramble=True, rng=options.seed).random(options.design)
-    ran = evaluate(list(design))
-    failed = sum(r is None for r in ran)
+    low, high = box(centre, standard_error, options.box)
     training: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-    for point, result in known:
-        if result is not None and _inside(point, low, high):
-            training[tuple(np.round(point, 12))] = (np.asarray(point), np.asarray(result))
-    from_fit = len(training)
-    for point, result in zip(design, ran):
-        if result is not None:
-            training[tuple(np.round(point, 12))] = (point, np.asarray(result))
-    points = np.array([p for p, _ in training.values()])
-    residuals = np.array([r for _, r in training.values()])
-    surrogate = train(points, residuals, low, high)
+    candidates = [(np.asarray(p), r) for p, r in known if r is not None]
+    failed, from_fit, count, designed = 0, 0, options.design, 0
+    for widening in range(WIDENINGS + 1):
+        design = low + (high - low) * qmc.LatinHypercube(d=k, scramble=True, rng=options.seed + widening).random(
+            count)
+        ran = evaluate(list(design))
+        failed += sum(r is None for r in ran)
+        designed += sum(r is not None for r in ran)
+        for point, result in candidates:
+            key = tuple(np.round(point, 12))
+            if key not in training and _inside(point, low, high):
+                training[key] = (point, np.asarray(result))
+                from_fit += 1
+        candidates = [(p, r) for p, r in candidates if tuple(np.round(p, 12)) not in training]
+        training.update({tuple(np.round(p, 12)): (p, np.asarray(r)) for p, r in zip(design, ran) if r is not None})
+        points = np.array([p for p, _ in training.values()])
+        residuals = np.array([r for _, r in training.values()])
+        surrogate = train(points, residuals, low, high)
 
-    def first_pass(u: np.ndarray) -> np.ndarray:
-        mean, variance = surrogate.predict(u)
-        total = 1.0 + variance
-        value = -0.5 * np.sum(mean**2 / total + np.log(total), axis=1)
-        return np.where(_inside(u, low, high), value, -np.inf)
+        def first_pass(u: np.ndarray, surrogate=surrogate, low=low, high=high) -> np.ndarray:
+            mean, variance = surrogate.predict(u)
+            total = 1.0 + variance
+            value = -0.5 * np.sum(mean**2 / total + np.log(total), axis=1)
+            return np.where(_inside(u, low, high), value, -np.inf)
 
-    start = _starts(np.asarray(centre, float), np.asarray(standard_error, float), low, high, options.walkers, rng)
-    first = sample(first_pass, start, max(FIRST_STEPS, options.steps // 4), options.seed)
+        start = _starts(centre, standard_error, low, high, options.walkers, rng)
+        first = sample(first_pass, start, max(FIRST_STEPS, options.steps // 4), options.seed)
+        cut = _cut(first.samples, low, high)
+        if not cut or widening == WIDENINGS:
+            break
+        for j, side in cut:  # that side's distance from the estimate doubled, within the bounds
+            if side < 0:
+                low[j] = max(0.0, centre[j] - 2 * (centre[j] - low[j]))
+            else:
+                high[j] = min(1.0, centre[j] + 2 * (high[j] - centre[j]))
+        count = max(k + 2, options.design // 2)
     picked = first.samples[rng.choice(len(first.samples), size=min(options.held_out, len(first.samples)),
                                       replace=False)]
     answers = evaluate(list(picked))
@@ -154,15 +188,12 @@ def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, 
                         f"{int(np.argmax(inflation)) + 1} of the table): not small against the data's noise, it "
                         f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %), "
                         "and more training runs ([method] design) would shrink it")
-    width = high - low
-    for j, name in enumerate(names):
-        for face, bound, sign in ((low[j], 0.0, 1), (high[j], 1.0, -1)):
-            if face == bound:
-                continue
-            near = np.mean(sign * (chains.samples[:, j] - face) < EDGE * width[j])
-            if near > EDGE_SHARE:
-                verdicts.append(f"the posterior of {name} reaches the {'lower' if sign > 0 else 'upper'} edge of the "
-                                f"surrogate's box ({options.box:g} standard errors of least squares, {100 * near:.0f} "
-                                "% of the samples at it): widen it ([method] box)")
-    return Posterior(chains, surrogate, held, low, high, inflation, len(points), from_fit, failed, band, first,
-                     verdicts)
+    for j, side in _cut(chains.samples, low, high):
+        counts = np.histogram(chains.samples[:, j], bins=EDGE_BINS, range=(low[j], high[j]))[0]
+        count = counts[0] if side < 0 else counts[-1]
+        verdicts.append(f"the posterior of {names[j]} reaches the {'lower' if side < 0 else 'upper'} edge of the "
+                        f"surrogate's box (widened {widening} times from {options.box:g} standard errors of least "
+                        f"squares), where its density is still {100 * count / counts.max():.0f} % of its peak: "
+                        "widen it ([method] box)")
+    return Posterior(chains, surrogate, held, low, high, inflation, len(points), designed, widening, from_fit, failed,
+                     band, first, verdicts)

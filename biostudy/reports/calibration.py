@@ -258,6 +258,7 @@ def posterior_variables(plan: CalibrationPlan, sampled: Posterior, measured: np.
         "posterior_burn_in": chains.burn, "posterior_thin": chains.thin,
         "acceptance_fraction": chains.acceptance, "posterior_converged": int(chains.converged),
         "surrogate_training_runs": sampled.trained_on, "surrogate_training_from_fit": sampled.from_fit,
+        "surrogate_design_runs": sampled.designed, "surrogate_box_widened": sampled.widened,
         "surrogate_held_out_runs": sampled.held.count, "surrogate_failed_runs": sampled.failed,
         "surrogate_error_max": float(np.nanmax(error)) if np.isfinite(error).any() else float("nan"),
         "posterior_statements": "; ".join(sampled.verdicts),
@@ -312,7 +313,8 @@ def table_text(ds: xr.Dataset) -> str:
                       f"{attrs['posterior_steps']} steps (burn-in {attrs['posterior_burn_in']}, thinned by "
                       f"{attrs['posterior_thin']}), acceptance fraction {number(attrs['acceptance_fraction'], 2)}; "
                       f"surrogate trained on {attrs['surrogate_training_runs']} simulations "
-                      f"({attrs['surrogate_training_from_fit']} of them the fit's), its error on "
+                      f"({attrs['surrogate_training_from_fit']} of them the fit's; its box widened "
+                      f"{attrs['surrogate_box_widened']} times), its error on "
                       f"{attrs['surrogate_held_out_runs']} held-out ones up to "
                       f"{number(attrs['surrogate_error_max'], 2)} sigma (added to sigma² in the likelihood)"]
         for said in filter(None, str(attrs.get("posterior_statements", "")).split("; ")):
