@@ -5,7 +5,10 @@ case file under DIR/cases/ per condition and parameter point, reused by its
 fingerprint, so a re-run or a resumed calibration never repeats one; a failed
 simulation is recorded and counts as a penalty in the fit.  The fit itself is
 `fitting.estimate.least_squares` (multi-start, finite-difference Jacobians of
-k + 1 runs a round, profile likelihoods); `reports.calibration` writes
+k + 1 runs a round, profile likelihoods); with method "posterior" then
+`fitting.posterior.posterior` (a GP surrogate trained on a design around the
+estimate, its held-out error measured, emcee on it), whose design and held-out
+runs go through the same `Simulations.evaluate`; `reports.calibration` writes
 DIR/calibration.nc and calibration.md, `plots.calibration` the pictures.  DIR
 belongs to this calibration (`targets.owned`: locked, owned).  `load` and
 `Calibrate.run` take keyword-only options, so a Python API can wrap them.

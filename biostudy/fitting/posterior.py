@@ -14,8 +14,9 @@ bundled example takes ~0.6 s, so directly on the simulator that is hours (docs/c
 2. Training: a scrambled Latin hypercube of `design` simulations in the box, with every simulation of the
    least-squares fit that lies inside it (they are already done); failed ones are left out (counted).
 3. A first, shorter pass of the sampler (a quarter of the steps) on the surrogate's mean, its own predictive
-   variance added to sigma²:
-   log L = -1/2 sum_i [m_i(u)² / (1 + v_i(u)) + log(1 + v_i(u))] (residual units, v_i the GP's variance).
+   variance added to sigma²: log L = -1/2 sum_i m_i(u)² / (1 + v_i(u)) (residual units, v_i the GP's
+   variance; without the normalising -1/2 log(1 + v_i), so that where the GP is unsure the first posterior is
+   wider, never narrower: the box is widened rather than left cutting it).
 4. Held out: `held_out` simulations at points drawn from that first posterior (where its error matters),
    not used for training; per residual the root-mean-square error e_i of the surrogate's mean there.
 5. The posterior: emcee on log L = -1/2 sum_i m_i(u)² / (1 + e_i²): the measured surrogate error added to the
@@ -51,7 +52,7 @@ class Options:
     design: int = 30
     held_out: int = 8
     walkers: int = 16
-    steps: int = 3000
+    steps: int = 2000
     box: float = 6.0
     seed: int = 0
 
@@ -141,8 +142,7 @@ def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, 
 
         def first_pass(u: np.ndarray, surrogate=surrogate, low=low, high=high) -> np.ndarray:
             mean, variance = surrogate.predict(u)
-            total = 1.0 + variance
-            value = -0.5 * np.sum(mean**2 / total + np.log(total), axis=1)
+            value = -0.5 * np.sum(mean**2 / (1.0 + variance), axis=1)
             return np.where(_inside(u, low, high), value, -np.inf)
 
         start = _starts(centre, standard_error, low, high, options.walkers, rng)

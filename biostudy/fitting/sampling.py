@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 BURN = 3.0  # autocorrelation times discarded at the start of every chain
 LONG = 50.0  # chains this many autocorrelation times long are taken as converged
@@ -69,7 +70,8 @@ def sample(log_probability: Callable[[np.ndarray], np.ndarray], start: np.ndarra
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(walkers, k, log_probability, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(seed).get_state()
-    sampler.run_mcmc(start, steps, progress=False)
+    with threadpool_limits(1, user_api="blas"):  # small matrices: one thread (`surrogate`)
+        sampler.run_mcmc(start, steps, progress=False)
     tau = np.asarray(sampler.get_autocorr_time(tol=0, quiet=True), dtype=float)
     finite = tau[np.isfinite(tau)]
     longest = float(finite.max()) if finite.size else steps / LONG

@@ -147,7 +147,7 @@ class MethodSpec(BaseModel):
     held_out: int = Field(8, ge=1, le=500, description="posterior: simulations held out to measure the surrogate's "
                                                        "error")
     walkers: int = Field(16, ge=4, le=1000, description="posterior: emcee's walkers (at least twice the parameters)")
-    steps: int = Field(4000, ge=100, le=1_000_000, description="posterior: steps of every walker")
+    steps: int = Field(2000, ge=100, le=1_000_000, description="posterior: steps of every walker")
     box: float = Field(6.0, ge=2.0, le=1e6, description="posterior: the surrogate's box, the least-squares "
                                                          "estimate ± this many standard errors (within the bounds)")
 

@@ -16,7 +16,13 @@ calibration.nc (README, "Calibration"):
 * dimension `start`: where each start began and ended, its chi², whether it was
   stopped because it joined another;
 * attributes: chi2, dof, chi2_minimum (profiles included), simulations run and
-  reused, rounds, wall time and where it went, the statements of `statements`.
+  reused, rounds, wall time and where it went, the statements of `statements`;
+* a posterior (`posterior_variables`): dimension `sample` with `posterior_<name>`
+  per parameter; per parameter `posterior_median`, `posterior_lower`,
+  `posterior_upper` (2.5 %, 97.5 %), `autocorrelation_time`, `effective_samples`,
+  the surrogate's box; per measurement `surrogate_error` (held out, units of
+  sigma), `sigma_likelihood`, `posterior_band_lower`, `posterior_band_upper`;
+  the sampler's and the surrogate's counts and `posterior_statements` as attributes.
 
 Values of different parameters (or observables) have different units: each
 such variable's `units` is "1" and the `units` (`measurement_units`)
