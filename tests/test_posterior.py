@@ -88,7 +88,7 @@ def test_the_posterior_of_a_linear_gaussian_model_is_its_closed_form():
     options = Options(design=12, held_out=4, walkers=16, steps=2500, box=6.0, seed=3)
     se = np.sqrt(np.diag(covariance))
     found = posterior(evaluate, exact, se, [], options, ["a", "b"])
-    assert calls == [12, 4] and found.trained_on == 12 and found.held.count == 4
+    assert calls == [12, 6, 4] and found.trained_on == 18 and found.held.count == 4  # design, refinement, held out
     assert np.all(found.held.error < 1e-3)  # a linear model: the trend is exact
     chains = found.chains
     assert chains.converged and found.verdicts == [], found.verdicts
