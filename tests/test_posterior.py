@@ -98,3 +98,23 @@ def test_the_posterior_of_a_linear_gaussian_model_is_its_closed_form():
     # the band of the model: 1.96 sigma_i sqrt(B_i C B_i^T) each side, in residual units
     width = 2 * 1.96 * np.sqrt(np.einsum("ij,jk,ik->i", weighted, covariance, weighted))
     np.testing.assert_allclose(found.band[1] - found.band[0], width, rtol=0.15)
+
+
+def test_failed_runs_are_left_out_of_the_training_and_the_held_out_error_and_counted():
+    data = 1 + BASIS @ np.array([0.3, 0.6]) + SIGMA * np.random.default_rng(1).normal(size=8)
+    weighted = BASIS / SIGMA[:, None]
+    exact = np.linalg.lstsq(weighted, (data - 1) / SIGMA, rcond=None)[0]
+    se = np.sqrt(np.diag(np.linalg.inv(weighted.T @ weighted)))
+    asked = []
+
+    def evaluate(points):  # every third simulation 'fails'
+        asked.extend(points)
+        return [None if (len(asked) - len(points) + i) % 3 == 0 else (1 + BASIS @ p - data) / SIGMA
+                for i, p in enumerate(points)]
+
+    found = posterior(evaluate, exact, se, [], Options(design=12, held_out=6, steps=1000, seed=3), ["a", "b"])
+    failed = sum(i % 3 == 0 for i in range(len(asked)))
+    assert found.failed == failed and len(asked) == 12 + 6 + 6
+    assert found.trained_on == found.designed == 12 + 6 - sum(i % 3 == 0 for i in range(18))
+    assert found.held.count == 6 - sum(i % 3 == 0 for i in range(18, 24))
+    assert np.all(np.isfinite(found.chains.samples)) and np.all(found.held.error < 1e-3)
