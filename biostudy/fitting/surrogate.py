@@ -136,7 +136,7 @@ def train(points: np.ndarray, residuals: np.ndarray, low: np.ndarray, high: np.n
     if len(points) < points.shape[1] + 2:
         raise ValueError(f"a surrogate of {points.shape[1]} parameters needs at least {points.shape[1] + 2} "
                          f"training runs (got {len(points)})")
-    low, high = np.asarray(low, float), np.asarray(high, float)
+    low, high = np.array(low, float), np.array(high, float)  # copies: the caller widens its box later
     x = (points - low) / (high - low)
     with threadpool_limits(1, user_api="blas"):
         return Surrogate(low, high, x, [_output(x, residuals[:, i]) for i in range(residuals.shape[1])])
