@@ -4,6 +4,8 @@
     .venv/bin/python benchmarks/calibration.py --only cost      # the bundled example, 4 ways
     .venv/bin/python benchmarks/calibration.py --only coverage --seeds 20
     .venv/bin/python benchmarks/calibration.py --only noise     # the observables' resolution
+    .venv/bin/python benchmarks/calibration.py --only posterior # the bundled posterior example, serial and 2 workers
+    .venv/bin/python benchmarks/calibration.py --only posterior-coverage --seeds 10
 
 cost: the bundled two-parameter twin (`studies/calibrate-agar.toml`: the 2-D agar colony on 20 x 40 cells,
 150 steps, g and r from biomass and max_thickness at six times) without and with profiles, serially and on 2
@@ -14,6 +16,16 @@ wall time, and the speed-up of 2 workers.
 coverage: the tiny twin of tests/test_calibration.py (12 x 16 cells, 40 steps, g = 1e9, r = 100, 8 measurements
 of 5 % noise) calibrated with profiles for each of `--seeds` noise draws: how often each parameter's 95 % profile
 interval, and the Jacobian's estimate ± 1.96 standard errors, hold the truth.  Reported as measured.
+
+posterior: `studies/calibrate-agar-posterior.toml` (the same twin, method "posterior") serially and on 2 local
+workers, each into a fresh directory: the simulations (the fit's, the surrogate's design, the held-out ones),
+wall time and where it went (the rounds, reading the case files, the surrogate and the sampler, the rest), what
+it found (median and 95 % credible interval), the sampler's acceptance and autocorrelation times, the
+surrogate's held-out error.
+
+posterior-coverage: the tiny twin of tests/test_calibration.py, method "posterior" (2 starts, design 16, 4 held
+out, 1500 steps: the test's settings) for each of `--seeds` noise draws: how often each 95 % credible interval
+holds the truth.  Reported as measured.
 
 noise: how smoothly the sub-cell observables follow a parameter (what the finite-difference steps are chosen
 against): the bundled example's scene at g = 1e8 (1 + i eps), i = 1..4, for eps = 1e-8 ... 1e-2: the relative
@@ -124,6 +136,72 @@ def coverage(seeds: int, workers: int | None) -> None:
     print(f"\n{simulations} simulations, {wall:.0f} s; load average at the end: {load_average()}")
 
 
+def posterior_cost() -> None:
+    source = bundled.resolve("calibrate-agar-posterior")
+    print(f"## posterior: {source.name} (load average at the start: {load_average()})\n")
+    print("| workers | simulations (fit + design + held out) | wall s | in rounds s | reading s | surrogate and "
+          "sampler s | rest s | g median [95 %] | r median [95 %] | acceptance | tau (steps) | surrogate error "
+          "max (sigma) | box widened |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for workers in (None, 2):
+        with tempfile.TemporaryDirectory() as scratch:
+            out = Path(scratch) / "out"
+            began = time.perf_counter()
+            calibrate.load(source, output=out).run(Execution(workers=workers))
+            wall = time.perf_counter() - began
+            ds = xr.load_dataset(out / "calibration.nc")
+        a = ds.attrs
+        fit = a["simulations"] - a["surrogate_design_runs"] - a["surrogate_held_out_runs"]
+        rest = wall - a["wall_time_simulations"] - a["wall_time_reading"] - a["wall_time_sampling"]
+        found = [f"{ds.posterior_median.values[j]:.4g} [{ds.posterior_lower.values[j]:.4g}, "
+                 f"{ds.posterior_upper.values[j]:.4g}]" for j in range(2)]
+        print(f"| {workers or 'serial'} | {a['simulations']} ({fit} + {a['surrogate_design_runs']} + "
+              f"{a['surrogate_held_out_runs']}) | {wall:.1f} | {a['wall_time_simulations']:.1f} | "
+              f"{a['wall_time_reading']:.1f} | {a['wall_time_sampling']:.1f} | {rest:.1f} | {found[0]} | {found[1]} | "
+              f"{a['acceptance_fraction']:.2f} | {', '.join(f'{t:.3g}' for t in ds.autocorrelation_time.values)} | "
+              f"{a['surrogate_error_max']:.2g} | {a['surrogate_box_widened']} |", flush=True)
+        for said in filter(None, str(a["posterior_statements"]).split("; ")):
+            print(f"\n{workers or 'serial'}: {said}")
+    print(f"\nload average at the end: {load_average()}\n")
+
+
+def posterior_coverage(seeds: int, workers: int | None) -> None:
+    from test_calibration import CALIBRATION, HOURS, POSTERIOR, SCENE, TRUTH
+
+    print(f"## posterior coverage: tiny twin, {seeds} noise seeds (load average at the start: {load_average()})\n")
+    hits = {name: 0 for name in TRUTH}
+    simulations, began, warned = 0, time.perf_counter(), 0
+    with tempfile.TemporaryDirectory() as scratch:
+        here = Path(scratch)
+        (here / "agar.toml").write_text(SCENE)
+        (here / "post.toml").write_text(CALIBRATION[:CALIBRATION.index("[method]")] + POSTERIOR)
+        for seed in range(seeds):
+            (here / "twin.tsv").write_text(twin.table(here / "agar.toml", truth=TRUTH, observables_measured=[
+                "biomass", "max_thickness"], times=HOURS, time_factor=1 / 20, noise=0.05, seed=1000 + seed))
+            shutil.rmtree(here / "out", ignore_errors=True)
+            calibrate.load(here / "post.toml", output=here / "out").run(Execution(workers=workers))
+            ds = xr.load_dataset(here / "out" / "calibration.nc")
+            simulations += ds.attrs["simulations"]
+            warned += bool(ds.attrs["posterior_statements"])
+            row = []
+            for j, name in enumerate(ds.parameter.values):
+                low, high = ds.posterior_lower.values[j], ds.posterior_upper.values[j]
+                inside = low <= TRUTH[str(name)] <= high
+                hits[str(name)] += inside
+                row.append(f"{name} {ds.posterior_median.values[j]:.3g} [{low:.3g}, {high:.3g}]"
+                           f"{'' if inside else ' MISSED'}")
+            print(f"seed {seed}: " + "; ".join(row) + f"; surrogate error max {ds.attrs['surrogate_error_max']:.2g} "
+                  f"sigma, tau {', '.join(f'{t:.3g}' for t in ds.autocorrelation_time.values)}"
+                  + (f"; said: {ds.attrs['posterior_statements']}" if ds.attrs["posterior_statements"] else ""),
+                  flush=True)
+    wall = time.perf_counter() - began
+    print("\n| parameter | 95 % credible interval holds the truth |\n|---|---|")
+    for name in TRUTH:
+        print(f"| {name} | {hits[name]}/{seeds} |")
+    print(f"\n{simulations} simulations, {wall:.0f} s, {warned} of {seeds} with a warning; load average at the end: "
+          f"{load_average()}")
+
+
 def noise() -> None:
     import solver
     from biostudy.inputs.scene import load_scene
@@ -153,7 +231,7 @@ def noise() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description="calibration cost and interval coverage")
-    parser.add_argument("--only", choices=("cost", "coverage", "noise"))
+    parser.add_argument("--only", choices=("cost", "coverage", "noise", "posterior", "posterior-coverage"))
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--workers", type=int, default=2, help="coverage: local workers per calibration")
     args = parser.parse_args()
@@ -163,6 +241,10 @@ def main() -> None:
         coverage(args.seeds, args.workers if args.workers > 1 else None)
     if args.only in (None, "noise"):
         noise()
+    if args.only in (None, "posterior"):
+        posterior_cost()
+    if args.only in (None, "posterior-coverage"):
+        posterior_coverage(args.seeds, args.workers if args.workers > 1 else None)
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -135,6 +136,70 @@ def test_a_twin_is_recovered_within_its_95_percent_intervals_from_starts_near_th
     assert ds.attrs["simulations"] == len(list((folder / "once" / "cases").glob("*.nc")))
 
 
+POSTERIOR = '[method]\nname = "posterior"\nstarts = 2\ndesign = 16\nheld_out = 4\nsteps = 1500\nseed = 0\n'
+
+
+@pytest.fixture(scope="module")
+def sampled(folder, uninterrupted):
+    """The twin's posterior (g and r), its directory seeded with the least-squares calibration's case files: the
+    posterior's fit takes the same path from the same starts, so only its design and held-out runs are new."""
+    (folder / "post.toml").write_text(CALIBRATION[:CALIBRATION.index("[method]")] + POSTERIOR)
+    shutil.copytree(folder / "once" / "cases", folder / "post" / "cases")
+    result = invoke("calibrate", folder / "post.toml", "-o", folder / "post", "-q", "--force")
+    assert result.exit_code == 0, result.output
+    return result, xr.load_dataset(folder / "post" / "calibration.nc")
+
+
+@pytest.mark.slow
+def test_the_posterior_of_a_twin_holds_the_truth_in_its_95_percent_credible_intervals(folder, sampled, uninterrupted):
+    result, ds = sampled
+    assert ds.sizes["sample"] >= 500
+    for name, truth in TRUTH.items():
+        j = list(ds.parameter.values).index(name)
+        samples = ds[f"posterior_{name}"]
+        assert samples.attrs["units"] == ds.units.values[j] and name in samples.attrs["long_name"]
+        assert float(samples.min()) >= ds.low.values[j] and float(samples.max()) <= ds.high.values[j]
+        assert ds.posterior_lower.values[j] <= truth <= ds.posterior_upper.values[j], (name, ds.posterior_lower.values[
+            j], ds.posterior_upper.values[j])
+        np.testing.assert_allclose(ds.posterior_median.values[j], np.median(samples.values))
+        assert ds.surrogate_low.values[j] <= ds.posterior_lower.values[j]
+        assert np.isfinite(ds.autocorrelation_time.values[j]) and ds.effective_samples.values[j] > 100
+    # with a prior flat in log g, log r the 95 % credible intervals are the profile intervals of the same data where
+    # the likelihood is near Gaussian (here curved, and sigma widened by the surrogate's error): each end within a
+    # quarter of the profile interval's width, in log10
+    _, profiled = uninterrupted
+    for j in range(2):
+        ends = np.log10([profiled.lower.values[j], profiled.upper.values[j]])
+        credible = np.log10([ds.posterior_lower.values[j], ds.posterior_upper.values[j]])
+        assert np.all(np.abs(credible - ends) < 0.25 * (ends[1] - ends[0])), (ds.parameter.values[j], credible, ends)
+    # the design and the held-out runs are the only new simulations: the fit's were in the copied case files
+    # (16, 8 more each time the box was widened, 8 drawn from the first posterior)
+    designed = ds.attrs["surrogate_design_runs"]
+    assert designed in (24, 32, 40, 48) and (designed - 24) // 8 == ds.attrs["surrogate_box_widened"]
+    assert ds.attrs["simulations"] == designed + 4 and ds.attrs["simulations_reused"] >= 20
+    assert ds.attrs["surrogate_held_out_runs"] == 4 and ds.attrs["surrogate_training_from_fit"] >= 5
+    assert ds.attrs["surrogate_training_runs"] == designed + ds.attrs["surrogate_training_from_fit"]
+    assert 0.15 < ds.attrs["acceptance_fraction"] < 0.9
+    # the likelihood's sigma: the measurement's with the surrogate's held-out error added in quadrature
+    np.testing.assert_allclose(ds.sigma_likelihood.values, ds.sigma.values * np.sqrt(1 + ds.surrogate_error.values**2))
+    assert np.all(ds.posterior_band_lower.values < ds.posterior_band_upper.values)
+    assert "posterior median" in result.stdout and "95 % credible interval" in result.stdout
+    assert (folder / "post" / "calibration_corner.png").is_file()
+    assert not (folder / "post" / "calibration_profiles.png").exists()  # no profiles unless asked
+
+
+@pytest.mark.slow
+def test_a_posterior_calibration_run_again_repeats_no_simulation_and_finds_the_same(folder, sampled):
+    _, first = sampled
+    before = _finished(folder / "post")
+    again = invoke("calibrate", folder / "post.toml", "-o", folder / "post", "-q")
+    assert again.exit_code == 0 and "0 simulations run" in again.stderr, again.stderr
+    assert _finished(folder / "post") == before
+    ds = xr.load_dataset(folder / "post" / "calibration.nc")
+    for name in ("posterior_g", "posterior_r", "surrogate_error", "posterior_band_upper"):
+        np.testing.assert_array_equal(ds[name].values, first[name].values, err_msg=name)
+
+
 def _finished(directory: Path) -> dict[str, tuple[int, int]]:
     return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (directory / "cases").glob("*.nc")}
 
@@ -223,9 +288,16 @@ biomass\t2\t3.7\t0.18
     (TABLE.replace("noiseParameters\n", "noiseParameters\tsimulationConditionId\n").replace("0.15\n", "0.15\tb\n")
      .replace("0.18\n", "0.18\ta\n"), 'r = [20.0, 400.0]\n[conditions.a]\n"params.k" = 2.0',
      "t.tsv: line 2: simulationConditionId: unknown condition 'b' (conditions are a)"),
+    (TABLE, 'r = [20.0, 400.0]\n[method]\ndesign = 10', 'c.toml: method.design: applies to name = "posterior" only'),
+    (TABLE, 'r = [20.0, 400.0]\n[method]\nname = "posterior"\nheld_out = 0', "c.toml: method.held_out: must be >= 1"),
+    (TABLE, 'r = [20.0, 400.0]\n[method]\nname = "posterior"\nsamples = 10',
+     "c.toml: method.samples: unknown key"),
+    (TABLE, 'r = [20.0, 400.0]\ng = [1.0, 2.0]\nk = [1.0, 3.0]\n[method]\nname = "posterior"\nwalkers = 5',
+     "c.toml: method.walkers: emcee needs at least twice as many walkers as parameters: 5 < 2 x 3"),
 ], ids=["unknown observable", "time outside the run", "sigma 0", "sigma negative", "sigma missing",
         "missing column", "not a number", "key the scene lacks", "bound outside", "low >= high", "high end outside",
-        "integer key", "condition with an unknown key", "unknown condition"])
+        "integer key", "condition with an unknown key", "unknown condition",
+        "posterior key for least squares", "no held-out run", "unknown posterior key", "too few walkers"])
 def test_bad_input_is_one_line(write_toml, tmp_path, table, calibration, expected):
     write_toml("agar.toml", SCENE)
     write_toml("t.tsv", table)

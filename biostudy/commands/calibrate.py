@@ -5,7 +5,10 @@ case file under DIR/cases/ per condition and parameter point, reused by its
 fingerprint, so a re-run or a resumed calibration never repeats one; a failed
 simulation is recorded and counts as a penalty in the fit.  The fit itself is
 `fitting.estimate.least_squares` (multi-start, finite-difference Jacobians of
-k + 1 runs a round, profile likelihoods); `reports.calibration` writes
+k + 1 runs a round, profile likelihoods); with method "posterior" then
+`fitting.posterior.posterior` (a GP surrogate trained on a design around the
+estimate, its held-out error measured, emcee on it), whose design and held-out
+runs go through the same `Simulations.evaluate`; `reports.calibration` writes
 DIR/calibration.nc and calibration.md, `plots.calibration` the pictures.  DIR
 belongs to this calibration (`targets.owned`: locked, owned).  `load` and
 `Calibrate.run` take keyword-only options, so a Python API can wrap them.
@@ -20,16 +23,18 @@ import numpy as np
 from scipy.stats import qmc
 
 from ..data import store
+from ..errors import Failed
 from ..execution.backends import Kept
 from ..execution.jobs import Execution, Job, run_jobs
 from ..execution.ownership import Owner
 from ..execution.targets import owned
 from ..fitting.estimate import least_squares
+from ..fitting.posterior import Options, posterior
 from ..inputs import bundled
 from ..inputs.keys import id_text
 from ..inputs.scene import overrides_text
 from ..plans.calibration import SCENE, CalibrationPlan, load_calibration
-from ..plots.calibration import fit_figure, profiles_figure
+from ..plots.calibration import corner_figure, fit_figure, profiles_figure
 from ..plots.style import save
 from ..quantities import observables
 from ..reports.calibration import dataset, table_text
@@ -57,6 +62,7 @@ class Simulations:
     vanished: dict[str, str] = field(default_factory=dict)
     warned: list[str] = field(default_factory=list)
     rounds: int = 0
+    evaluated: dict[tuple, tuple[np.ndarray, np.ndarray | None]] = field(default_factory=dict)  # point -> residuals
     seconds_running: float = 0.0
     seconds_reading: float = 0.0
 
@@ -97,6 +103,8 @@ class Simulations:
                 if values is not None:
                     model[self.rows[condition]] = values
             out.append(None if np.isnan(model).any() else (model - self.data) / self.sigma)
+        for point, result in zip(points, out):
+            self.evaluated.setdefault(tuple(np.round(point, 15)), (np.array(point), result))
         return out
 
     def model_at(self, point: np.ndarray) -> np.ndarray:
@@ -182,6 +190,7 @@ class Calibrate:
                 design = starts(len(self.plan.parameters), method.starts, method.seed)
                 found = least_squares(design, len(simulations.data), simulations.noise(), simulations.evaluate,
                                       method.profiles, backend.backend.capacity if backend is not None else 1)
+                sampled = _sample(self.plan, found, simulations) if method.name == "posterior" else None
             finally:
                 if backend is not None:
                     backend.end()
@@ -189,15 +198,21 @@ class Calibrate:
                     "rounds": simulations.rounds, "wall_time": time.perf_counter() - began,
                     "wall_time_simulations": simulations.seconds_running,
                     "wall_time_reading": simulations.seconds_reading}
+            if sampled is not None:
+                cost["wall_time_sampling"] = sampled.seconds
             ds = dataset(self.plan, found, design, simulations.model_at(found.best.x), cost, simulations.failed,
-                         list(simulations.vanished))
+                         list(simulations.vanished), sampled)
             table = table_text(ds)
             store.write_atomic(ds, self.directory / "calibration.nc")
             store.write_text(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
             if method.profiles:
                 save(profiles_figure(ds), self.directory / "calibration_profiles.png")
+            if sampled is not None:
+                save(corner_figure(ds), self.directory / "calibration_corner.png")
         warnings = list(simulations.warned)
+        if sampled is not None:
+            warnings += sampled.verdicts
         if simulations.vanished:
             ids = sorted(simulations.vanished)
             warnings.append(f"{len(ids)} of its simulations lost their dense biofilm (phi >= 0.8) while the biofilm "
@@ -206,11 +221,33 @@ class Calibrate:
         if simulations.failed:
             warnings.append(f"{len(simulations.failed)} simulations failed and counted as penalties: "
                             + "; ".join(f"{k}: {v}" for k, v in list(simulations.failed.items())[:2]))
-        pictures = "calibration_fit.png" + (", calibration_profiles.png" if method.profiles else "")
+        pictures = ", ".join(["calibration_fit.png"] + (["calibration_profiles.png"] if method.profiles else [])
+                             + (["calibration_corner.png"] if sampled is not None else []))
         summary = (f"{len(simulations.ran)} simulations run, {len(simulations.reused)} reused (finished before); "
                    f"wrote {self.directory / 'calibration.nc'}, calibration.md, {pictures}")
         return Finished(summary, {}, len(simulations.ran) + len(simulations.reused), table, self.noun, warnings,
                         result=ds)
+
+
+def _sample(plan: CalibrationPlan, found, simulations: Simulations):
+    """The posterior on a surrogate around the least-squares estimate (`fitting.posterior`); its design and
+    held-out simulations go through `simulations` like every other."""
+    method = plan.spec.method
+    options = Options(method.design, method.held_out, method.walkers, method.steps, method.box, method.seed)
+    began = time.perf_counter()
+    running = simulations.seconds_running + simulations.seconds_reading
+    try:
+        sampled = posterior(simulations.evaluate, found.best.x, found.local.standard_error,
+                            list(simulations.evaluated.values()), options, [p.name for p in plan.parameters])
+    except ValueError as error:
+        raise Failed(f"the posterior's surrogate could not be trained: {error} (the failed simulations under "
+                     "cases/ say why)") from None
+    sampled.seconds = (time.perf_counter() - began) - (simulations.seconds_running + simulations.seconds_reading
+                                                       - running)
+    if sampled.failed:
+        sampled.verdicts.append(f"{sampled.failed} of the posterior's design and held-out simulations failed: left "
+                                "out of the surrogate's training and of its held-out error")
+    return sampled
 
 
 def _backend(execution: Execution) -> Kept | None:

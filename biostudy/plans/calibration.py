@@ -17,7 +17,7 @@
     [conditions.half.estimate]       # optional: keys this condition estimates for itself alone
     r = [20.0, 400.0, "log"]
     [method]
-    name = "least-squares"           # or "posterior" (not yet available)
+    name = "least-squares"           # or "posterior": samples on a GP surrogate (design, held_out, walkers, ...)
     starts = 4                       # multi-start from a Latin hypercube inside the bounds
     profiles = true                  # a profile likelihood per parameter (95 % intervals)
 
@@ -128,15 +128,38 @@ class Condition(BaseModel):
         return {"set": flatten(data), "estimate": _ranges(estimate, "estimate")}
 
 
+POSTERIOR_KEYS = ("design", "held_out", "walkers", "steps", "box")  # [method] keys of "posterior" alone
+
+
 class MethodSpec(BaseModel):
     """How the parameters are estimated."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
     name: Literal[METHODS] = Field("least-squares", description="least-squares: weighted least squares, "
-                                   "multi-start, profile likelihoods; posterior: samples (not yet available)")
+                                   "multi-start, profile likelihoods; posterior: least squares, then samples of "
+                                   "the posterior on a Gaussian-process surrogate")
     starts: int = Field(4, ge=1, le=64, description="starts of the optimiser, from a Latin hypercube in the bounds")
-    profiles: bool = Field(True, description="a profile likelihood per parameter: its 95 % interval")
-    seed: int = Field(0, ge=0, description="seed of the starts' design")
+    profiles: bool = Field(True, description="a profile likelihood per parameter: its 95 % interval (posterior: "
+                                             "false unless set)")
+    seed: int = Field(0, ge=0, description="seed of the starts' design (posterior: of its design and chains too)")
+    design: int = Field(30, ge=4, le=2000, description="posterior: simulations of the surrogate's training design "
+                                                       "(the least-squares fit's own join them)")
+    held_out: int = Field(8, ge=1, le=500, description="posterior: simulations held out to measure the surrogate's "
+                                                       "error")
+    walkers: int = Field(16, ge=4, le=1000, description="posterior: emcee's walkers (at least twice the parameters)")
+    steps: int = Field(2000, ge=100, le=1_000_000, description="posterior: steps of every walker")
+    box: float = Field(6.0, ge=2.0, le=1e6, description="posterior: the surrogate's box, the least-squares "
+                                                         "estimate ± this many standard errors (within the bounds)")
+
+    @model_validator(mode="after")
+    def _keys_of_the_method(self):
+        if self.name != "posterior":
+            given = [key for key in POSTERIOR_KEYS if key in self.model_fields_set]
+            if given:
+                raise InvalidAt(given[0], f"applies to name = \"posterior\" only (this method is {self.name!r})")
+        elif "profiles" not in self.model_fields_set:
+            self.profiles = False
+        return self
 
 
 class Calibration(ManyCases):
@@ -161,8 +184,13 @@ class Calibration(ManyCases):
         if not self.estimate and not any(c.estimate for c in self.conditions.values()):
             raise InvalidAt("estimate", "estimates no key: add e.g. g = [1e7, 1e10, \"log\"]")
         if self.method.name == "posterior":
-            raise InvalidAt("method.name", "\"posterior\" is not available yet: use \"least-squares\" (its profile "
-                                           "likelihoods give the 95 % intervals)")
+            k = len(self.varied_keys_with_conditions())
+            if self.method.walkers < 2 * k:
+                raise InvalidAt("method.walkers", f"emcee needs at least twice as many walkers as parameters: "
+                                                  f"{self.method.walkers} < 2 x {k}")
+            if self.method.design < k + 2:
+                raise InvalidAt("method.design", f"a surrogate of {k} parameters needs at least {k + 2} training runs "
+                                                 f"(got {self.method.design})")
         for name in self.conditions:
             if not name or name != name.strip():
                 raise InvalidAt(f"conditions.{name}", "a condition needs a name without surrounding spaces")
@@ -179,6 +207,10 @@ class Calibration(ManyCases):
 
     def varied_keys(self) -> list[str]:
         return list(dict.fromkeys([*self.estimate, *(k for c in self.conditions.values() for k in c.estimate)]))
+
+    def varied_keys_with_conditions(self) -> list[str]:
+        """One entry per estimated parameter (a key estimated per condition counts once per condition)."""
+        return [*self.estimate, *(f"{k}[{n}]" for n, c in self.conditions.items() for k in c.estimate)]
 
     def case_noun(self) -> str:
         return "conditions"

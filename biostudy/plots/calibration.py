@@ -7,6 +7,10 @@
   profile (the others re-optimised), the 95 % threshold 3.84, the estimate and
   the interval; a log axis for a log parameter; the panel spans the profile (its
   bounds are in the title when the interval reaches one).
+* `corner_figure`: a posterior's samples: a histogram per parameter on the
+  diagonal (median and 95 % credible interval marked), every pair's samples
+  below it as a 2-D histogram with the least-squares estimate; log axes for
+  log parameters.
 """
 from __future__ import annotations
 
@@ -38,6 +42,9 @@ def fit_figure(ds: xr.Dataset):
         t = ds.time_measured.values[at]
         ax.fill_between(t, ds.band_lower.values[at], ds.band_upper.values[at], color="C1", alpha=0.3, lw=0,
                         label="95 % band of the fit")
+        if "posterior_band_lower" in ds:
+            ax.fill_between(t, ds.posterior_band_lower.values[at], ds.posterior_band_upper.values[at], color="C2",
+                            alpha=0.3, lw=0, label="95 % posterior band")
         ax.plot(t, ds.fitted.values[at], "-", color="C1", label="fitted model")
         ax.errorbar(t, ds.measured.values[at], yerr=ds.sigma.values[at], fmt="o", ms=3.5, color="C0", capsize=2,
                     label="measured ± σ")
@@ -81,5 +88,55 @@ def profiles_figure(ds: xr.Dataset):
     for ax in list(axes.flat)[k:]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _axis_values(ds: xr.Dataset, j: int) -> tuple[np.ndarray, bool]:
+    values = ds[f"posterior_{ds.parameter.values[j]}"].values
+    log = str(ds.scale.values[j]) == "log"
+    return (np.log10(values) if log else values), log
+
+
+def corner_figure(ds: xr.Dataset):
+    """The posterior samples: 1-D histograms on the diagonal, 2-D histograms of every pair below it (log10 axes
+    for log parameters, said in the labels)."""
+    k = ds.sizes["parameter"]
+    fig, axes = plt.subplots(k, k, figsize=(2.8 * k + 0.6, 2.8 * k + 0.4), squeeze=False)
+    columns = [_axis_values(ds, j) for j in range(k)]
+    labels = []
+    for j in range(k):
+        shown = units_text(str(ds.units.values[j]))
+        name = f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else "")
+        labels.append(f"log10 {name}" if columns[j][1] else name)
+
+    def scaled(value: float, j: int) -> float:
+        return math.log10(value) if columns[j][1] else value
+
+    for i in range(k):
+        for j in range(k):
+            ax = axes[i, j]
+            if j > i:
+                ax.axis("off")
+                continue
+            if i == j:
+                ax.hist(columns[j][0], bins=40, color="C0", alpha=0.8)
+                for q, style in ((ds.posterior_median, "-"), (ds.posterior_lower, ":"), (ds.posterior_upper, ":")):
+                    ax.axvline(scaled(float(q[j]), j), color="C1", ls=style, lw=1)
+                ax.set_yticks([])
+                ax.set_title(f"{ds.parameter.values[j]} = {number(ds.posterior_median[j], 3)} "
+                             f"[{number(ds.posterior_lower[j], 3)}, {number(ds.posterior_upper[j], 3)}]", fontsize=9)
+            else:
+                ax.hist2d(columns[j][0], columns[i][0], bins=40, cmap="Blues")
+                ax.plot(scaled(float(ds.estimate[j]), j), scaled(float(ds.estimate[i]), i), "x", color="C1",
+                        label="least squares")
+                if i == k - 1 and j == 0:
+                    ax.legend(fontsize=7)
+            if i == k - 1:
+                ax.set_xlabel(labels[j], fontsize=9)
+            if j == 0 and i > 0:
+                ax.set_ylabel(labels[i], fontsize=9)
+    fig.suptitle(f"posterior: {ds.attrs['posterior_samples']} samples, acceptance "
+                 f"{number(ds.attrs['acceptance_fraction'], 2)}", fontsize=10)
     fig.tight_layout()
     return fig

@@ -16,7 +16,13 @@ calibration.nc (README, "Calibration"):
 * dimension `start`: where each start began and ended, its chi², whether it was
   stopped because it joined another;
 * attributes: chi2, dof, chi2_minimum (profiles included), simulations run and
-  reused, rounds, wall time and where it went, the statements of `statements`.
+  reused, rounds, wall time and where it went, the statements of `statements`;
+* a posterior (`posterior_variables`): dimension `sample` with `posterior_<name>`
+  per parameter; per parameter `posterior_median`, `posterior_lower`,
+  `posterior_upper` (2.5 %, 97.5 %), `autocorrelation_time`, `effective_samples`,
+  the surrogate's box; per measurement `surrogate_error` (held out, units of
+  sigma), `sigma_likelihood`, `posterior_band_lower`, `posterior_band_upper`;
+  the sampler's and the surrogate's counts and `posterior_statements` as attributes.
 
 Values of different parameters (or observables) have different units: each
 such variable's `units` is "1" and the `units` (`measurement_units`)
@@ -37,6 +43,7 @@ from ..data import store
 from ..errors import Failed
 from ..fitting.least_squares import PENALTY
 from ..fitting.profiles import THRESHOLD
+from ..fitting.sampling import quantiles
 from ..fitting.uncertainty import band, natural
 from ..formatting import number, units_text
 from ..inputs.scene import key_info
@@ -44,6 +51,7 @@ from ..quantities import observables
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
+    from ..fitting.posterior import Posterior
     from ..plans.calibration import CalibrationPlan
 
 TEXT = {"units": "1"}
@@ -79,10 +87,10 @@ def statements(plan: CalibrationPlan, found: Estimate) -> list[str]:
 
 
 def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: np.ndarray, cost: dict,
-            failed: dict[str, str], vanished: list[str]) -> xr.Dataset:
+            failed: dict[str, str], vanished: list[str], sampled: Posterior | None = None) -> xr.Dataset:
     """calibration.nc's contents (module docstring): `model` at the estimate per measurement, `cost` the counts and
     times (simulations, simulations_reused, rounds, wall_time, ...), `failed` the failed simulations (id -> why),
-    `vanished` those whose dense biofilm vanished."""
+    `vanished` those whose dense biofilm vanished, `sampled` the posterior when sampled."""
     best = found.best
     if best.chi2 >= len(model) * PENALTY**2:
         raise Failed(f"every evaluation of the calibration failed (e.g. {next(iter(failed.values()), '')}); the case "
@@ -184,7 +192,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
     attrs = {
         "Conventions": "CF-1.10",
         "title": f"calibration: {plan.spec.name}",
-        "method": "weighted least squares (scipy trf, bounded), multi-start, finite-difference Jacobian"
+        "method": "weighted least squares (Levenberg-Marquardt, bounded), multi-start, finite-difference Jacobian"
                   + (", profile likelihoods (95 %: chi² + 3.84)" if profiled else ""),
         "chi2": best.chi2, "dof": dof,
         "chi2_p_value": float(chi2_distribution.sf(best.chi2, dof)) if dof > 0 else float("nan"),
@@ -203,7 +211,65 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         "time_unit": plan.spec.data.time_unit or "T*",
         "t_ref": plan.spec.data.t_ref or "1 T*",
     }
+    if sampled is not None:
+        extra, extra_coords, extra_attrs = posterior_variables(plan, sampled, measured, sigma, units)
+        data.update(extra)
+        coords.update(extra_coords)
+        attrs.update(extra_attrs)
+        attrs["method"] += ("; posterior: emcee on a Gaussian-process surrogate of the residuals, its held-out "
+                            "error added to sigma² (docs/calibration.md)")
     return xr.Dataset(data, coords=coords, attrs=store.with_provenance(attrs))
+
+
+def posterior_variables(plan: CalibrationPlan, sampled: Posterior, measured: np.ndarray, sigma: np.ndarray,
+                        units: list[str]) -> tuple[dict, dict, dict]:
+    """The posterior's part of calibration.nc: the samples (dimension `sample`, one variable per parameter), the
+    summaries per parameter, the surrogate's error and the predictive band per measurement, the sampler's
+    diagnostics."""
+    params = plan.parameters
+    chains = sampled.chains
+    values = np.stack([p.range.values(chains.samples[:, j]) for j, p in enumerate(params)], axis=1)
+    median, low, high = quantiles(values)
+    each = {"units": "1", "comment": "each in its own units: see the units coordinate"}
+    mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
+    data = {f"posterior_{p.name}": ("sample", values[:, j], {"units": units[j], "long_name": f"posterior sample "
+                                                              f"of {p.name} ({p.key})"}) for j, p in enumerate(params)}
+    error = sampled.held.error
+    data.update({
+        "posterior_median": ("parameter", median, {**each, "long_name": "posterior median"}),
+        "posterior_lower": ("parameter", low, {**each, "long_name": "posterior 2.5 % quantile"}),
+        "posterior_upper": ("parameter", high, {**each, "long_name": "posterior 97.5 % quantile"}),
+        "autocorrelation_time": ("parameter", chains.autocorrelation,
+                                 {"units": "1", "long_name": "integrated autocorrelation time, in steps"}),
+        "effective_samples": ("parameter", chains.effective, {"units": "1", "long_name": "effective sample size"}),
+        "surrogate_low": ("parameter", np.array([p.value(u) for p, u in zip(params, sampled.low)]),
+                          {**each, "long_name": "lower edge of the surrogate's box"}),
+        "surrogate_high": ("parameter", np.array([p.value(u) for p, u in zip(params, sampled.high)]),
+                           {**each, "long_name": "upper edge of the surrogate's box"}),
+        "surrogate_error": ("measurement", error, {"units": "1", "long_name": "root-mean-square error of the "
+                                                   "surrogate on held-out simulations, in units of sigma"}),
+        "sigma_likelihood": ("measurement", sigma * np.sqrt(1.0 + sampled.inflation),
+                             {**mapped, "long_name": "standard deviation in the posterior's likelihood: sigma with "
+                                                     "the surrogate's error added in quadrature"}),
+        "posterior_band_lower": ("measurement", measured + sigma * sampled.band[0],
+                                 {**mapped, "long_name": "2.5 % quantile of the model over the posterior samples "
+                                                         "(surrogate)"}),
+        "posterior_band_upper": ("measurement", measured + sigma * sampled.band[1],
+                                 {**mapped, "long_name": "97.5 % quantile of the model over the posterior samples "
+                                                         "(surrogate)"}),
+    })
+    coords = {"sample": ("sample", np.arange(len(values)), {"units": "1", "long_name": "posterior sample"})}
+    attrs = {
+        "posterior_samples": len(values), "posterior_walkers": chains.walkers, "posterior_steps": chains.steps,
+        "posterior_burn_in": chains.burn, "posterior_thin": chains.thin,
+        "acceptance_fraction": chains.acceptance, "posterior_converged": int(chains.converged),
+        "surrogate_training_runs": sampled.trained_on, "surrogate_training_from_fit": sampled.from_fit,
+        "surrogate_design_runs": sampled.designed, "surrogate_box_widened": sampled.widened,
+        "surrogate_held_out_runs": sampled.held.count, "surrogate_failed_runs": sampled.failed,
+        "surrogate_error_max": float(np.nanmax(error)) if np.isfinite(error).any() else float("nan"),
+        "posterior_statements": "; ".join(sampled.verdicts),
+    }
+    return data, coords, attrs
 
 
 def cf_time(unit: str | None) -> str:
@@ -241,6 +307,24 @@ def table_text(ds: xr.Dataset) -> str:
                      f"[{number(ds.low[j])}, {number(ds.high[j])}]{' log' if str(ds.scale.values[j]) == 'log' else ''}"
                      " |")
     attrs = ds.attrs
+    if "posterior_median" in ds:
+        lines += ["", "| parameter | posterior median | 95 % credible interval (2.5-97.5 %) | autocorrelation "
+                      "time (steps) | effective samples |", "|---|---|---|---|---|"]
+        for j, name in enumerate(ds.parameter.values):
+            unit = units_text(str(ds.units.values[j]))
+            lines.append(f"| {name} | {number(ds.posterior_median[j])} {unit} | [{number(ds.posterior_lower[j])}, "
+                         f"{number(ds.posterior_upper[j])}] | {number(ds.autocorrelation_time[j], 3)} | "
+                         f"{number(ds.effective_samples[j], 3)} |")
+        lines += ["", f"posterior: {attrs['posterior_samples']} samples of {attrs['posterior_walkers']} walkers x "
+                      f"{attrs['posterior_steps']} steps (burn-in {attrs['posterior_burn_in']}, thinned by "
+                      f"{attrs['posterior_thin']}), acceptance fraction {number(attrs['acceptance_fraction'], 2)}; "
+                      f"surrogate trained on {attrs['surrogate_training_runs']} simulations "
+                      f"({attrs['surrogate_training_from_fit']} of them the fit's; its box widened "
+                      f"{attrs['surrogate_box_widened']} times), its error on "
+                      f"{attrs['surrogate_held_out_runs']} held-out ones up to "
+                      f"{number(attrs['surrogate_error_max'], 2)} sigma (added to sigma² in the likelihood)"]
+        for said in filter(None, str(attrs.get("posterior_statements", "")).split("; ")):
+            lines += ["", f"**{said[0].upper() + said[1:]}.**"]
     lines += ["", f"chi² = {number(attrs['chi2'], 4)} for {attrs['dof']} degrees of freedom "
                   f"(p = {number(attrs['chi2_p_value'], 2)}); {attrs['simulations']} simulations run, "
                   f"{attrs['simulations_reused']} reused, in {attrs['rounds']} rounds; wall time "
