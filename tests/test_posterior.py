@@ -118,3 +118,21 @@ def test_failed_runs_are_left_out_of_the_training_and_the_held_out_error_and_cou
     assert found.trained_on == found.designed == 12 + 6 - sum(i % 3 == 0 for i in range(18))
     assert found.held.count == 6 - sum(i % 3 == 0 for i in range(18, 24))
     assert np.all(np.isfinite(found.chains.samples)) and np.all(found.held.error < 1e-3)
+
+
+def test_a_parameter_the_data_do_not_see_is_said_to_reach_its_bounds_and_its_interval_to_be_the_priors():
+    data = 1 + 2 * T * 0.4 + SIGMA * np.random.default_rng(2).normal(size=8)  # the model ignores u[1]
+    weighted = (2 * T / SIGMA)[:, None]
+    exact = float(np.linalg.lstsq(weighted, (data - 1) / SIGMA, rcond=None)[0][0])
+    se = float(np.sqrt(np.linalg.inv(weighted.T @ weighted)[0, 0]))
+
+    def evaluate(points):
+        return [(1 + 2 * T * p[0] - data) / SIGMA for p in points]
+
+    options = Options(design=12, held_out=4, walkers=16, steps=1500, box=6.0, seed=3)
+    found = posterior(evaluate, np.array([exact, 0.5]), np.array([se, np.inf]), [], options, ["a", "b"])
+    said = " ".join(found.verdicts)
+    assert "the posterior of b reaches its lower bound" in said and "the posterior of b reaches its upper bound" in said
+    assert "the data do not bound b on that side" in said and "posterior of a" not in said, found.verdicts
+    _, low, high = sampling.quantiles(found.chains.samples)
+    assert low[1] < 0.1 and high[1] > 0.9  # flat over the prior: the 95 % interval is most of the range

@@ -98,16 +98,24 @@ def _starts(centre, standard_error, low, high, walkers, rng) -> np.ndarray:
     return np.clip(centre + spread * rng.standard_normal((walkers, len(centre))), *inner)
 
 
-def _cut(samples: np.ndarray, low: np.ndarray, high: np.ndarray) -> list[tuple[int, int]]:
-    """(coordinate, -1 lower / +1 upper) of every face of the box, not a bound, where the samples' density is still
-    more than `EDGE_DENSITY` of its peak: the box cuts the posterior there."""
-    cut = []
+def _edges(samples: np.ndarray, low: np.ndarray, high: np.ndarray,
+           bounds: bool = False) -> list[tuple[int, int, float]]:
+    """(coordinate, -1 lower / +1 upper, density there / peak) of every face of the box where the samples'
+    density is still more than `EDGE_DENSITY` of its peak: faces that are not bounds (the box cuts the
+    posterior there), or with `bounds` those that are (the data do not bound the parameter there: the prior's
+    range does)."""
+    found = []
     for j in range(samples.shape[1]):
         counts = np.histogram(samples[:, j], bins=EDGE_BINS, range=(low[j], high[j]))[0]
         for face, bound, count, side in ((low[j], 0.0, counts[0], -1), (high[j], 1.0, counts[-1], 1)):
-            if face != bound and count > EDGE_DENSITY * counts.max():
-                cut.append((j, side))
-    return cut
+            if (face == bound) == bounds and count > EDGE_DENSITY * counts.max():
+                found.append((j, side, float(count / counts.max())))
+    return found
+
+
+def _cut(samples: np.ndarray, low: np.ndarray, high: np.ndarray) -> list[tuple[int, int]]:
+    """(coordinate, -1 lower / +1 upper) of every face of the box, not a bound, that cuts the posterior."""
+    return [(j, side) for j, side, _ in _edges(samples, low, high)]
 
 
 def _first_pass(training: dict, low: np.ndarray, high: np.ndarray, centre: np.ndarray, standard_error: np.ndarray,
@@ -206,12 +214,15 @@ def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, 
                         f"{int(np.argmax(inflation)) + 1} of the table): not small against the data's noise, it "
                         f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %), "
                         "and more training runs ([method] design) would shrink it")
-    for j, side in _cut(chains.samples, low, high):
-        counts = np.histogram(chains.samples[:, j], bins=EDGE_BINS, range=(low[j], high[j]))[0]
-        count = counts[0] if side < 0 else counts[-1]
+    for j, side, share in _edges(chains.samples, low, high):
         verdicts.append(f"the posterior of {names[j]} reaches the {'lower' if side < 0 else 'upper'} edge of the "
                         f"surrogate's box (widened {widening} times from {options.box:g} standard errors of least "
-                        f"squares), where its density is still {100 * count / counts.max():.0f} % of its peak: "
+                        f"squares), where its density is still {100 * share:.0f} % of its peak: "
                         "widen it ([method] box)")
+    for j, side, share in _edges(chains.samples, low, high, bounds=True):
+        verdicts.append(f"the posterior of {names[j]} reaches its {'lower' if side < 0 else 'upper'} bound "
+                        f"([estimate]), where its density is still {100 * share:.0f} % of its peak: the data do not "
+                        f"bound {names[j]} on that side, so its credible interval there is the prior's range, not "
+                        "the data's (the profile likelihood, profiles = true, says whether the data determine it)")
     return Posterior(chains, surrogate, held, low, high, inflation, len(points), designed, widening, from_fit, failed,
                      band, first, verdicts)
