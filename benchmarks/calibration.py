@@ -6,6 +6,7 @@
     .venv/bin/python benchmarks/calibration.py --only noise     # the observables' resolution
     .venv/bin/python benchmarks/calibration.py --only posterior # the bundled posterior example, serial and 2 workers
     .venv/bin/python benchmarks/calibration.py --only posterior-coverage --seeds 10
+    .venv/bin/python benchmarks/calibration.py --only posterior-grid  # the bundled twin's posterior by brute force
 
 cost: the bundled two-parameter twin (`studies/calibrate-agar.toml`: the 2-D agar colony on 20 x 40 cells,
 150 steps, g and r from biomass and max_thickness at six times) without and with profiles, serially and on 2
@@ -26,6 +27,12 @@ surrogate's held-out error.
 posterior-coverage: the tiny twin of tests/test_calibration.py, method "posterior" (2 starts, design 16, 4 held
 out, 1500 steps: the test's settings) for each of `--seeds` noise draws: how often each 95 % credible interval
 holds the truth.  Reported as measured.
+
+posterior-grid: the bundled twin's posterior without a surrogate, as a reference for the surrogate's: the
+simulator itself on a grid of log10 g = 7.00, 7.05 ... 8.50 by log10 r = 1.85, 1.87 ... 2.15 (496 simulations,
+~100 s on 2 workers), the likelihood exp(-chi²/2) summed over the grid with the prior of the calibration (flat
+in log g and log r): each parameter's marginal median and 2.5 % / 97.5 % quantiles (the grid's cells taken as
+steps of the cumulative distribution), and the share of the mass on the r grid's edges (it must be negligible).
 
 noise: how smoothly the sub-cell observables follow a parameter (what the finite-difference steps are chosen
 against): the bundled example's scene at g = 1e8 (1 + i eps), i = 1..4, for eps = 1e-8 ... 1e-2: the relative
@@ -229,9 +236,39 @@ def noise() -> None:
     print(f"\nload average at the end: {load_average()}\n")
 
 
+def posterior_grid(workers: int | None) -> None:
+    from biostudy.commands.calibrate import Simulations
+    from biostudy.plans.calibration import load_calibration
+
+    plan = load_calibration(bundled.resolve("calibrate-agar"))
+    low, high = np.log10([1e7, 20.0]), np.log10([1e10, 400.0])  # the calibration's [estimate] ranges
+    log_g, log_r = np.arange(7.0, 8.5001, 0.05), np.arange(1.85, 2.1501, 0.02)
+    points = [(np.array([a, b]) - low) / (high - low) for a in log_g for b in log_r]
+    print(f"## posterior on a grid: the bundled twin, {len(points)} simulations (load average at the start: "
+          f"{load_average()})\n")
+    with tempfile.TemporaryDirectory() as folder:
+        began = time.perf_counter()
+        results = Simulations(plan, Path(folder), Execution(workers=workers)).evaluate(points)
+        seconds = time.perf_counter() - began
+    failed = sum(r is None for r in results)
+    chi2 = np.array([np.inf if r is None else float(np.sum(np.square(r))) for r in results]).reshape(len(log_g), -1)
+    weight = np.exp(-0.5 * (chi2 - chi2.min()))
+    print(f"{seconds:.0f} s, {failed} failed; least chi² on the grid {chi2.min():.3f}; mass on the r grid's edges "
+          f"{weight[:, [0, -1]].sum() / weight.sum():.1e}\n")
+    print("| parameter | median | 95 % interval (2.5-97.5 %) |\n|---|---|---|")
+    for name, axis, marginal in (("g", log_g, weight.sum(axis=1)), ("r", log_r, weight.sum(axis=0))):
+        step = axis[1] - axis[0]
+        edges = np.concatenate([[axis[0] - step / 2], axis + step / 2])
+        cumulative = np.concatenate([[0.0], np.cumsum(marginal) / marginal.sum()])
+        median, lower, upper = (10 ** np.interp(q, cumulative, edges) for q in (0.5, 0.025, 0.975))
+        print(f"| {name} | {median:.4g} | [{lower:.4g}, {upper:.4g}] |")
+    print(f"\nload average at the end: {load_average()}\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description="calibration cost and interval coverage")
-    parser.add_argument("--only", choices=("cost", "coverage", "noise", "posterior", "posterior-coverage"))
+    parser.add_argument("--only", choices=("cost", "coverage", "noise", "posterior", "posterior-coverage",
+                                           "posterior-grid"))
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--workers", type=int, default=2, help="coverage: local workers per calibration")
     args = parser.parse_args()
@@ -245,6 +282,8 @@ def main() -> None:
         posterior_cost()
     if args.only in (None, "posterior-coverage"):
         posterior_coverage(args.seeds, args.workers if args.workers > 1 else None)
+    if args.only in (None, "posterior-grid"):
+        posterior_grid(args.workers if args.workers > 1 else None)
 
 
 if __name__ == "__main__":
