@@ -34,7 +34,6 @@ from __future__ import annotations
 import datetime as _dt
 import errno
 import hashlib
-import importlib.metadata
 import math
 import os
 import re
@@ -60,6 +59,8 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 def version() -> str:
+    import importlib.metadata  # lazily: it imports email and more, which `show` of a run's file never needs
+
     try:
         return importlib.metadata.version("biostudy")
     except importlib.metadata.PackageNotFoundError:

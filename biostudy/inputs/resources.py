@@ -33,8 +33,6 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-import psutil
-
 from solver.mechanics import linear_solver_for
 
 from ..errors import BadInput
@@ -140,6 +138,8 @@ def available_memory() -> float:
             return parse_size(given)
         except ValueError as error:
             raise BadInput(f"{error}", MEMORY_VARIABLE) from None
+    import psutil  # lazily: `show` of a run's file imports this module but never asks
+
     return min(float(psutil.virtual_memory().available), _cgroup_room())
 
 
