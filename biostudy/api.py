@@ -80,7 +80,7 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     A case that fails is recorded (``status``, ``message``) and the others go on; a warning says which.
     """
     from .commands import sweep as command  # lazily, as in `run`
-    from .execution.dask import check_choice
+    from .execution.dask import check_choice, runs_here
     from .execution.jobs import Execution
 
     worker.pin_solvers()
@@ -88,7 +88,7 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     with netcdf.called(_call("sweep", study, directory, workers=workers, scheduler=scheduler,
                              scheduler_file=scheduler_file, set=set)):
         job = command.load(study, output=Path(directory), overrides=_overrides(set),
-                           runs_here=not (scheduler or scheduler_file))
+                           runs_here=runs_here(scheduler, scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      retry_failed=retry_failed, rerun_all=rerun_all, force=force))
     for said in finished.warnings:
@@ -106,7 +106,7 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
     the data beside the fitted observables.  Simulations finished before (in DIR/cases/) are reused; workers
     and a Dask cluster as for `sweep`.  Warnings say which simulations failed or lost their dense biofilm."""
     from .commands import calibrate as command  # lazily, as in `run`
-    from .execution.dask import check_choice
+    from .execution.dask import check_choice, runs_here
     from .execution.jobs import Execution
 
     worker.pin_solvers()
@@ -114,7 +114,7 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
     with netcdf.called(_call("calibrate", calibration, directory, workers=workers, scheduler=scheduler,
                              scheduler_file=scheduler_file, set=set)):
         job = command.load(calibration, output=None if directory is None else Path(directory),
-                           overrides=_overrides(set), runs_here=not (scheduler or scheduler_file))
+                           overrides=_overrides(set), runs_here=runs_here(scheduler, scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      rerun_all=rerun_all, force=force))
     for said in finished.warnings:

@@ -64,7 +64,8 @@ def prepare(directory: Path, kind: str) -> list[str]:
     return args
 
 
-def child(app, args: list[str]) -> int:
+def started(app, args: list[str]) -> int:
+    """The pid of a forked child running the command in-process, as `biostudy` does."""
     pid = os.fork()
     if pid == 0:
         try:
@@ -72,7 +73,11 @@ def child(app, args: list[str]) -> int:
         except SystemExit as end:
             os._exit(end.code if isinstance(end.code, int) else 1)
         os._exit(0)
-    return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    return pid
+
+
+def child(app, args: list[str]) -> int:
+    return os.waitstatus_to_exitcode(os.waitpid(started(app, args), 0)[1])
 
 
 def output(directory: Path, kind: str) -> Path:
@@ -94,13 +99,7 @@ def main(directory: Path, kind: str, trials: int, sent_signal: signal.Signals = 
         if kind == "run":
             output(directory, kind).unlink(missing_ok=True)
         delay = (first + (1.1 - first) * (trial + 0.5) / trials) * took
-        pid = os.fork()
-        if pid == 0:
-            try:
-                app(args)
-            except SystemExit as end:
-                os._exit(end.code if isinstance(end.code, int) else 1)
-            os._exit(0)
+        pid = started(app, args)
         time.sleep(delay)
         os.kill(pid, sent_signal)
         sent = time.monotonic()

@@ -203,9 +203,10 @@ def sweep(
     """Run every case of a study; re-running skips finished cases."""
     def load():
         from ..commands import sweep as command  # lazily (module docstring)
+        from ..execution.dask import runs_here  # lazily
 
         return command.load(study, output=output, overrides=overrides, cases=cases, task=task, tasks=tasks,
-                            combine_only=combine_only, runs_here=not (scheduler or scheduler_file))
+                            combine_only=combine_only, runs_here=runs_here(scheduler, scheduler_file))
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  retry_failed=retry_failed, force=force, rerun_all=rerun_all)
@@ -407,8 +408,10 @@ def stability(
     """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
     def load():
         from ..commands import stability as command  # lazily (module docstring)
+        from ..execution.dask import runs_here  # lazily
 
-        return command.load(catalogue, output=output, overrides=overrides, runs_here=not (scheduler or scheduler_file))
+        return command.load(catalogue, output=output, overrides=overrides,
+                            runs_here=runs_here(scheduler, scheduler_file))
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
                  rerun_all=rerun_all)
@@ -433,9 +436,10 @@ def calibrate(
     """Estimate scene parameters from measurements: least squares, profile likelihoods, 95 % intervals."""
     def load():
         from ..commands import calibrate as command  # lazily (module docstring)
+        from ..execution.dask import runs_here  # lazily
 
         return command.load(calibration, output=output, overrides=overrides,
-                            runs_here=not (scheduler or scheduler_file))
+                            runs_here=runs_here(scheduler, scheduler_file))
 
     _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
                  rerun_all=rerun_all)

@@ -57,6 +57,12 @@ def scheduler_address(scheduler_file: str | Path) -> str:
     return address
 
 
+def runs_here(scheduler: str | None, scheduler_file: str | Path | None = None) -> bool:
+    """True when the jobs run on this machine (serially or on local processes), not on a Dask cluster: then a
+    case too big for this machine's memory is refused while it is validated (`plans.cases.load_plan`)."""
+    return not (scheduler or scheduler_file)
+
+
 def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str | Path | None = None) -> None:
     """Jobs run on local processes or on a Dask cluster (its address or its scheduler file), not both; a
     tls:// scheduler needs Dask's TLS configuration (certificates), which a plain Dask client would only miss

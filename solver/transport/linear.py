@@ -9,11 +9,10 @@
   The V-cycle (`VCycle`) smooths the finest level on the matrix being solved,
   with one forward Gauss-Seidel sweep before the coarse correction and one
   backward sweep after: the cycle is symmetric, as CG needs, and costs half
-  of pyamg's default symmetric sweeps on both sides (measured at 40^3: 6
-  iterations instead of 5 from the same start, 33 against 41 ms per solve).
+  of pyamg's default symmetric sweeps on both sides for one iteration more.
   It passes through the first coarse level unsmoothed (see `VCycle`), and the
-  hierarchy is built with strength 0.1 down to at most 200 rows: 5.1 instead of
-  6.0 iterations and 24 against 42 ms per solve at 40^3 (docs/transport.md).
+  hierarchy is built with `STRENGTH` down to at most `COARSEST` rows.  Each
+  choice is measured before and after in docs/transport.md ("The means").
 * `jacobi_bicgstab`: the biofilm matrix is dominated by 1/dt, so a diagonal
   preconditioner is enough (2-5 iterations at the nominal step).
 * `KeptDiagonal`: a matrix that changes only on its diagonal, kept in CSR and
@@ -33,11 +32,9 @@ from pyamg.amg_core import gauss_seidel
 from ..counters import Counters
 from ..errors import StepFailure
 
-# The hierarchy's choices, measured at 40^3 on a recorded run (benchmarks/nutrient.py, docs/transport.md):
-COARSEST = 200  # rows of the level solved by its pseudo-inverse: one level fewer (152 rows, not 19), 5.55
-#                 instead of 5.69 CG iterations per solve
-STRENGTH = ("classical", {"theta": 0.1})  # pyamg's default 0.25 coarsens the deeper levels less well here:
-#                 5.08 instead of 5.55 iterations (20^3 and 2-D the same)
+# The hierarchy's choices, each measured at 40^3 on a recorded run (benchmarks/nutrient.py, docs/transport.md):
+COARSEST = 200  # rows of the level solved by its pseudo-inverse (pyamg's default 50 leaves one level more)
+STRENGTH = ("classical", {"theta": 0.1})  # pyamg's default 0.25 coarsens the deeper levels less well here
 
 
 class ReusedAMG:
@@ -100,8 +97,7 @@ class VCycle:
     goes through them, its interpolation the product of theirs (P_01 P_12 ...), its restriction the
     transpose.  Ruge-Stueben's first coarse level of a 7-point (5-point) operator is the red-black half of
     the cells with 18 (8) neighbours each, more nonzeros than the finest level in 3-D; its sweeps were a
-    third of a cycle and bought no iteration (measured at 40^3: 6.0 CG iterations per solve with and
-    without, 33 against 23 ms per solve; docs/transport.md), so it is passed through by default."""
+    third of a cycle and bought no iteration (docs/transport.md), so it is passed through by default."""
 
     def __init__(self, hierarchy, passed: tuple[int, ...] = (1,)):
         levels = hierarchy.levels
