@@ -184,3 +184,10 @@ def drawn(monkeypatch):
     yield figures
     for fig in figures.values():
         plt.close(fig)
+
+
+def pytest_collection_modifyitems(items):
+    """Files that hold `slow` tests first: xdist (`--dist loadfile`) hands files out in collection order, so the
+    long ones start at once and the quick ones fill the end instead of one long file running alone at the end."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)  # stable: the order within and among the others is kept
