@@ -36,7 +36,7 @@ from ..inputs.scene import overrides_text
 from ..plans.calibration import SCENE, CalibrationPlan, load_calibration
 from ..plots.calibration import corner_figure, fit_figure, profiles_figure
 from ..plots.style import save
-from ..quantities import observables
+from ..quantities import alerts, observables
 from ..reports.calibration import dataset, table_text
 from .finished import Finished
 
@@ -59,7 +59,7 @@ class Simulations:
     ran: list[str] = field(default_factory=list)
     reused: list[str] = field(default_factory=list)
     failed: dict[str, str] = field(default_factory=dict)
-    vanished: dict[str, str] = field(default_factory=dict)
+    raised: dict[str, dict[str, str]] = field(default_factory=dict)  # `quantities.alerts`: attribute -> id
     warned: list[str] = field(default_factory=list)
     rounds: int = 0
     evaluated: dict[tuple, tuple[np.ndarray, np.ndarray | None]] = field(default_factory=dict)  # point -> residuals
@@ -90,7 +90,8 @@ class Simulations:
             self.rounds += 1
             self.ran += report.ran
             self.reused += report.skipped
-            self.vanished.update(report.vanished)
+            for name, cases in report.alerts.items():
+                self.raised.setdefault(name, {}).update(cases)
             began = time.perf_counter()
             for job in new.values():
                 self.models[job.id] = self._model(job, report.failed.get(job.id))
@@ -201,7 +202,7 @@ class Calibrate:
             if sampled is not None:
                 cost["wall_time_sampling"] = sampled.seconds
             ds = dataset(self.plan, found, design, simulations.model_at(found.best.x), cost, simulations.failed,
-                         list(simulations.vanished), sampled)
+                         simulations.raised, sampled)
             table = table_text(ds)
             store.write_atomic(ds, self.directory / "calibration.nc")
             store.write_text(self.directory / "calibration.md", table)
@@ -213,11 +214,7 @@ class Calibrate:
         warnings = list(simulations.warned)
         if sampled is not None:
             warnings += sampled.verdicts
-        if simulations.vanished:
-            ids = sorted(simulations.vanished)
-            warnings.append(f"{len(ids)} of its simulations lost their dense biofilm (phi >= 0.8) while the biofilm "
-                            f"grew, likely a grid artefact: a fit to them fits the grid ({', '.join(ids[:3])}"
-                            f"{', ...' if len(ids) > 3 else ''}); {simulations.vanished[ids[0]]}")
+        warnings += alerts.summaries(simulations.raised, "of its simulations")
         if simulations.failed:
             warnings.append(f"{len(simulations.failed)} simulations failed and counted as penalties: "
                             + "; ".join(f"{k}: {v}" for k, v in list(simulations.failed.items())[:2]))

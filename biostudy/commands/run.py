@@ -32,7 +32,7 @@ from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
-from ..quantities import dense
+from ..quantities import alerts
 
 
 @dataclass(frozen=True)
@@ -56,9 +56,9 @@ class Result:
     replacing: str
 
     def warnings(self) -> list[str]:
-        """What a user should know about the result besides the summary: a vanished dense biofilm."""
-        said = self.dataset.attrs.get(dense.ATTRIBUTE)
-        return [str(said)] if said else []
+        """What a user should know about the result besides the summary (`quantities.alerts`): a vanished dense
+        biofilm, a biofilm lost."""
+        return alerts.said(self.dataset.attrs)
 
     def message(self) -> str:
         attrs = self.dataset.attrs
@@ -111,7 +111,7 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
     ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-                     **loaded.scene.substratum_attrs(), **dense.attrs(ds))
+                     **loaded.scene.substratum_attrs(), **alerts.attrs(ds))
     ds = store.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")

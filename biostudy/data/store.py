@@ -420,15 +420,16 @@ def case_file(out_dir: str | Path, case_id: str) -> Path:
 
 def recorded(path: str | Path) -> dict | None:
     """The status attributes of a case file (and the software versions that made it), or None if there is
-    none or it cannot be read."""
+    none or it cannot be read; with what `quantities.alerts` said of it."""
+    from ..quantities.alerts import ATTRIBUTES  # lazily: scipy and xarray only where cases are read back
+
     if not Path(path).is_file():
         return None
     attrs = attributes(Path(path))
     if attrs is None:
         return None
     return {name: value for name, value in attrs.items()
-            if name in ("status", "message", "error", "fingerprint", "wall_time", "biostudy_version",
-                        "dense_biofilm_vanished")
+            if name in ("status", "message", "error", "fingerprint", "wall_time", "biostudy_version", *ATTRIBUTES)
             or name.startswith("version_")}
 
 

@@ -39,7 +39,7 @@ from ..errors import BadInput, Failed
 from ..inputs import resources
 from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
-from ..quantities import dense
+from ..quantities import alerts
 from . import ownership, pool
 from .backends import Backend, Here, windowed
 from .dask import DaskCluster, SchedulerLost
@@ -82,14 +82,15 @@ class SweepReport:
     removed: list[Path] = field(default_factory=list)
     damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
     outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
-    vanished: dict[str, str] = field(default_factory=dict)  # cases whose dense biofilm vanished (`quantities.dense`)
+    alerts: dict[str, dict[str, str]] = field(default_factory=dict)  # `quantities.alerts`: attribute -> case -> said
 
     @property
     def ok(self) -> bool:
         return not self.failed
 
     def warnings(self) -> list[str]:
-        """What a user should know besides the counts: damaged files computed again, outdated cases kept."""
+        """What a user should know besides the counts: damaged files computed again, outdated cases kept, and
+        what `quantities.alerts` said of the cases."""
         said = []
         if self.damaged:
             said.append(f"{len(self.damaged)} case file{'s were' if len(self.damaged) > 1 else ' was'} damaged "
@@ -100,12 +101,14 @@ class SweepReport:
             said.append(f"{len(self.outdated)} finished cases were computed by other software versions "
                         f"({'; '.join(versions[:2])}{'; ...' if len(versions) > 2 else ''}) and were reused; "
                         "--rerun-all computes every case again")
-        if self.vanished:
-            ids = sorted(self.vanished)
-            said.append(f"{len(ids)} cases lost their dense biofilm (phi >= 0.8) while the biofilm grew, likely a "
-                        f"grid artefact ({', '.join(ids[:3])}{', ...' if len(ids) > 3 else ''}): "
-                        f"{self.vanished[ids[0]]}")
+        said += alerts.summaries(self.alerts, "cases")
         return said
+
+    def note(self, case_id: str, attrs: dict) -> None:
+        """Keep what `quantities.alerts` recorded of a case (in its file's attributes or as it was written)."""
+        for name in alerts.ATTRIBUTES:
+            if attrs.get(name):
+                self.alerts.setdefault(name, {})[case_id] = str(attrs[name])
 
 
 @dataclass(frozen=True)
@@ -203,8 +206,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
             outdated = _outdated(record)
             if outdated:
                 report.outdated[job.id] = outdated
-            if record.get(dense.ATTRIBUTE):
-                report.vanished[job.id] = str(record[dense.ATTRIBUTE])
+            report.note(job.id, record)
             events.append(("skip", job.id, str(record.get("status"))))
             continue
         ids.append(job.id)
@@ -232,9 +234,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     try:
         with contextlib.closing(windowed(ids, compile_, backend)) as results:
             for job_id, outcome in results:
-                said = _record(by_id[job_id], out_dir, outcome, prints[job_id])
-                if said:
-                    report.vanished[job_id] = said
+                report.note(job_id, _record(by_id[job_id], out_dir, outcome, prints[job_id]))
                 report.ran.append(job_id)
                 if outcome.status != "done":
                     report.failed[job_id] = outcome.message
@@ -267,15 +267,14 @@ def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
     return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
 
 
-def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> str:
-    """Write one case's file: its dataset, or the failure record; returns what `quantities.dense` says of it.  A
+def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict[str, str]:
+    """Write one case's file: its dataset, or the failure record; returns what `quantities.alerts` say of it.  A
     file that cannot be written stops the sweep (`SweepError`): the cases recorded so far are kept."""
     extra = {**job.attrs, "fingerprint": fingerprint, **job.scene.substratum_attrs()}
-    said = ""
+    said: dict[str, str] = {}
     if outcome.status == "done":
-        said = dense.vanished(outcome.dataset)
-        if said:
-            extra[dense.ATTRIBUTE] = said
+        said = alerts.attrs(outcome.dataset)
+        extra.update(said)
         ds = store.with_observables(store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides,
                                                 status="done", message="", **extra))  # the substratum's: stamped
     else:

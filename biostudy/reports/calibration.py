@@ -47,7 +47,7 @@ from ..fitting.sampling import quantiles
 from ..fitting.uncertainty import band, natural
 from ..formatting import number, units_text
 from ..inputs.scene import key_info
-from ..quantities import observables
+from ..quantities import alerts, observables
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
@@ -87,10 +87,11 @@ def statements(plan: CalibrationPlan, found: Estimate) -> list[str]:
 
 
 def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: np.ndarray, cost: dict,
-            failed: dict[str, str], vanished: list[str], sampled: Posterior | None = None) -> xr.Dataset:
+            failed: dict[str, str], raised: dict[str, dict[str, str]], sampled: Posterior | None = None) -> xr.Dataset:
     """calibration.nc's contents (module docstring): `model` at the estimate per measurement, `cost` the counts and
     times (simulations, simulations_reused, rounds, wall_time, ...), `failed` the failed simulations (id -> why),
-    `vanished` those whose dense biofilm vanished, `sampled` the posterior when sampled."""
+    `raised` the simulations `quantities.alerts` spoke of (attribute -> id -> sentence), `sampled` the posterior when
+    sampled."""
     best = found.best
     if best.chi2 >= len(model) * PENALTY**2:
         raise Failed(f"every evaluation of the calibration failed (e.g. {next(iter(failed.values()), '')}); the case "
@@ -202,7 +203,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         "simulations_failed": len(failed),
         "finite_difference_steps": ", ".join(f"{p.name} {s:.3g}" for p, s in zip(params, best.steps)),
         "statements": "; ".join(said),
-        "dense_biofilm_vanished": ", ".join(sorted(vanished)),
+        **{name: ", ".join(sorted(raised.get(name, {}))) for name in alerts.ATTRIBUTES},  # the simulations' ids
         "calibration": plan.file.read_text(encoding="utf-8"),
         "calibration_file": str(plan.file.resolve()),
         "measurements_file": str(plan.data_file.resolve()),
@@ -337,7 +338,7 @@ def table_text(ds: xr.Dataset) -> str:
                   "|---|" + "---|" * len(names)]
         for j, name in enumerate(names):
             lines.append(f"| {name} | " + " | ".join(number(v, 2) for v in ds.correlation.values[j]) + " |")
-    if attrs.get("dense_biofilm_vanished"):
-        lines += ["", f"Simulations whose dense biofilm vanished while the biofilm grew (a grid artefact?): "
-                      f"{attrs['dense_biofilm_vanished']}."]
+    for alert in alerts.ALERTS:
+        if attrs.get(alert.attribute):
+            lines += ["", f"Simulations that {alert.runs}: {attrs[alert.attribute]}."]
     return "\n".join(lines) + "\n"
