@@ -54,8 +54,8 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
     continue_from: a finished run of the same scene to go on from (as ``--continue``).
     progress: called with a `solver.Progress` after every step.
 
-    Keys that `set` overrides are scalar coordinates of the dataset (in the file: dimensions of length 1,
-    so that runs with different values combine with ``xr.open_mfdataset``).
+    Keys that `set` overrides are scalar coordinates of the dataset (in the file too: a run keeps its shape;
+    runs with different values combine with ``xr.open_mfdataset(files, combine="nested", concat_dim=KEY)``).
     """
     from .commands import run as command  # lazily: `import biostudy` stays cheap (module docstring)
 

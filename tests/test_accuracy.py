@@ -138,8 +138,8 @@ def test_convergence_against_a_given_reference_run(tmp_path):
     not against the finest level; the errors are those of quantities read off the files here, independently of
     the measuring code: the largest phi, and the colony's top (the highest phi = 0.5 crossing along y, by
     linear interpolation between cell centres)."""
-    def phi_at(path, when):  # a run made with --set: its overridden keys are dimensions of length 1
-        return xr.open_dataset(path).squeeze().phi.sel(time=when, method="nearest")
+    def phi_at(path, when):  # a run made with --set: its overridden keys are scalar coordinates
+        return xr.open_dataset(path).phi.sel(time=when, method="nearest")
 
     def top(phi):
         y, h = phi.y.values, float(phi.y.values[1] - phi.y.values[0])

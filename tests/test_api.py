@@ -29,7 +29,7 @@ def test_run_returns_the_dataset_the_command_writes(tiny_scene, tmp_path):
     differ = {k for k in set(ds.attrs) | set(written.attrs) if k not in PER_RUN and not k.startswith("wall_time")
               and str(ds.attrs.get(k)) != str(written.attrs.get(k))}
     assert not differ, differ
-    assert float(ds.g) == 1e9  # an overridden key is a scalar coordinate (in the file: a dimension of length 1)
+    assert float(ds.g) == 1e9  # an overridden key is a scalar coordinate (in the file too)
     history = xr.open_dataset(tmp_path / "api.nc").attrs["history"]
     call = history.split(": ", 1)[1]  # what made the file: the call, not the test runner's command line
     assert call.startswith(f"biostudy.run('{tiny_scene}', set={{'g': 1000000000.0, ") and "api.nc" in call

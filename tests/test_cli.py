@@ -29,9 +29,10 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
                     "--set", "mechanics.enabled=false")
     assert result.exit_code == 0, result.output
     assert "wrote" in result.stderr and "20 steps" in result.stderr
-    ds = xr.open_dataset(out)  # each overridden key a dimension of length 1 (runs combine along them)
-    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2, "g": 1,
-                                                       "grid_shape": 1, "mechanics_enabled": 1}
+    ds = xr.open_dataset(out)  # the run keeps its shape: each overridden key a scalar coordinate, no dimension
+    assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
+    assert ds.phi.dims == ("time", "y", "x") and ds.g.dims == () and float(ds.g) == 1e9
+    assert ds.grid_shape.item() == "18x16" and ds.mechanics_enabled.item() == 0
     assert dict(store.open_dataset(out).sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]

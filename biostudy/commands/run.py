@@ -4,8 +4,8 @@ The output is checked before anything is computed (`targets.check_run`): never
 an input, never a file biostudy did not write; an earlier result of the same
 scene is replaced and the message says so.  The dataset carries every
 observable (`quantities.observables`) besides the fields, and each key an
-override set as a dimension of length 1 (`combine.run_layout`), so runs of one
-scene with different ``--set`` values combine with ``xr.open_mfdataset``.
+override set as a scalar coordinate (`combine.with_overrides`): a run keeps its
+shape, and runs of one scene with different ``--set`` values combine along it.
 ``continue_from`` goes on from a finished run of the same scene
 (`data.continuation`): the dataset is then the whole history.  The output is
 claimed for this run (`claims.claim`): a second run into the same output is
@@ -116,8 +116,7 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
-    layout = combine.run_layout(pairs, ds)
-    ds = layout.apply(ds) if layout else ds
+    ds = combine.with_overrides(ds, pairs)
     return ds
 
 

@@ -121,7 +121,6 @@ class CaseLayout:
     dims: tuple[str, ...]
     coords: dict  # name -> (dims, values of length 1, attrs)
     statics_shared: bool
-    records: bool = True  # a study's case: its status, message, wall time, steps and id as variables too
 
     def apply(self, ds: xr.Dataset) -> xr.Dataset:
         """A run's dataset (or a failure record) in this layout: every variable that varies between cases,
@@ -129,10 +128,8 @@ class CaseLayout:
         parameter is a coordinate instead of a variable."""
         attrs = ds.attrs
         ds = ds.drop_vars([n for n in self.coords if n in ds.data_vars])
-        scalars = {}
-        if self.records:
-            scalars = _scalars(str(attrs.get("status", "done")), str(attrs.get("message", "")), attrs)
-            scalars["case_id"] = ((), np.array(str(attrs.get("case_id", "")), dtype=object), CASE_ATTRS)
+        scalars = _scalars(str(attrs.get("status", "done")), str(attrs.get("message", "")), attrs)
+        scalars["case_id"] = ((), np.array(str(attrs.get("case_id", "")), dtype=object), CASE_ATTRS)
         ds = ds.assign(scalars)
         kept = [n for n in ds.data_vars if _static(ds[n]) and n not in scalars and self.statics_shared]
         ds = ds.assign({n: ds[n].expand_dims(list(self.dims)) for n in ds.data_vars if n not in kept})
@@ -144,20 +141,18 @@ class CaseLayout:
 SCENE_STATICS = ("grid", "nutrient", "obstacle")  # what the masks and cell bounds depend on
 
 
-def run_layout(pairs: dict, ds: xr.Dataset) -> CaseLayout | None:
-    """The layout of one run's file made with overrides (`biostudy run --set KEY=VALUE`): each overridden key a
-    dimension of length 1 with its value, as a grid study's case file has its swept keys, so that runs of one
-    scene with different values combine with ``xr.open_mfdataset`` along them; None without overrides.  An
-    overridden parameter keeps the units and long name of its variable in `ds`."""
-    if not pairs:
-        return None
-    dims = [dimension(key) for key in pairs]
+def with_overrides(ds: xr.Dataset, pairs: dict) -> xr.Dataset:
+    """One run's dataset made with overrides (`biostudy run --set KEY=VALUE`): each overridden key a scalar
+    coordinate holding its value, never a new dimension, so that a run keeps its shape however its values were
+    given (the `overrides` attribute lists them too).  Runs of one scene with different values combine along a
+    key with ``xr.open_mfdataset(files, combine="nested", concat_dim=KEY)`` (README).  An overridden parameter
+    keeps the units and long name of its variable in `ds`."""
     coords = {}
-    for d, (key, value) in zip(dims, pairs.items()):
+    for key, value in pairs.items():
+        name = dimension(key)
         values, attrs = _coordinate(key, [value])
-        coords[d] = (d, values, dict(ds[d].attrs) if d in ds.data_vars else attrs)
-    shared = not any(key.split(".")[0] in SCENE_STATICS for key in pairs)
-    return CaseLayout(tuple(dims), coords, shared, records=False)
+        coords[name] = ((), values[0], dict(ds[name].attrs) if name in ds.data_vars else attrs)
+    return ds.drop_vars([name for name in coords if name in ds.data_vars]).assign_coords(coords)
 
 
 def case_layouts(plan: Plan) -> dict[str, CaseLayout]:
