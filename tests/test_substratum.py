@@ -366,23 +366,23 @@ growth_velocity = "front"
 """
 
 
-def test_the_substratum_defaults_to_the_held_face_and_a_run_records_it(write_toml, tmp_path):
+def test_the_substratum_defaults_to_the_face_the_biofilm_rests_on_and_a_run_records_it(write_toml, tmp_path):
     from typer.testing import CliRunner
 
     from biostudy.cli import app
     from biostudy.inputs.scene import load_scene
 
     scene = write_toml("agar.toml", AGAR)
-    assert load_scene(scene).substratum_face() == "y-"  # the held nutrient face
-    assert load_scene(scene, ['nutrient.0.face="x+"']).substratum_face() == "x+"
+    assert load_scene(scene).substratum_face() == "y-"  # the colony rests on the agar
+    assert load_scene(scene, ['nutrient.0.face="x+"']).substratum_face() == "y-"  # a held face it does not touch
     assert load_scene(scene, ['substratum.face="x-"']).substratum_face() == "x-"
     plain = write_toml("plain.toml", AGAR.replace('shape = "face"\nface = "y-"', 'shape = "box"\nlower = [0.0, '
                                                   '11.0]\nupper = [12.0, 12.0]'))
-    assert load_scene(plain).substratum_face() == "y-"  # no held face: the bottom of a 2-D scene
+    assert load_scene(plain).substratum_face() == "y-"  # no held face: where the colony rests
     out = tmp_path / "run.nc"
     result = CliRunner().invoke(app, ["run", str(scene), "-o", str(out), "-q", "--set", "substratum.threshold=0.4"])
     assert result.exit_code == 0, result.output
-    ds = xr.open_dataset(out).squeeze()  # a run with --set: the overridden key is a dimension of length 1
+    ds = xr.open_dataset(out)  # a run with --set keeps its shape
     assert ds.attrs["substratum_face"] == "y-" and ds.attrs["substratum_threshold"] == 0.4
     expected = [sub.biomass(phi, 1.0, "y-", 0.4) for phi in ds.phi.values]
     shown = CliRunner().invoke(app, ["show", str(out)])

@@ -36,7 +36,7 @@ from ..inputs.scene import overrides_text
 from ..plans.calibration import SCENE, CalibrationPlan, load_calibration
 from ..plots.calibration import corner_figure, fit_figure, profiles_figure
 from ..plots.style import save
-from ..quantities import alerts, observables
+from ..quantities import alerts, observables, substratum
 from ..reports.calibration import dataset, table_text
 from .finished import Finished
 
@@ -153,6 +153,13 @@ class Simulations:
                 noise[i] = max(noise[i], step)
                 said = (f"{m.observable} counts cells: it moves in steps of {step:g} as a parameter changes, so its "
                         "finite differences are coarse; fit a sub-cell observable (biomass, mean_thickness) instead")
+                if said not in self.warned:
+                    self.warned.append(said)
+            elif m.observable in substratum.QUANTITIES and \
+                    self.plan.plan.scenes[m.condition or SCENE].substratum.estimator == "voxel":
+                said = (f"{m.observable} is counted on voxels ([substratum] estimator = \"voxel\"): it moves in steps "
+                        "of one voxel as a parameter changes, so its finite differences are coarse; the sub-cell "
+                        "estimator is the one for fitting (docs/comstat.md)")
                 if said not in self.warned:
                     self.warned.append(said)
         return np.maximum(noise, 1e-12) / self.sigma

@@ -35,6 +35,7 @@ from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
 from .resources import DEFAULT_OUTPUTS, estimate, run_problem, validation_problem
+from .substratum_face import resting_face
 from .tomltext import dumps as toml_dumps
 
 CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
@@ -196,14 +197,18 @@ AnyShape = Annotated[Union[(*SHAPES, Maze, Grate)], Field(discriminator="shape")
 
 
 class SubstratumSpec(BaseModel):
-    """Where the COMSTAT observables (biomass, thicknesses, roughness, coverage, surface to biovolume) are measured:
-    the substratum face and the biofilm threshold.  Measurement only: the simulation is the same whatever it says."""
+    """Where and how the COMSTAT observables (biomass, thicknesses, roughness, coverage, surface to biovolume) are
+    measured.  Measurement only: the simulation is the same whatever it says."""
 
     model_config = CONFIG
     face: Face | None = Field(None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+); default: "
-                                                "a face where the nutrient is held (the agar), else z- in 3-D, y- "
-                                                "in 2-D")
+                                                "the face the initial biofilm rests on (inputs/substratum_face.py)")
     threshold: float = _field(0.5, "biofilm is phi >= threshold for the substratum observables", "1", gt=0, lt=1)
+    connected: bool = Field(False, description="COMSTAT's connected-volume filtering: only biofilm connected to "
+                                               "the substratum (through cells sharing a face) counts")
+    estimator: Literal["subcell", "voxel"] = Field(
+        "subcell", description="subcell: the interpolated level set, continuous in phi (for fitting); voxel: "
+                               "COMSTAT's counts on the segmented cells (to compare with a lab's COMSTAT table)")
 
 
 def _valued(role: str, description: str, shapes=SHAPES, **extra):
@@ -299,6 +304,7 @@ class Scene(BaseModel):
         if face is not None and face[0] not in grid.axes:
             raise InvalidAt("substratum.face", f"'{face}' is not a face of a {grid.ndim}-D grid (faces: "
                                                f"{', '.join(f for f in FACES if f[0] in grid.axes)})")
+        self.substratum_face()  # an ambiguous default is bad input before anything runs
         if self.mechanics is not None:
             for name in ("clamp", "slide"):
                 for face in getattr(self.mechanics, name):
@@ -334,16 +340,21 @@ class Scene(BaseModel):
             numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)
 
     def substratum_face(self) -> str:
-        """The substratum: the face the scene names, else the first face where it holds the nutrient, else the
-        bottom (z- in 3-D, y- in 2-D)."""
+        """The substratum: the face the scene names, else the face the initial biofilm rests on
+        (`substratum_face.resting_face`)."""
         if self.substratum.face is not None:
             return self.substratum.face
-        held = [region.face for region in self.nutrient if isinstance(region, BoundaryFace)]
-        return held[0] if held else ("z-" if len(self.grid.shape) == 3 else "y-")
+        grid = self.grid.solver_grid()
+        biofilm = initial_biofilm(self.biofilm, grid) >= self.substratum.threshold
+        biofilm &= ~self._union(self.obstacle, grid)
+        held = tuple(region.face for region in self.nutrient if isinstance(region, BoundaryFace))
+        return resting_face(biofilm, held)
 
     def substratum_attrs(self) -> dict:
         """What a dataset records so that the substratum observables can be computed from it alone."""
-        return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold}
+        return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold,
+                "substratum_connected": int(self.substratum.connected),
+                "substratum_estimator": self.substratum.estimator}
 
     def to_toml(self) -> str:
         """The scene as TOML text (every key, defaults filled in): what the dataset records."""

@@ -29,10 +29,12 @@ surface_to_biovolume  µm⁻¹   biofilm-liquid interface per biovolume (COMSTAT
 ====================  =====  ======================================================
 
 The last six are measured on the substratum the run's dataset records (attributes
-`substratum_face`, `substratum_threshold`: the scene's ``[substratum]``) by
-`biostudy.quantities.substratum`; they change continuously with the parameters
-(sub-cell level sets), so they are the ones to fit.  A dataset written before
-they existed lacks those attributes and has none of them.
+`substratum_face`, `substratum_threshold`, `substratum_connected`, `substratum_estimator`:
+the scene's ``[substratum]``) by `biostudy.quantities.substratum`; they change
+continuously with the parameters (sub-cell level sets), so they are the ones to
+fit; with ``estimator = "voxel"`` they are COMSTAT's voxel counts instead
+(`biostudy.quantities.comstat`).  A dataset written before they existed lacks
+those attributes and has none of them.
 """
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
-from . import measures, substratum
+from . import comstat, measures, substratum
 from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
@@ -86,11 +88,18 @@ def _one_cell(h: float, ndim: int) -> float:
 
 
 def _on_substratum(quantity: substratum.Quantity) -> Observable:
-    """A COMSTAT observable, per output, on the substratum face and with the threshold the dataset records."""
+    """A COMSTAT observable, per output, on the substratum face, with the threshold, the connected-volume filtering
+    and the estimator the dataset records (`comstat`; files written before the last two: sub-cell, unfiltered)."""
     def compute(ds: xr.Dataset) -> np.ndarray:
         face, threshold = str(ds.attrs["substratum_face"]), float(ds.attrs["substratum_threshold"])
+        voxel = str(ds.attrs.get("substratum_estimator", "subcell")) == "voxel"
         phi = ds["phi"].transpose("time", *(d for d in CELL_DIMS if d in ds.dims)).values
-        return np.array([quantity.compute(field, measures.spacing(ds), face, threshold) for field in phi])
+        if int(ds.attrs.get("substratum_connected", 0)):
+            phi = np.array([comstat.connected(field, face, threshold) for field in phi])
+        h = measures.spacing(ds)
+        if voxel:
+            return np.array([comstat.voxel_observables(field, h, face, threshold)[quantity.name] for field in phi])
+        return np.array([quantity.compute(field, h, face, threshold) for field in phi])
 
     return Observable(quantity.name, quantity.units, quantity.long_name, compute, ("phi",), SUBSTRATUM_ATTRS)
 
