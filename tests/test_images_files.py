@@ -62,6 +62,10 @@ def test_the_memory_check_counts_the_averaging_and_honours_biostudy_memory(tmp_p
         load_scene(path)
     monkeypatch.setenv("BIOSTUDY_MEMORY", "60 kB")
     assert load_scene(path).problem().phi0.sum() == 12
+    Picture.fromarray(np.zeros((12, 16), np.uint8)).save(tmp_path / "p.png")  # 192 pixels of 1 + 1 + 14 bytes
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "3 kB")
+    with pytest.raises(BadInput, match=r"p.png: \[12, 16\] voxels: reading and averaging it needs ~3.07 kB"):
+        load_scene(plane(tmp_path, 'path = "p.png"\nvoxel = [0.5, 0.5]'))
 
 
 def test_a_truncated_imagej_stack_is_refused_not_read_as_its_first_page(tmp_path, caplog):

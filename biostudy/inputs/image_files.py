@@ -37,12 +37,14 @@ TIFF = (".tif", ".tiff")
 MICRONS = {"um": 1.0, "\u00b5m": 1.0, "\u03bcm": 1.0, "micron": 1.0, "microns": 1.0, "micrometer": 1.0,
            "nm": 1e-3, "nanometer": 1e-3, "mm": 1e3, "millimeter": 1e3}
 STACK_AXES = {"Z", "I", "Q"}  # tifffile's names for the axis of a page stack (Z, or image/unknown sequence)
-GREY_MODES = ("1", "L", "I", "I;16", "I;16B", "F")  # Pillow's greyscale modes
+# Pillow's greyscale modes and the bytes a pixel takes in them (a grey palette, "P", is converted to "L")
+GREY_BYTES = {"1": 1, "L": 1, "P": 1, "I": 4, "I;16": 2, "I;16B": 2, "F": 4}
 VOXEL_MAX = 1e6  # µm: a voxel up to a metre; 1e300 would make the image's extent overflow
-# Peak bytes per voxel of reading and averaging a stack, beyond the values themselves (their item size: read
-# once, held by the cache): the region's booleans (1) and the averaging's float copies (up to 13: float32 cast
-# to float64 in tensordot for stacks above 2^24 voxels).  Measured 14.07-15.07 bytes per voxel in all with
-# tracemalloc, 14.37-15.38 with VmHWM, on a 64 x 512 x 512 uint8 stack (`python benchmarks/image_memory.py`).
+# Peak bytes per voxel of reading and averaging a stack beyond its values (their item size, read once and held
+# by the cache): the region's booleans (1) and the averaging's float copies (up to 13: above 2^24 voxels the
+# float32 copy is cast to float64 inside tensordot).  Measured on 64 x 512 x 512 stacks, region by threshold, in
+# all: uint8 15.07 bytes a voxel (tracemalloc; VmHWM 15.38), uint16 16.07 (16.38), float32 18.07 (18.38); below
+# 2^24 voxels less (uint8 32 x 512 x 512: 11.15).  `python benchmarks/image_memory.py [--dtype uint16]`.
 AVERAGING_BYTES = 14
 
 
@@ -193,11 +195,11 @@ def _read_picture(path: str) -> Stack:
 
     with Pictures.open(path) as picture:
         grey = picture.mode == "P" and _grey_palette(picture)
-        if picture.mode not in GREY_MODES and not grey:
+        if picture.mode not in GREY_BYTES or picture.mode == "P" and not grey:
             raise InvalidAt("path", f"{path} is a colour picture (mode {picture.mode}"
                                     f"{', a colour palette' if picture.mode == 'P' else ''}); a region takes a "
                                     "greyscale or segmented one")
-        _fits((picture.height, picture.width), 4, path)
+        _fits((picture.height, picture.width), 2 * GREY_BYTES[picture.mode], path)  # Pillow's pixels, numpy's
         return Stack(np.asarray(picture.convert("L") if grey else picture), None)
 
 
