@@ -78,6 +78,14 @@ def test_a_truncated_imagej_stack_is_refused_not_read_as_its_first_page(tmp_path
         one_line_error(scene(tmp_path, f'[[biofilm]]\nshape = "image"\npath = "{name}"\n'),
                        f"{name}: its ImageJ metadata declares 8 images, the file holds 1 (truncated or damaged)")
     assert not [r for r in caplog.records if r.name == "tifffile"]  # tifffile's own complaints stay off stderr
+    tifffile.imwrite(tmp_path / "plain.tif", stack_with_box(), photometric="minisblack")
+    tifffile.imwrite(tmp_path / "ome.tif", stack_with_box(), ome=True, metadata={
+        "axes": "ZYX", "PhysicalSizeX": VOXEL[2], "PhysicalSizeY": VOXEL[1], "PhysicalSizeZ": VOXEL[0]})
+    for name in ("plain.tif", "ome.tif"):
+        whole = (tmp_path / name).read_bytes()
+        (tmp_path / name).write_bytes(whole[:len(whole) // 2])
+        one_line_error(scene(tmp_path, f'[[biofilm]]\nshape = "image"\npath = "{name}"\nvoxel = [0.5, 0.25, 0.5]\n'),
+                       f"{name} ends before its pages do ({len(whole) // 2} bytes; truncated or damaged)")
 
 
 def test_one_slice_with_a_z_spacing_is_a_stack_and_one_pixel_a_picture(tmp_path):

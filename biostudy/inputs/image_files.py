@@ -4,9 +4,10 @@ its axes and the voxel size its metadata states, refused in one line before anyt
 Axes are what the file says, not what its sizes suggest: a TIFF's y and x
 stay axes when they are one pixel long (a 1 × 1 picture is a picture), and a
 single slice is a z-stack of one slice when the file states a z spacing
-(ImageJ ``spacing``, OME ``PhysicalSizeZ``), else a y-x picture.  An ImageJ
-file whose pages fall short of the images its metadata declares (a truncated
-stack) is refused, not read as its first page.
+(ImageJ ``spacing``, OME ``PhysicalSizeZ``), else a y-x picture.  A file that
+ends before its pages do (an ImageJ stack short of the images its metadata
+declares, a chain of pages or pixels past the end) is refused, not read as its
+first pages.
 
 Voxel sizes from metadata are checked as the scene's `voxel` is (a finite
 length in (0, `VOXEL_MAX`] µm); a bad one is told, naming the file and the
@@ -23,6 +24,7 @@ import contextlib
 import functools
 import logging
 import math
+import struct
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -138,15 +140,23 @@ def _fits(shape: tuple[int, ...], itemsize: int, path: str) -> None:
 
 
 def _truncated(tif, series, path: str) -> None:
-    """Refuse an ImageJ file holding fewer images than its metadata declares (tifffile falls back to its first
-    page then)."""
-    if not tif.is_imagej:
-        return
-    declared = int((tif.imagej_metadata or {}).get("images", 1))
-    held = math.prod(n for a, n in zip(series.get_axes(False), series.get_shape(False)) if a not in "YXS")
-    if declared != held:
-        raise InvalidAt("path", f"{path}: its ImageJ metadata declares {declared} images, the file holds {held} "
-                                "(truncated or damaged); save the stack again")
+    """Refuse a file that ends before its pages do (tifffile reads what it finds and logs the rest away): an
+    ImageJ file holding fewer images than its metadata declares, a chain of pages pointing past the end, or a
+    page's pixels lying beyond it."""
+    if tif.is_imagej:
+        declared = int((tif.imagej_metadata or {}).get("images", 1))
+        held = math.prod(n for a, n in zip(series.get_axes(False), series.get_shape(False)) if a not in "YXS")
+        if declared != held:
+            raise InvalidAt("path", f"{path}: its ImageJ metadata declares {declared} images, the file holds {held} "
+                                    "(truncated or damaged); save the stack again")
+    handle, size = tif.filehandle, tif.filehandle.size
+    handle.seek(tif.pages.next_page_offset)  # where the last page read stores the offset of the next: 0 at the end
+    link = handle.read(tif.tiff.offsetsize)
+    ends = [o + n for page in series.pages if page is not None for o, n in zip(page.dataoffsets, page.databytecounts)]
+    broken = len(link) < tif.tiff.offsetsize or struct.unpack(tif.tiff.offsetformat, link)[0]
+    if broken or max(ends, default=0) > size:
+        raise InvalidAt("path", f"{path} ends before its pages do ({size} bytes; truncated or damaged); save the "
+                                "stack again")
 
 
 def _palette(page, values: np.ndarray, path: str) -> np.ndarray:
