@@ -93,8 +93,10 @@ def test_one_slice_with_a_z_spacing_is_a_stack_and_one_pixel_a_picture(tmp_path)
     imagej(tmp_path / "ij.tif", single, spacing=1.0)
     tifffile.imwrite(tmp_path / "ome.tif", single, ome=True, metadata={
         "axes": "ZYX", "PhysicalSizeX": VOXEL[2], "PhysicalSizeY": VOXEL[1], "PhysicalSizeZ": 1.0})
-    for name in ("ij.tif", "ome.tif"):
-        phi0 = load_scene(scene(tmp_path, f'[[biofilm]]\nshape = "image"\npath = "{name}"\n')).problem().phi0
+    tifffile.imwrite(tmp_path / "shaped.tif", single, photometric="minisblack", metadata={"axes": "ZYX"})
+    for name, voxel in (("ij.tif", ""), ("ome.tif", ""), ("shaped.tif", "voxel = [1.0, 0.25, 0.5]")):
+        region = f'[[biofilm]]\nshape = "image"\npath = "{name}"\n{voxel}\n'
+        phi0 = load_scene(scene(tmp_path, region)).problem().phi0
         assert phi0.sum() == 6 and phi0[0, 1:3, 2:5].all(), name  # [z, y, x]
     tifffile.imwrite(tmp_path / "pixel.tif", np.full((1, 1), 7, np.uint8), photometric="minisblack")
     phi0 = load_scene(plane(tmp_path, 'path = "pixel.tif"\nvoxel = [6.0, 8.0]')).problem().phi0

@@ -3,8 +3,9 @@ its axes and the voxel size its metadata states, refused in one line before anyt
 
 Axes are what the file says, not what its sizes suggest: a TIFF's y and x
 stay axes when they are one pixel long (a 1 × 1 picture is a picture), and a
-single slice is a z-stack of one slice when the file states a z spacing
-(ImageJ ``spacing``, OME ``PhysicalSizeZ``), else a y-x picture.  A file that
+single slice is a z-stack of one slice when the file says so (a z spacing in
+ImageJ or OME metadata, a stack axis in the shape tifffile recorded), else a
+y-x picture.  A file that
 ends before its pages do (an ImageJ stack short of the images its metadata
 declares, a chain of pages or pixels past the end) is refused, not read as its
 first pages.
@@ -120,14 +121,15 @@ def _ome_voxel(tif, ndim: int) -> tuple[float, ...] | None:
     return tuple(sizes)
 
 
-def _states_z(tif) -> bool:
-    """Whether the file's metadata gives a z spacing (so a single slice is a z-stack of one slice)."""
+def _states_z(tif, series) -> bool:
+    """Whether the file says its single slice is one of a z-stack: its metadata gives a z spacing (ImageJ, OME),
+    or the shape tifffile recorded has a stack axis."""
     if tif.is_imagej:
         return "spacing" in (tif.imagej_metadata or {})
     if tif.is_ome:
         pixels = _ome_pixels(tif)
         return pixels is not None and pixels.get("PhysicalSizeZ") is not None
-    return False
+    return tif.is_shaped and any(a in STACK_AXES for a in series.get_axes(False))
 
 
 def _fits(shape: tuple[int, ...], itemsize: int, path: str) -> None:
@@ -176,7 +178,7 @@ def _read_tiff(path: str) -> Stack:
         _truncated(tif, series, path)
         named = series.get_axes(False)
         kept = [(a, n) for a, n in zip(named, series.get_shape(False)) if n > 1 or a in "YX"]
-        if _states_z(tif) and not any(a in STACK_AXES for a, _ in kept):
+        if _states_z(tif, series) and not any(a in STACK_AXES for a, _ in kept):
             kept.insert(0, ("Z", 1))
         axes = "".join(a for a, _ in kept)
         extra = [a for a in axes if a not in ("Y", "X", *STACK_AXES)]
