@@ -4,8 +4,8 @@ its axes and the voxel size its metadata states, refused in one line before anyt
 Axes are what the file says, not what its sizes suggest: a TIFF's y and x
 stay axes when they are one pixel long (a 1 × 1 picture is a picture), and a
 single slice is a z-stack of one slice when the file says so (a z spacing in
-ImageJ or OME metadata, a stack axis in the shape tifffile recorded), else a
-y-x picture.  A file that
+ImageJ or OME metadata, a z axis in the shape tifffile recorded), else a y-x
+picture.  A file that
 ends before its pages do (an ImageJ stack short of the images its metadata
 declares, a chain of pages or pixels past the end) is refused, not read as its
 first pages.
@@ -122,14 +122,14 @@ def _ome_voxel(tif, ndim: int) -> tuple[float, ...] | None:
 
 
 def _states_z(tif, series) -> bool:
-    """Whether the file says its single slice is one of a z-stack: its metadata gives a z spacing (ImageJ, OME),
-    or the shape tifffile recorded has a stack axis."""
+    """Whether the file says its single slice is one of a z-stack: its metadata gives a z spacing (ImageJ, OME;
+    Fiji writes none for a single image), or the axes tifffile recorded name z (an unnamed one, Q, does not)."""
     if tif.is_imagej:
         return "spacing" in (tif.imagej_metadata or {})
     if tif.is_ome:
         pixels = _ome_pixels(tif)
         return pixels is not None and pixels.get("PhysicalSizeZ") is not None
-    return tif.is_shaped and any(a in STACK_AXES for a in series.get_axes(False))
+    return tif.is_shaped and "Z" in series.get_axes(False)
 
 
 def _fits(shape: tuple[int, ...], itemsize: int, path: str) -> None:
