@@ -1,5 +1,8 @@
 """Image files a hostile or unlucky user hands in: sizes declared huge, memory limits, truncated stacks, axes of
 one pixel or one slice, voxel sizes in metadata, palette pictures."""
+import struct
+import zlib
+
 import numpy as np
 import pytest
 import tifffile
@@ -51,6 +54,21 @@ def test_a_tiff_declaring_a_huge_size_is_refused_before_a_pixel_is_read(tmp_path
     monkeypatch.setenv("BIOSTUDY_MEMORY", "4 GB")
     one_line_error(plane(tmp_path, 'path = "huge.tif"\nvoxel = [1.0, 1.0]'),
                    "[20000, 20000] voxels: reading and averaging it needs ~6 GB of memory, 4 GB available")
+
+
+def test_a_png_declaring_a_large_size_meets_biostudys_memory_check_not_pillows_warning(tmp_path, monkeypatch,
+                                                                                         recwarn):
+    """A 70-byte PNG whose header says 10000 x 10000 pixels: refused by the memory check, and Pillow's
+    DecompressionBombWarning (above 89 M pixels) does not print a second, multi-line message."""
+    Picture.fromarray(np.zeros((16, 16), np.uint8)).save(tmp_path / "big.png")
+    data = bytearray((tmp_path / "big.png").read_bytes())
+    data[16:24] = struct.pack(">II", 10000, 10000)  # IHDR width, height
+    data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
+    (tmp_path / "big.png").write_bytes(bytes(data))
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "1 GB")
+    one_line_error(plane(tmp_path, 'path = "big.png"\nvoxel = [1.0, 1.0]'),
+                   "[10000, 10000] voxels: reading and averaging it needs ~1.6 GB of memory, 1 GB available")
+    assert not [w for w in recwarn if "decompression bomb" in str(w.message)]
 
 
 def test_the_memory_check_counts_the_averaging_and_honours_biostudy_memory(tmp_path, monkeypatch):

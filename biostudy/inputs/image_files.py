@@ -26,6 +26,7 @@ import functools
 import logging
 import math
 import struct
+import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -205,7 +206,10 @@ def _read_tiff(path: str) -> Stack:
 def _read_picture(path: str) -> Stack:
     from PIL import Image as Pictures
 
-    with Pictures.open(path) as picture:
+    with warnings.catch_warnings():  # above 89 M pixels: biostudy's memory check decides, in one line
+        warnings.simplefilter("ignore", Pictures.DecompressionBombWarning)
+        opened = Pictures.open(path)
+    with opened as picture:
         grey = picture.mode == "P" and _grey_palette(picture)
         if picture.mode not in GREY_BYTES or picture.mode == "P" and not grey:
             raise InvalidAt("path", f"{path} is a colour picture (mode {picture.mode}"
