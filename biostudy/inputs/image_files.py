@@ -5,10 +5,10 @@ Axes are what the file says, not what its sizes suggest: a TIFF's y and x
 stay axes when they are one pixel long (a 1 × 1 picture is a picture), and a
 single slice is a z-stack of one slice when the file says so (a z spacing in
 ImageJ or OME metadata, a z axis in the shape tifffile recorded), else a y-x
-picture.  A file that
-ends before its pages do (an ImageJ stack short of the images its metadata
-declares, a chain of pages or pixels past the end) is refused, not read as its
-first pages.
+picture.  A file that ends before its pages do (an ImageJ stack short of the
+images its metadata declares, a chain of pages or pixels past the end) is
+refused, not read as its first pages.  A palette picture (PNG or TIFF) is
+greyscale when its palette is grey, read through it; a colour one is refused.
 
 Voxel sizes from metadata are checked as the scene's `voxel` is (a finite
 length in (0, `VOXEL_MAX`] µm); a bad one is told, naming the file and the
@@ -171,23 +171,27 @@ def _palette(page, values: np.ndarray, path: str) -> np.ndarray:
     return (red >> 8).astype(np.uint8)[values] if page.bitspersample == 8 else red[values]
 
 
+def _shape(tif, series, path: str) -> tuple[int, ...]:
+    """The image's [z,] y, x sizes as the file's axes say (module docstring); `InvalidAt` for other axes."""
+    kept = [(a, n) for a, n in zip(series.get_axes(False), series.get_shape(False)) if n > 1 or a in "YX"]
+    if _states_z(tif, series) and not any(a in STACK_AXES for a, _ in kept):
+        kept.insert(0, ("Z", 1))
+    axes = "".join(a for a, _ in kept)
+    extra = [a for a in axes if a not in ("Y", "X", *STACK_AXES)]
+    if extra or axes.count("Y") != 1 or axes.count("X") != 1 or len(axes) > 3:
+        raise InvalidAt("path", f"{path} has axes {series.axes} (shape {value_text(list(series.shape))}): a region "
+                                "takes one greyscale or segmented z-y-x stack or y-x picture (one channel, one time; "
+                                "save it so from Fiji)")
+    return tuple(n for _, n in kept)
+
+
 def _read_tiff(path: str) -> Stack:
     import tifffile
 
     with tifffile.TiffFile(path) as tif:
         series = tif.series[0]
         _truncated(tif, series, path)
-        named = series.get_axes(False)
-        kept = [(a, n) for a, n in zip(named, series.get_shape(False)) if n > 1 or a in "YX"]
-        if _states_z(tif, series) and not any(a in STACK_AXES for a, _ in kept):
-            kept.insert(0, ("Z", 1))
-        axes = "".join(a for a, _ in kept)
-        extra = [a for a in axes if a not in ("Y", "X", *STACK_AXES)]
-        if extra or axes.count("Y") != 1 or axes.count("X") != 1 or len(axes) > 3:
-            raise InvalidAt("path", f"{path} has axes {series.axes} (shape {value_text(list(series.shape))}): "
-                                    "a region takes one greyscale or segmented z-y-x stack or y-x picture (one "
-                                    "channel, one time; save it so from Fiji)")
-        shape = tuple(n for _, n in kept)
+        shape = _shape(tif, series, path)
         _fits(shape, series.dtype.itemsize, path)
         values = series.asarray().reshape(shape)
         if series.pages[0].photometric == tifffile.PHOTOMETRIC.PALETTE:

@@ -13,7 +13,8 @@ ImageJ and OME metadata state it.
 
 Voxel sizes come from the file (ImageJ: the x and y resolution tags in pixels
 per `unit` and `spacing` for z; OME: PhysicalSizeX/Y/Z with their units) or
-from the scene (`voxel`, which wins).
+from the scene (`voxel`, which wins).  Reading a file, its axes and what is
+refused before anything large is allocated: `image_files`.
 
 Onto the grid: every cell takes the average of the image over the cell's
 volume, each voxel weighted by how much of the cell it covers (separable
