@@ -56,8 +56,7 @@ def test_a_tiff_declaring_a_huge_size_is_refused_before_a_pixel_is_read(tmp_path
                    "[20000, 20000] voxels: reading and averaging it needs ~6 GB of memory, 4 GB available")
 
 
-def test_a_png_declaring_a_large_size_meets_biostudys_memory_check_not_pillows_warning(tmp_path, monkeypatch,
-                                                                                         recwarn):
+def test_a_large_png_meets_the_memory_check_not_pillows_warning(tmp_path, monkeypatch, recwarn):
     """A 70-byte PNG whose header says 10000 x 10000 pixels: refused by the memory check, and Pillow's
     DecompressionBombWarning (above 89 M pixels) does not print a second, multi-line message."""
     Picture.fromarray(np.zeros((16, 16), np.uint8)).save(tmp_path / "big.png")
@@ -86,7 +85,7 @@ def test_the_memory_check_counts_the_averaging_and_honours_biostudy_memory(tmp_p
         load_scene(plane(tmp_path, 'path = "p.png"\nvoxel = [0.5, 0.5]'))
 
 
-def test_a_truncated_imagej_stack_is_refused_not_read_as_its_first_page(tmp_path, caplog):
+def test_a_truncated_stack_is_refused_not_read_as_its_first_pages(tmp_path, caplog):
     imagej(tmp_path / "ij.tif", stack_with_box())
     whole = (tmp_path / "ij.tif").read_bytes()
     with tifffile.TiffFile(tmp_path / "ij.tif") as tif:
@@ -107,7 +106,7 @@ def test_a_truncated_imagej_stack_is_refused_not_read_as_its_first_page(tmp_path
 
 
 def test_one_slice_with_a_z_spacing_is_a_stack_and_one_pixel_a_picture(tmp_path):
-    single = stack_with_box()[:1]  # the box's bottom slice: dz = 0.5 µm, half of the cells z 0
+    single = stack_with_box()[:1]  # the box's bottom slice, 1 µm thick: its cells z 0, x 2..4, y 1..2
     imagej(tmp_path / "ij.tif", single, spacing=1.0)
     tifffile.imwrite(tmp_path / "ome.tif", single, ome=True, metadata={
         "axes": "ZYX", "PhysicalSizeX": VOXEL[2], "PhysicalSizeY": VOXEL[1], "PhysicalSizeZ": 1.0})
