@@ -135,10 +135,14 @@ def test_voxel_sizes_from_metadata_are_checked_as_the_scenes(tmp_path, value):
     assert given.problem().phi0.sum() == 12
 
 
-def test_an_imagej_resolution_of_zero_names_its_tag(tmp_path):
+def test_an_imagej_resolution_of_zero_or_no_spacing_is_named(tmp_path):
     imagej(tmp_path / "ij.tif", stack_with_box(), resolution=((0, 1), (4, 1)))
     one_line_error(scene(tmp_path, '[[biofilm]]\nshape = "image"\npath = "ij.tif"\n'),
                    "its metadata's XResolution = 0/1 pixels per um is not a voxel size")
+    tifffile.imwrite(tmp_path / "flat.tif", stack_with_box(), imagej=True, resolution=(2.0, 4.0),
+                     metadata={"unit": "um", "axes": "ZYX"})  # as Fiji saves a stack of 1 µm slices
+    one_line_error(scene(tmp_path, '[[biofilm]]\nshape = "image"\npath = "flat.tif"\n'),
+                   "its metadata's ImageJ spacing is missing (Fiji leaves it out when it is 1 um); give voxel = [dz")
 
 
 def test_a_grey_palette_picture_is_greyscale_a_colour_one_refused(tmp_path):

@@ -91,8 +91,10 @@ def _imagej_voxel(tif, ndim: int) -> tuple[float, ...] | None:
         sizes = {name: tif.pages[0].tags[name].value for name in ("YResolution", "XResolution")}
     except KeyError:
         return None
-    if "unit" not in meta or (ndim == 3 and "spacing" not in meta):
+    if "unit" not in meta:
         return None
+    if ndim == 3 and "spacing" not in meta:
+        raise BadMetadata(f"ImageJ spacing is missing (Fiji leaves it out when it is 1 {meta['unit']})")
     factor = _unit(meta["unit"], "ImageJ unit")
     yx = [_length(den / num if num > 0 and den > 0 else 0.0, factor, f"{name} = {num}/{den} pixels per {meta['unit']}")
           for name, (num, den) in sizes.items()]
