@@ -115,6 +115,8 @@ def test_one_slice_with_a_z_spacing_is_a_stack_and_one_pixel_a_picture(tmp_path)
         region = f'[[biofilm]]\nshape = "image"\npath = "{name}"\n{voxel}\n'
         phi0 = load_scene(scene(tmp_path, region)).problem().phi0
         assert phi0.sum() == 6 and phi0[0, 1:3, 2:5].all(), name  # [z, y, x]
+    one_line_error(plane(tmp_path, 'path = "ij.tif"'), "ij.tif is a 3-D z-y-x stack of one slice (the file states "
+                   "its z spacing or axis) (shape [1, 24, 16]); the grid is 2-D")
     tifffile.imwrite(tmp_path / "pixel.tif", np.full((1, 1), 7, np.uint8), photometric="minisblack")
     phi0 = load_scene(plane(tmp_path, 'path = "pixel.tif"\nvoxel = [6.0, 8.0]')).problem().phi0
     assert phi0.shape == (6, 8) and phi0.all()

@@ -136,6 +136,8 @@ class Image(Shape):
         ndim = self._image.values.ndim
         if ndim != grid.ndim:
             kind = "z-y-x stack" if ndim == 3 else "y-x picture"
+            if self._image.values.shape[0] == 1 and ndim == 3:
+                kind = "z-y-x stack of one slice (the file states its z spacing or axis)"
             raise InvalidAt("path", f"{self.path} is a {ndim}-D {kind} (shape "
                                     f"{value_text(list(self._image.values.shape))}); the grid is {grid.ndim}-D: give "
                                     f"a {'z-y-x stack' if grid.ndim == 3 else 'y-x picture (one slice)'}")
