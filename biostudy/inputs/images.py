@@ -13,7 +13,8 @@ ImageJ and OME metadata state it.
 
 Voxel sizes come from the file (ImageJ: the x and y resolution tags in pixels
 per `unit` and `spacing` for z; OME: PhysicalSizeX/Y/Z with their units) or
-from the scene (`voxel`, which wins).
+from the scene (`voxel`, which wins).  Reading a file, its axes and what is
+refused before anything large is allocated: `image_files`.
 
 Onto the grid: every cell takes the average of the image over the cell's
 volume, each voxel weighted by how much of the cell it covers (separable
@@ -28,9 +29,6 @@ at least 1/2; a greyscale one does after a `threshold`, or gives phi itself
 from __future__ import annotations
 
 import functools
-import math
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -39,130 +37,12 @@ from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_
 
 from solver import Grid
 
-from ..errors import InvalidAt, first_line
+from ..errors import InvalidAt
 from ..formatting import value_text
 from .geometry import Point, Shape, input_path, um
+from .image_files import TIFF, VOXEL_MAX, Stack, read
 
-TIFF = (".tif", ".tiff")
 PICTURES = (".png", *TIFF)
-MICRONS = {"um": 1.0, "\u00b5m": 1.0, "\u03bcm": 1.0, "micron": 1.0, "microns": 1.0, "micrometer": 1.0,
-           "nm": 1e-3, "nanometer": 1e-3, "mm": 1e3, "millimeter": 1e3}
-STACK_AXES = {"Z", "I", "Q"}  # tifffile's names for the axis of a page stack (Z, or image/unknown sequence)
-MEMORY_SHARE = 0.5  # an image may take at most this share of the available memory, as float32
-
-
-@dataclass(frozen=True)
-class Stack:
-    """An image as read: values [z,] y, x and voxel sizes [dz,] dy, dx in µm from the file (None: not stated)."""
-
-    values: np.ndarray
-    voxel: tuple[float, ...] | None
-
-
-def _unit(text: str, where: str) -> float:
-    factor = MICRONS.get(str(text).strip().lower())
-    if factor is None:
-        raise InvalidAt("voxel", f"{where} states sizes in {text!r}, not a length biostudy knows (um, nm, mm); "
-                                 "give voxel = [dz, dy, dx] in µm")
-    return factor
-
-
-def _imagej_voxel(tif, ndim: int) -> tuple[float, ...] | None:
-    meta = tif.imagej_metadata or {}
-    page = tif.pages[0]
-    try:
-        sizes = [page.tags[name].value for name in ("YResolution", "XResolution")]
-    except KeyError:
-        return None
-    pixels_per_unit = [num / den for num, den in sizes]
-    if "unit" not in meta or any(p <= 0 for p in pixels_per_unit) or (ndim == 3 and "spacing" not in meta):
-        return None
-    factor = _unit(meta["unit"], "its ImageJ metadata")
-    yx = tuple(factor / p for p in pixels_per_unit)
-    return ((float(meta["spacing"]) * factor, *yx) if ndim == 3 else yx)
-
-
-def _ome_voxel(tif, ndim: int) -> tuple[float, ...] | None:
-    try:
-        root = ET.fromstring(tif.ome_metadata)
-    except ET.ParseError:
-        return None
-    pixels = next((e for e in root.iter() if e.tag.endswith("Pixels")), None)
-    if pixels is None:
-        return None
-    sizes = []
-    for axis in ("Z", "Y", "X")[3 - ndim:]:
-        value = pixels.get(f"PhysicalSize{axis}")
-        if value is None:
-            return None
-        sizes.append(float(value) * _unit(pixels.get(f"PhysicalSize{axis}Unit", "µm"), "its OME metadata"))
-    return tuple(sizes)
-
-
-def _available() -> int:
-    import psutil
-
-    return psutil.virtual_memory().available
-
-
-def _fits(shape: tuple[int, ...], path: str) -> None:
-    need = math.prod(shape) * 4
-    if need > MEMORY_SHARE * _available():
-        raise InvalidAt("path", f"{path}: {value_text(list(shape))} voxels would need {need / 1e9:.3g} GB of "
-                                f"memory, {_available() / 1e9:.3g} GB available; crop or bin the stack first")
-
-
-def _read_tiff(path: str) -> Stack:
-    import tifffile
-
-    with tifffile.TiffFile(path) as tif:
-        series = tif.series[0]
-        axes = "".join(a for a, n in zip(series.axes, series.shape) if n > 1)
-        extra = [a for a in axes if a not in ("Y", "X", *STACK_AXES)]
-        if extra or axes.count("Y") != 1 or axes.count("X") != 1 or len(axes) > 3:
-            raise InvalidAt("path", f"{path} has axes {series.axes} (shape {value_text(list(series.shape))}): "
-                                    "a region takes one greyscale or segmented z-y-x stack or y-x picture (one "
-                                    "channel, one time; save it so from Fiji)")
-        _fits(series.shape, path)
-        values = np.squeeze(series.asarray())
-        voxel = None
-        if tif.is_imagej:
-            voxel = _imagej_voxel(tif, values.ndim)
-        elif tif.is_ome:
-            voxel = _ome_voxel(tif, values.ndim)
-    return Stack(values, voxel)
-
-
-def _read_picture(path: str) -> Stack:
-    from PIL import Image as Pictures
-
-    with Pictures.open(path) as picture:
-        if picture.mode not in ("1", "L", "I", "I;16", "I;16B", "F"):
-            raise InvalidAt("path", f"{path} is a colour picture (mode {picture.mode}); a region takes a greyscale "
-                                    "or segmented one")
-        _fits((picture.height, picture.width), path)
-        return Stack(np.asarray(picture), None)
-
-
-@functools.lru_cache(maxsize=4)
-def read(path: str, mtime_ns: int, size: int) -> Stack:
-    """An image file (TIFF stack or picture, PNG picture) with the voxel size its metadata states; read once
-    however many cases of a study use it (the file's time and size are the key).  `InvalidAt` (key path) for a
-    file that is not such an image."""
-    try:
-        image = _read_tiff(path) if Path(path).suffix.lower() in TIFF else _read_picture(path)
-    except InvalidAt:
-        raise
-    except Exception as error:  # whatever a damaged or foreign file makes the readers raise
-        raise InvalidAt("path", f"cannot read {path} as an image ({first_line(error)})") from None
-    values = np.asarray(image.values)
-    if values.ndim not in (2, 3) or values.dtype.kind not in "biuf":
-        raise InvalidAt("path", f"{path} holds {values.dtype} values of shape {value_text(list(values.shape))}; a "
-                                "region takes a z-y-x stack or a y-x picture of numbers")
-    if values.dtype.kind == "f" and not np.isfinite(values).all():
-        raise InvalidAt("path", f"{path} holds NaN or infinite values")
-    values.flags.writeable = False
-    return Stack(values, image.voxel)
 
 
 def overlap(edges: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -192,7 +72,7 @@ class Image(Shape):
     path: str = Field(description="image file (.tif, .tiff, .png): a z-y-x stack (3-D) or a y-x picture (2-D), "
                                   "index [k, j, i] the voxel at z_k, y_j, x_i (slice 0 at the bottom, row 0 at y = "
                                   "0); a relative path is relative to the scene file and stays inside its folder")
-    voxel: list[Annotated[float, Field(gt=0)]] | None = um(
+    voxel: list[Annotated[float, Field(gt=0, le=VOXEL_MAX)]] | None = um(
         "voxel size [dz, dy, dx] (a picture: [dy, dx]), µm; absent: from the file's ImageJ or OME metadata",
         default=None, min_length=2, max_length=3)
     origin: Point | None = um("where the image's first voxel's outer corner lies, x, y[, z], µm (default: the "
@@ -236,12 +116,15 @@ class Image(Shape):
         if self.scale is not None and values.min(initial=0) < 0:
             raise InvalidAt("scale", f"{self.path} has negative values; phi = scale × value would be negative")
         voxel = self.voxel or image.voxel
+        wanted = "[dz, dy, dx]" if values.ndim == 3 else "[dy, dx]"
+        if voxel is None and image.voxel_problem:
+            raise InvalidAt("voxel", f"{image.voxel_problem}; give voxel = {wanted} in µm")
         if voxel is None:
             raise InvalidAt("voxel", f"{self.path} states no voxel size (no ImageJ or OME metadata); give voxel = "
-                                     f"{'[dz, dy, dx]' if values.ndim == 3 else '[dy, dx]'} in µm")
+                                     f"{wanted} in µm")
         if len(voxel) != values.ndim:
             raise InvalidAt("voxel", f"has {len(voxel)} entries; {self.path} is {values.ndim}-D (give "
-                                     f"{'[dz, dy, dx]' if values.ndim == 3 else '[dy, dx]'})")
+                                     f"{wanted})")
         return self
 
     @property
@@ -253,6 +136,8 @@ class Image(Shape):
         ndim = self._image.values.ndim
         if ndim != grid.ndim:
             kind = "z-y-x stack" if ndim == 3 else "y-x picture"
+            if self._image.values.shape[0] == 1 and ndim == 3:
+                kind = "z-y-x stack of one slice (the file states its z spacing or axis)"
             raise InvalidAt("path", f"{self.path} is a {ndim}-D {kind} (shape "
                                     f"{value_text(list(self._image.values.shape))}); the grid is {grid.ndim}-D: give "
                                     f"a {'z-y-x stack' if grid.ndim == 3 else 'y-x picture (one slice)'}")
