@@ -134,7 +134,7 @@ def test_a_scheduler_file_that_is_no_regular_file_or_too_big_is_one_line(kind, c
 @pytest.mark.parametrize("unit, t_ref, key", [
     ("h", "48 h)", "t_ref"), ("h", "'48 h'", "t_ref"), ("h)", "48 h", "time_unit"), ("h", "(48 h", "t_ref"),
     ("h", "48 h +", "t_ref"), ("h", "48 h**", "t_ref"), ("h", "48 * * h", "t_ref"), ("h", "", "t_ref"),
-    ("", "48 h", "time_unit"), ("h", "48 m", "t_ref"), ("h", "x" * 300, "t_ref")])
+    ("", "48 h", "time_unit"), ("h", "48 m", "t_ref"), ("h", "x" * 300, "t_ref"), ("h", "1e-320 h", "t_ref")])
 def test_a_time_pint_cannot_read_is_one_line_naming_the_key(unit, t_ref, key, calibration):
     path = calibration(data=f"time_unit = {json.dumps(unit)}\nt_ref = {json.dumps(t_ref)}\n")
     lines = error_lines(invoke("show", path))

@@ -48,13 +48,17 @@ def _time(text: str, key: str, parse: Callable[[str], Any]):
 
 def factor(time_unit: str, t_ref: str) -> float:
     """T* per `time_unit` when T* = 1 is the real time `t_ref` ("h", "48 h": 1/48); `InvalidAt` naming the key
-    that is no time, or a `t_ref` that is not positive and finite."""
+    that is no time, or a `t_ref` that is not positive and finite or makes the ratio overflow to inf or 0."""
     units = _registry()
     unit = _time(time_unit, "time_unit", lambda text: units.Quantity(1.0, text))
     reference = _time(t_ref, "t_ref", units.Quantity)
     if not reference.magnitude > 0 or not math.isfinite(reference.magnitude):
         raise InvalidAt("t_ref", f"must be a positive time (got {t_ref!r})")
-    return float((unit / reference).to("dimensionless").magnitude)
+    found = float((unit / reference).to("dimensionless").magnitude)
+    if not 0 < found < math.inf:  # '1e-320 h': T* per hour overflows, and a time 0 would be T* = 0 x inf = NaN
+        raise InvalidAt("t_ref", f"{t_ref!r} makes one {time_unit} T* = {found:g}: not a time scale the table's "
+                                 "times can be measured in")
+    return found
 
 
 def exact(value: float) -> str:
