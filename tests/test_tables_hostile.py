@@ -230,6 +230,21 @@ def test_a_time_just_past_the_end_is_told_unrounded(data, time, shown, calibrati
     assert len(lines) == 1 and f"t.tsv: line 3: time: {shown}" in lines[0], lines
 
 
+def test_a_spreadsheets_unicode_text_export_is_read(tmp_path):
+    (tmp_path / "t.tsv").write_text(TABLE)
+    (tmp_path / "excel.txt").write_bytes(TABLE.encode("utf-16"))  # Excel's "Unicode text": UTF-16 with its mark
+    assert read_measurements(tmp_path / "excel.txt") == read_measurements(tmp_path / "t.tsv")
+
+
+def test_a_cell_beyond_csvs_field_limit_is_one_line(tmp_path):
+    table = tmp_path / "long.tsv"
+    table.write_text(TABLE.replace("3.7", "3" * 200_000))
+    with pytest.raises(BadInput) as refused:
+        read_measurements(table)
+    assert refused.value.lines() == [f"{table}: line 3: cannot be read as a table (field larger than field limit "
+                                     "(131072))"]
+
+
 def test_the_table_of_a_valid_calibration_reads_as_before(calibration):
     plan = load_calibration(calibration(_semicolons(TABLE), 'time_unit = "h"\nt_ref = "2 h"', name="t.csv"))
     assert [(m.line, m.observable, m.time, m.value, m.sigma) for m in plan.measurements] == [

@@ -12,6 +12,7 @@ they are read (`measurements.TABLE_BYTES`, `dask.SCHEDULER_FILE_BYTES`).
 """
 from __future__ import annotations
 
+import codecs
 import os
 import stat
 import tomllib
@@ -87,14 +88,19 @@ def _read_all(handle: int, most: int) -> bytes:
     return b"".join(parts)
 
 
-def read_text(path: str | Path, limit: int, what: str, encoding: str = "utf-8") -> str:
-    """The text of an input file (`read_bytes`); text that is not UTF-8 is `BadInput` (`encoding` "utf-8-sig"
-    drops a spreadsheet's byte-order mark)."""
+def read_text(path: str | Path, limit: int, what: str, spreadsheet: bool = False) -> str:
+    """The text of an input file (`read_bytes`); text that is not UTF-8 is `BadInput`.  A `spreadsheet`'s
+    export may also begin with a byte-order mark: UTF-8's is dropped, and with UTF-16's (Excel's "Unicode
+    text") the file is read as UTF-16."""
     data = read_bytes(path, limit, what)
+    encoding = "utf-8-sig" if spreadsheet else "utf-8"
+    if spreadsheet and data[:2] in (codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE):
+        encoding = "utf-16"
     try:
         return data.decode(encoding)
     except UnicodeDecodeError as error:
-        raise BadInput(f"cannot read: not UTF-8 text ({error.reason} at byte {error.start})", path) from None
+        name = "UTF-16" if encoding == "utf-16" else "UTF-8"
+        raise BadInput(f"cannot read: not {name} text ({error.reason} at byte {error.start})", path) from None
 
 
 def read_toml(path: str | Path) -> dict:

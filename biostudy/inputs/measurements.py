@@ -25,7 +25,8 @@ them; Python's `float` would also read `3_4` as 34 and Arabic-Indic or
 full-width digits.  Every problem of the table is reported at once, one line
 each, naming the file, the line and the column (`BadInput`), up to
 `SHOWN_PROBLEMS` lines and a count of the others.  The table is a regular file
-of at most `TABLE_BYTES` (`files.read_text`).
+of at most `TABLE_BYTES`, UTF-8 or, with its byte-order mark, UTF-16 (Excel's
+"Unicode text"; `files.read_text`).
 """
 from __future__ import annotations
 
@@ -139,13 +140,16 @@ def read_measurements(path: str | Path) -> list[Measurement]:
     """Every row of a measurement table; `BadInput` with every problem found (missing or refused columns, an
     empty table, non-numbers, non-finite numbers, sigma <= 0 or missing)."""
     path = Path(path)
-    text = read_text(path, TABLE_BYTES, "a measurement table", "utf-8-sig")  # a byte-order mark is no name
-    lines = text.splitlines()
+    lines = read_text(path, TABLE_BYTES, "a measurement table", spreadsheet=True).splitlines()
     first = next((i for i, line in enumerate(lines) if line.strip()), None)
     if first is None:
         raise BadInput("is empty: a measurement table needs a header line (" + ", ".join(REQUIRED) + ")", path)
     delimiter = _delimiter(path, lines[first])
-    header, *table = csv.reader(lines[first:], delimiter=delimiter)
+    reader = csv.reader(lines[first:], delimiter=delimiter)
+    try:
+        header, *table = reader
+    except csv.Error as error:  # a cell beyond csv's field limit (128 KiB)
+        raise BadInput(f"cannot be read as a table ({error})", path, f"line {first + reader.line_num}") from None
     header = [name.strip() for name in header]
     missing = [name for name in REQUIRED if name not in header]
     problems = [BadInput(f"missing column {name} (PEtab's measurement table: "
