@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import typing
 from dataclasses import dataclass
 from pathlib import Path
@@ -321,6 +322,15 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     return found
 
 
+@functools.lru_cache(maxsize=64)
+def _unknown_observable(name: str) -> str:
+    """Why `name` is no observable, with the closest one; cached: a table may misspell one name on every row
+    (difflib took 16 s for 100,000 rows)."""
+    close = difflib.get_close_matches(name, list(observables.REGISTRY), n=1)
+    return f"unknown observable {name!r}" + (f" (did you mean '{close[0]}'?)" if close else
+                                             f"; observables are {', '.join(observables.REGISTRY)}")
+
+
 def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list[Measurement], np.ndarray]:
     """The table, read and checked against the conditions' scenes; every problem at once."""
     data_file = path.parent / spec.data.measurements
@@ -330,7 +340,6 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         raise BadInput(error.problem, path, f"data.{error.key}") from None
     rows = read_measurements(data_file)
     unit = f" {spec.data.time_unit}" if spec.data.time_unit else ""
-    known = ", ".join(observables.REGISTRY)
     problems, times = [], np.array([m.time * factor for m in rows])
     for m, t in zip(rows, times):
         condition = _condition(m)
@@ -348,10 +357,7 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         try:
             observable = observables.get(m.observable)
         except ValueError:
-            close = difflib.get_close_matches(m.observable, list(observables.REGISTRY), n=1)
-            problems.append(BadInput(f"unknown observable {m.observable!r}" + (f" (did you mean '{close[0]}'?)"
-                                     if close else f"; observables are {known}"), data_file, f"line {m.line}: "
-                                     "observableId"))
+            problems.append(BadInput(_unknown_observable(m.observable), data_file, f"line {m.line}: observableId"))
             continue
         if "p" in observable.needs and scene.mechanics is None:
             problems.append(BadInput(f"{m.observable} needs the mechanics, which the scene leaves out", data_file,
