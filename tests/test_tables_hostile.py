@@ -127,6 +127,19 @@ def test_a_scheduler_file_that_is_no_regular_file_or_too_big_is_one_line(kind, c
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("kind", ["scheduler file", "scene"])
+def test_json_or_toml_nested_too_deeply_is_one_line(kind, tmp_path):
+    if kind == "scheduler file":
+        (tmp_path / "s.json").write_text("[" * 100_000)
+        line = error_lines(invoke("sweep", tmp_path / "none.toml", "--scheduler-file", tmp_path / "s.json"))
+        assert line == [f"error: {tmp_path / 's.json'}: --scheduler-file: not a Dask scheduler file (nested too "
+                        "deeply)"]
+    else:
+        (tmp_path / "s.toml").write_text("a = " + "[" * 100_000)
+        line = error_lines(invoke("show", tmp_path / "s.toml"))
+        assert line == [f"error: {tmp_path / 's.toml'}: not valid TOML: arrays or tables nested too deeply"]
+
+
 # ---------------------------------------------------------------------------------------------
 # 9. A time_unit or t_ref pint cannot read as a time is one line naming the key
 

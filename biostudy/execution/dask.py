@@ -59,6 +59,8 @@ def scheduler_address(scheduler_file: str | Path) -> str:
         address = json.loads(text).get("address")
     except (ValueError, AttributeError) as error:
         raise BadInput(f"not a Dask scheduler file ({first_line(error)})", path, "--scheduler-file") from None
+    except RecursionError:  # '[[[[...': json's decoder recurses once per level
+        raise BadInput("not a Dask scheduler file (nested too deeply)", path, "--scheduler-file") from None
     if not isinstance(address, str) or "://" not in address:
         raise BadInput("not a Dask scheduler file (no \"address\" in it)", path, "--scheduler-file")
     return address

@@ -112,3 +112,5 @@ def read_toml(path: str | Path) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise from_toml_error(error, path) from None
+    except RecursionError:  # 'a = [[[[...': tomllib's parser recurses once per level
+        raise BadInput("not valid TOML: arrays or tables nested too deeply", path) from None
