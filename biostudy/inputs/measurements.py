@@ -94,6 +94,8 @@ class _Decimals:
                     "a thousands separator is not read")
         if _NOT_FINITE.fullmatch(text):
             return f"must be a finite number (got {text!r})"
+        if self.mark == "." and _NUMBER[","].fullmatch(text):
+            return f"not a number (got {text!r}): decimal commas are read in ';'-separated tables only"
         return f"not a number (got {text!r})"
 
 
