@@ -210,6 +210,17 @@ def test_many_bad_rows_are_a_bounded_number_of_lines_and_a_count(bad, where, row
     assert lines[-1].endswith(f"t.tsv: … and {rows - measurements.SHOWN_PROBLEMS:,} more problems"), lines[-1]
 
 
+def test_a_header_of_a_hundred_thousand_columns_is_a_few_lines_at_once(tmp_path):
+    table = tmp_path / "t.tsv"
+    table.write_text(HEADER.replace("\n", "\tx" * 100_000 + "\ttime\n") + "biomass\t0.1\t3.0\t0.1\n")
+    with pytest.raises(BadInput) as refused:
+        read_measurements(table)
+    assert refused.value.lines() == [f"{table}: unknown column 'x' (PEtab's measurement table: observableId, time, "
+                                     "measurement, noiseParameters, optionally simulationConditionId, datasetId, "
+                                     f"replicateId)", f"{table}: column 'time' comes twice",
+                                     f"{table}: column 'x' comes 100,000 times"]
+
+
 def _semicolons(text: str, decimal: str = ".") -> str:
     return text.replace("\t", ";").replace(".", decimal)
 

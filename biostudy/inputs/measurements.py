@@ -33,6 +33,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,7 +72,10 @@ def _delimiter(path: Path, header: str) -> str:
     names = set(REQUIRED + OPTIONAL) | set(REFUSED)
 
     def found(separator: str) -> int:
-        return sum(cell.strip() in names for cell in next(csv.reader([header], delimiter=separator)))
+        try:
+            return sum(cell.strip() in names for cell in next(csv.reader([header], delimiter=separator)))
+        except csv.Error:  # a wide header is one cell beyond csv's field limit when split at the wrong mark
+            return -1
 
     return max((preferred, "\t", ",", ";"), key=found)
 
@@ -156,14 +160,15 @@ def read_measurements(path: str | Path) -> list[Measurement]:
     missing = [name for name in REQUIRED if name not in header]
     problems = [BadInput(f"missing column {name} (PEtab's measurement table: "
                          f"{', '.join(REQUIRED)}, optionally {', '.join(OPTIONAL)})", path) for name in missing]
-    for name in header:
+    counts = Counter(header)
+    for name in counts:
         if name in REFUSED:
             problems.append(BadInput(f"column {name}: {REFUSED[name]}", path))
         elif name not in REQUIRED + OPTIONAL:
             problems.append(BadInput(f"unknown column {name!r} (PEtab's measurement table: {', '.join(REQUIRED)}, "
                                      f"optionally {', '.join(OPTIONAL)})", path))
-    repeated = sorted({name for name in header if header.count(name) > 1})
-    problems += [BadInput(f"column {name} comes twice", path) for name in repeated]
+    problems += [BadInput(f"column {name!r} comes {'twice' if counts[name] == 2 else f'{counts[name]:,} times'}",
+                          path) for name in sorted(counts) if counts[name] > 1]
     if problems:
         raise refusal(problems, path)
     decimals = _decimals(delimiter, header, table, first + 2)
