@@ -29,10 +29,12 @@ def _registry():
 
 def _time(text: str, key: str, parse: Callable[[str], Any]):
     """`text` read by pint as a time, or `InvalidAt(key)`."""
-    if len(text) > TIME_TEXT or "**" in text or "^" in text:
-        shown = repr(text[:TIME_TEXT]) + ("..." if len(text) > TIME_TEXT else "")
-        raise InvalidAt(key, f"{shown} is not a time pint reads (a number and a unit of time, such as '48 h', "
-                             "without powers)")
+    if len(text) > TIME_TEXT:
+        raise InvalidAt(key, f"{text[:20]!r}... is {len(text):,} characters long: a time is a number and a unit, "
+                             "such as '48 h'")
+    if "**" in text or "^" in text:
+        raise InvalidAt(key, f"{text!r}: powers (** or ^) are not read in a time, a number and a unit such as "
+                             "'48 h'")
     import pint
 
     try:
@@ -68,4 +70,4 @@ def exact(value: float) -> str:
 
 def apart(t: float, t_end: float) -> str:
     """`t` with four significant digits, or as many more as it takes not to read as `t_end`."""
-    return next(text for text in (f"{t:.{digits}g}" for digits in range(4, 18)) if float(text) != t_end)
+    return next((text for text in (f"{t:.{digits}g}" for digits in range(4, 18)) if float(text) != t_end), repr(t))
