@@ -221,6 +221,14 @@ def test_a_header_of_a_hundred_thousand_columns_is_a_few_lines_at_once(tmp_path)
                                      f"{table}: column 'x' comes 100,000 times"]
 
 
+def test_line_numbers_are_an_editors_whatever_unicode_calls_a_line_break(tmp_path):
+    table = tmp_path / "t.tsv"
+    table.write_text(TABLE.replace("biomass\t0.05", "bio\u2028mass\f\x1c\t0.05").replace("3.7", "x"))
+    with pytest.raises(BadInput) as refused:
+        read_measurements(table)
+    assert refused.value.lines() == [f"{table}: line 3: measurement: not a number (got 'x')"]
+
+
 def _semicolons(text: str, decimal: str = ".") -> str:
     return text.replace("\t", ";").replace(".", decimal)
 

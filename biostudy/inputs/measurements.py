@@ -49,6 +49,7 @@ TABLE_BYTES = 16 << 20  # 16 MiB: ~400,000 rows
 SHOWN_PROBLEMS = 20  # lines a refused table prints; the others are counted
 _NUMBER = {mark: re.compile(rf"[+-]?([0-9]+\{mark}?[0-9]*|\{mark}[0-9]+)([eE][+-]?[0-9]+)?") for mark in ".,"}
 _NOT_FINITE = re.compile(r"[+-]?(inf|infinity|nan)", re.IGNORECASE)
+_LINE_BREAK = re.compile(r"\r\n|\r|\n")
 
 
 @dataclass(frozen=True)
@@ -146,7 +147,8 @@ def read_measurements(path: str | Path) -> list[Measurement]:
     """Every row of a measurement table; `BadInput` with every problem found (missing or refused columns, an
     empty table, non-numbers, non-finite numbers, sigma <= 0 or missing)."""
     path = Path(path)
-    lines = read_text(path, TABLE_BYTES, "a measurement table", spreadsheet=True).splitlines()
+    text = read_text(path, TABLE_BYTES, "a measurement table", spreadsheet=True)
+    lines = _LINE_BREAK.split(text)  # not str.splitlines: an editor's lines, not every break Unicode knows
     first = next((i for i, line in enumerate(lines) if line.strip()), None)
     if first is None:
         raise BadInput("is empty: a measurement table needs a header line (" + ", ".join(REQUIRED) + ")", path)
