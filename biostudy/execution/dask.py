@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 from ..errors import BadInput, Failed, first_line
+from ..inputs.files import read_text
 from .worker import Outcome, solve
 
 if TYPE_CHECKING:
@@ -35,6 +36,7 @@ if TYPE_CHECKING:
 
 CONNECT_TIMEOUT = 10.0  # seconds to reach a Dask scheduler and hear it answer
 NOTICE_EVERY = 30.0  # seconds between two "waiting for workers" notices
+SCHEDULER_FILE_BYTES = 16 << 20  # 16 MiB: Dask's identity of its scheduler, with every worker's
 
 
 class SchedulerLost(Failed):
@@ -43,15 +45,22 @@ class SchedulerLost(Failed):
 
 def scheduler_address(scheduler_file: str | Path) -> str:
     """The address a Dask scheduler wrote into its scheduler file (`dask scheduler --scheduler-file FILE`, a JSON
-    object with "address"); `BadInput` if the file is missing or holds none."""
+    object with "address"); `BadInput` if the file is missing, no regular file of at most `SCHEDULER_FILE_BYTES`
+    (`files.read_text`: a FIFO would block, /dev/zero fill the memory) or holds none.  Dask is handed the
+    address, never the file."""
     path = Path(scheduler_file)
     try:
-        address = json.loads(path.read_text(encoding="utf-8")).get("address")
-    except FileNotFoundError:
-        raise BadInput("no such file (has the Dask scheduler started? `dask scheduler --scheduler-file FILE` "
-                       "writes it)", path, "--scheduler-file") from None
-    except (OSError, UnicodeDecodeError, ValueError, AttributeError) as error:
+        text = read_text(path, SCHEDULER_FILE_BYTES, "a Dask scheduler file")
+    except BadInput as error:
+        hint = (" (has the Dask scheduler started? `dask scheduler --scheduler-file FILE` writes it)"
+                if error.problem == "no such file" else "")
+        raise BadInput(error.problem + hint, path, "--scheduler-file") from None
+    try:
+        address = json.loads(text).get("address")
+    except (ValueError, AttributeError) as error:
         raise BadInput(f"not a Dask scheduler file ({first_line(error)})", path, "--scheduler-file") from None
+    except RecursionError:  # '[[[[...': json's decoder recurses once per level
+        raise BadInput("not a Dask scheduler file (nested too deeply)", path, "--scheduler-file") from None
     if not isinstance(address, str) or "://" not in address:
         raise BadInput("not a Dask scheduler file (no \"address\" in it)", path, "--scheduler-file")
     return address

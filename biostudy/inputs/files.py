@@ -1,14 +1,18 @@
-"""Reading the files a user hands in (scene, study, catalogue and mask files): one clear line when one cannot be read.
+"""Reading the files a user hands in (scenes, studies, masks, tables, scheduler files): one clear line when one
+cannot be read.
 
 Every input file is read here, so that what counts as unreadable (missing,
 a directory, not text, not TOML) is told the same way everywhere: a
 `BadInput` naming the file.  An input file must be a regular file of bounded
 size, checked before it is opened: `/dev/zero` would otherwise fill the
 memory, and a FIFO block the run forever.  TOML files (scene, study,
-catalogue) may hold `TOML_BYTES`, a mask `MASK_BYTES` (a 1000³ boolean grid).
+catalogue) may hold `TOML_BYTES`, a mask `MASK_BYTES` (a 1000³ boolean grid);
+measurement tables and Dask scheduler files have limits of their own where
+they are read (`measurements.TABLE_BYTES`, `dask.SCHEDULER_FILE_BYTES`).
 """
 from __future__ import annotations
 
+import codecs
 import os
 import stat
 import tomllib
@@ -84,16 +88,29 @@ def _read_all(handle: int, most: int) -> bytes:
     return b"".join(parts)
 
 
+def read_text(path: str | Path, limit: int, what: str, spreadsheet: bool = False) -> str:
+    """The text of an input file (`read_bytes`); text that is not UTF-8 is `BadInput`.  A `spreadsheet`'s
+    export may also begin with a byte-order mark: UTF-8's is dropped, and with UTF-16's (Excel's "Unicode
+    text") the file is read as UTF-16."""
+    data = read_bytes(path, limit, what)
+    encoding = "utf-8-sig" if spreadsheet else "utf-8"
+    if spreadsheet and data[:2] in (codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE):
+        encoding = "utf-16"
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as error:
+        name = "UTF-16" if encoding == "utf-16" else "UTF-8"
+        raise BadInput(f"cannot read: not {name} text ({error.reason} at byte {error.start})", path) from None
+
+
 def read_toml(path: str | Path) -> dict:
     """Parse a TOML file; a missing, unreadable, oversized or malformed file, or one that is no regular file, is
     `BadInput`."""
     path = Path(path)
-    data = read_bytes(path, TOML_BYTES, "a TOML file")
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise BadInput(f"cannot read: not UTF-8 text ({error.reason} at byte {error.start})", path) from None
+    text = read_text(path, TOML_BYTES, "a TOML file")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise from_toml_error(error, path) from None
+    except RecursionError:  # 'a = [[[[...': tomllib's parser recurses once per level
+        raise BadInput("not valid TOML: arrays or tables nested too deeply", path) from None

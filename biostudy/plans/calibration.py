@@ -37,7 +37,6 @@ from __future__ import annotations
 import copy
 import difflib
 import functools
-import math
 import typing
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,8 +47,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
+from ..inputs import real_times
 from ..inputs.keys import dimension, field_of, flatten, key_parts, set_key, takes_integers
-from ..inputs.measurements import Measurement, read_measurements
+from ..inputs.measurements import Measurement, read_measurements, refusal
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
 from .cases import Case, ManyCases, Plan, base_scene, case_scene, load_plan
@@ -82,33 +82,8 @@ class DataSpec(BaseModel):
         return self
 
     def time_factor(self) -> float:
-        """T* per unit of the table's time: t / t_ref with pint; `InvalidAt` for a unit that is not a time."""
-        if self.time_unit is None:
-            return 1.0
-        import pint  # lazily: a second of start-up, only for calibrations with real times
-
-        units = _registry()
-        try:
-            unit = units.Quantity(1.0, self.time_unit)
-        except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
-            raise InvalidAt("time_unit", f"{self.time_unit!r} is not a unit pint reads ({error})") from None
-        try:
-            reference = units.Quantity(self.t_ref)
-        except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
-            raise InvalidAt("t_ref", f"{self.t_ref!r} is not a time pint reads ({error})") from None
-        for key, quantity, text in (("time_unit", unit, self.time_unit), ("t_ref", reference, self.t_ref)):
-            if quantity.dimensionality != units.second.dimensionality:
-                raise InvalidAt(key, f"{text!r} is not a time (its dimension is {quantity.dimensionality})")
-        if not reference.magnitude > 0 or not math.isfinite(reference.magnitude):
-            raise InvalidAt("t_ref", f"must be a positive time (got {self.t_ref!r})")
-        return float((unit / reference).to("dimensionless").magnitude)
-
-
-@functools.lru_cache(maxsize=1)
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
+        """T* per unit of the table's time (`inputs.real_times.factor`); `InvalidAt` for a unit that is not a time."""
+        return 1.0 if self.time_unit is None else real_times.factor(self.time_unit, str(self.t_ref))
 
 
 class Condition(BaseModel):
@@ -347,6 +322,15 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     return found
 
 
+@functools.lru_cache(maxsize=64)
+def _unknown_observable(name: str) -> str:
+    """Why `name` is no observable, with the closest one; cached: a table may misspell one name on every row
+    (difflib took 16 s for 100,000 rows)."""
+    close = difflib.get_close_matches(name, list(observables.REGISTRY), n=1)
+    return f"unknown observable {name!r}" + (f" (did you mean '{close[0]}'?)" if close else
+                                             f"; observables are {', '.join(observables.REGISTRY)}")
+
+
 def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list[Measurement], np.ndarray]:
     """The table, read and checked against the conditions' scenes; every problem at once."""
     data_file = path.parent / spec.data.measurements
@@ -356,7 +340,6 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         raise BadInput(error.problem, path, f"data.{error.key}") from None
     rows = read_measurements(data_file)
     unit = f" {spec.data.time_unit}" if spec.data.time_unit else ""
-    known = ", ".join(observables.REGISTRY)
     problems, times = [], np.array([m.time * factor for m in rows])
     for m, t in zip(rows, times):
         condition = _condition(m)
@@ -374,10 +357,7 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         try:
             observable = observables.get(m.observable)
         except ValueError:
-            close = difflib.get_close_matches(m.observable, list(observables.REGISTRY), n=1)
-            problems.append(BadInput(f"unknown observable {m.observable!r}" + (f" (did you mean '{close[0]}'?)"
-                                     if close else f"; observables are {known}"), data_file, f"line {m.line}: "
-                                     "observableId"))
+            problems.append(BadInput(_unknown_observable(m.observable), data_file, f"line {m.line}: observableId"))
             continue
         if "p" in observable.needs and scene.mechanics is None:
             problems.append(BadInput(f"{m.observable} needs the mechanics, which the scene leaves out", data_file,
@@ -386,14 +366,14 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         if not 0 <= t <= t_end * (1 + 1e-12):
             when = "before the start" if t < 0 else "after the run's end"
             reference = f" (t_ref = {spec.data.t_ref})" if spec.data.t_ref else ""
-            problems.append(BadInput(f"{value_text(m.time)}{unit} is T* = {t:.4g}{reference}, {when}: the scene "
-                                     f"runs over T* = 0 to {value_text(t_end)} (time.t_end)", data_file,
-                                     f"line {m.line}: time"))
+            told = f"{real_times.exact(m.time)}{unit} is T* = {real_times.apart(t, t_end)}{reference}"
+            problems.append(BadInput(f"{told}, {when}: the scene runs over T* = 0 to {real_times.exact(t_end)} "
+                                     "(time.t_end)", data_file, f"line {m.line}: time"))
     named = {m.condition for m in rows}
     problems += [BadInput("no row of the measurement table names it (simulationConditionId): nothing to fit", path,
                           f"conditions.{name}") for name in spec.conditions if name not in named]
     if problems:
-        raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
+        raise refusal(problems, data_file)
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
 
 
