@@ -283,3 +283,10 @@ def test_the_table_of_a_valid_calibration_reads_as_before(calibration):
     assert [(m.line, m.observable, m.time, m.value, m.sigma) for m in plan.measurements] == [
         (2, "biomass", 0.05, 2.9, 0.15), (3, "biomass", 0.1, 3.7, 0.18)]
     assert list(plan.times) == [0.025, 0.05]
+
+
+def test_a_set_value_nested_too_deeply_is_one_line(tmp_path):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY_SCENE)
+    line = error_lines(invoke("run", scene, "-o", tmp_path / "x.nc", "--set", "params.g=" + "[" * 100_000))
+    assert line == ["error: --set: the value of params.g is nested too deeply to be read"]

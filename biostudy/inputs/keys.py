@@ -50,6 +50,8 @@ def parse_override(text: str) -> tuple[str, Any]:
         value = tomllib.loads(f"value = {raw}")["value"]
     except tomllib.TOMLDecodeError:
         value = raw  # e.g. model.consumption=zero-order
+    except RecursionError:  # '[[[[...' nested deeper than the decoder recurses
+        raise BadInput(f"the value of {key} is nested too deeply to be read", "--set") from None
     return key, value
 
 
