@@ -5,6 +5,10 @@ line, netCDF datasets written atomically, resumable sweeps on local
 processes or a Dask cluster.  Data flows one way: scene file -> `Scene` ->
 `solver.Problem` -> `solver.simulate` -> xarray Dataset -> netCDF.
 
+The packages are stages whose imports run one way (`tests/test_layout.py` holds the order): fitting (plain
+maths), inputs, quantities, data, plans, execution, reports, plots, commands, cli; each imports only the
+stages before it (and `solver`, `formatting`, `errors`).
+
 From Python (a notebook, a script; README, "From Python"):
 
     import biostudy

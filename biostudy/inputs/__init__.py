@@ -1,1 +1,1 @@
-"""Stage 1, inputs: scene files read and validated (the schema, shapes, dotted keys, bundled files, resources)."""
+"""Scene files read and validated (the schema, shapes, dotted keys, bundled files, resources)."""

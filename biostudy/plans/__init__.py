@@ -1,1 +1,1 @@
-"""Stage 2, plans: many cases of one scene (studies, sampling designs, refinements, stability catalogues), validated."""
+"""Many cases of one scene (studies, sampling designs, refinements, stability catalogues), validated."""

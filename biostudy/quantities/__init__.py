@@ -1,4 +1,4 @@
-"""Stage 5, quantities: what is measured on a run's fields.
+"""What is measured on a run's fields.
 
 Observables, dense volumes, fronts, norms, and the substratum's quantities as COMSTAT measures them.
 """

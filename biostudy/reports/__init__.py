@@ -1,1 +1,1 @@
-"""Stage 6, reports: verdicts and tables (convergence, stability, sensitivity, show, needs)."""
+"""Verdicts and tables (convergence, stability, sensitivity, show, needs)."""
