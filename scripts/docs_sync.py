@@ -1,9 +1,9 @@
-"""Measured numbers live in one generated table each; the README includes them, never copies them by hand.
+"""Measured numbers live in one generated table each; README.md and the guides include them, never copy them.
 
-    python scripts/docs_sync.py           # rewrite the generated blocks of README.md from the tables
+    python scripts/docs_sync.py           # rewrite the generated blocks of README.md and docs/*.md from the tables
     python scripts/docs_sync.py --check   # exit 1 and name each block that disagrees (tests/test_docs.py)
 
-A generated block in README.md is marked
+A generated block in README.md or a guide (`PAGES`) is marked
 
     <!-- generated: NAME -->
     ...
@@ -22,6 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+PAGES = (README, ROOT / "docs" / "gallery.md")  # the files holding generated blocks
 RUNS = ROOT / "docs" / "gallery" / "runs.md"
 SUITE = ROOT / "docs" / "measured" / "suite.md"
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
@@ -75,18 +76,23 @@ def synced(text: str) -> tuple[str, list[str]]:
 
 
 def main(argv: list[str]) -> int:
-    text = README.read_text(encoding="utf-8")
-    new, changed = synced(text)
-    missing = sorted(set(BLOCKS) - {m["name"] for m in BLOCK.finditer(text)})
-    if "--check" in argv:
-        for name in changed:
-            print(f"README.md: block {name} disagrees with its table; run python scripts/docs_sync.py")
-        for name in missing:
-            print(f"README.md: block {name} is missing")
-        return 1 if changed or missing else 0
-    README.write_text(new, encoding="utf-8")
-    print(f"rewrote {', '.join(changed) or 'nothing'}")
-    return 0
+    texts = {page: page.read_text(encoding="utf-8") for page in PAGES}
+    found = {m["name"] for text in texts.values() for m in BLOCK.finditer(text)}
+    missing = sorted(set(BLOCKS) - found)
+    stale = False
+    for page, text in texts.items():
+        new, changed = synced(text)
+        stale |= bool(changed)
+        name = page.relative_to(ROOT)
+        if "--check" in argv:
+            for block in changed:
+                print(f"{name}: block {block} disagrees with its table; run python scripts/docs_sync.py")
+        elif changed:
+            page.write_text(new, encoding="utf-8")
+            print(f"{name}: rewrote {', '.join(changed)}")
+    for block in missing:
+        print(f"no page holds the block {block}")
+    return 1 if "--check" in argv and (stale or missing) else 0
 
 
 if __name__ == "__main__":
