@@ -157,7 +157,8 @@ class Simulation:
     def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
         self.started = time.perf_counter()
         self.problem = problem
-        self.transport = Transport(problem)
+        with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
+            self.transport = Transport(problem)
         self.clock = Clock(self.transport, progress)
         self.mechanics = _mechanics(problem)
         if self.mechanics is not None and problem.u0 is not None:
@@ -166,7 +167,8 @@ class Simulation:
 
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
-        state = transport.initial()
+        with threadpool_limits(limits=1, user_api="blas"):
+            state = transport.initial()
         last = len(problem.output_times) - 1
         # a continuation's outputs up to its start belong to the run it continues (indices stay the scene's:
         # the mechanics is solved at the same outputs as in a run straight to t_end)
