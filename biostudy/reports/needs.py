@@ -16,7 +16,7 @@ from ..plans.study import load_study
 
 def needs(path) -> str:
     """What running a scene or a study file needs (validated first: bad input is `BadInput`), as text."""
-    available = f"{resources.size(resources.available_memory()).lstrip('~')} of memory available"
+    available = resources.available_text()
     what = bundled.kind(read_toml(path))
     if what in ("study", "stability"):
         plan = load_study(path) if what == "study" else catalogue.load(path)
@@ -44,5 +44,5 @@ def needs(path) -> str:
     return "\n".join([
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
         f"{found.outputs} outputs, mechanics {mechanics}",
-        f"memory  {resources.size(found.memory)} ({found.parts()}); {available} here",
+        f"memory  {resources.size(found.memory)} ({found.parts()}); here {available}",
         f"on disk {resources.size(found.disk)} for the dataset"])
