@@ -121,13 +121,15 @@ def test_the_available_memory_is_the_smallest_limit_unless_given(machine_of, mon
 
 def test_show_says_a_slurm_allocation_binds_and_a_run_beyond_it_is_refused(machine_of, monkeypatch, write_toml,
                                                                              tiny_scene, tmp_path):
-    """`SLURM_MEM_PER_NODE=1500 biostudy show big.toml`: ~1.57 GB available, said with its source; run refuses."""
+    """`SLURM_MEM_PER_NODE=1500 biostudy show big.toml`: ~1.57 GB available, said with its source, and that a
+    run would be refused; run refuses it."""
     monkeypatch.setenv("SLURM_MEM_PER_NODE", "1500")
     big = write_toml("big.toml", tiny_scene.read_text().replace("shape = [16, 16]", "shape = [1000, 1000]"))
     shown = CliRunner().invoke(app, ["show", str(big)])
     assert shown.exit_code == 0, shown.output
     assert "~1.57 GB of memory available (SLURM_MEM_PER_NODE=1500 (MB); cgroup v2 /job_7: ~1.6 GB; the machine" \
         in shown.stdout
+    assert "refused here: a run needs ~" in shown.stdout and "of memory, 1.57 GB available" in shown.stdout
     refused = CliRunner().invoke(app, ["run", str(big), "-o", str(tmp_path / "big.nc")])
     assert refused.exit_code == 2 and "of memory, 1.57 GB available" in refused.stderr
     assert not (tmp_path / "big.nc").exists()

@@ -14,6 +14,13 @@ from ..plans.calibration import load_calibration
 from ..plans.study import load_study
 
 
+def _refused(found: resources.Estimate, what: str) -> list[str]:
+    """[] if a run of this estimate fits in the memory here, else the line saying it would be refused (as `run`
+    and `sweep` refuse it)."""
+    problem = resources.too_big(found.memory, what)
+    return [f"refused here: {problem}"] if problem else []
+
+
 def needs(path) -> str:
     """What running a scene or a study file needs (validated first: bad input is `BadInput`), as text."""
     available = resources.available_text()
@@ -27,7 +34,8 @@ def needs(path) -> str:
             f"largest case  {largest}: {resources.size(found[largest].memory)} of memory ({found[largest].parts()})",
             f"on disk       {resources.size(sum(e.disk for e in found.values()))} of case files, as much again "
             "for study.nc",
-            f"here          {available}; N local workers need about N times the largest case"])
+            f"here          {available}; N local workers need about N times the largest case"]
+                         + _refused(found[largest], f"the largest case, {largest}, needs"))
     if what == "calibration":
         plan = load_calibration(path)
         found = {name: resources.estimate(scene) for name, scene in plan.plan.scenes.items()}
@@ -37,7 +45,8 @@ def needs(path) -> str:
             f"{len(found)} conditions of {plan.plan.scene_file.name}",
             f"one simulation {resources.size(found[largest].memory)} of memory ({found[largest].parts()}), "
             f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/)",
-            f"here          {available}; N local workers need about N times one simulation"])
+            f"here          {available}; N local workers need about N times one simulation"]
+                         + _refused(found[largest], "one simulation needs"))
     scene = load_scene(path)
     found = resources.estimate(scene)
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
@@ -45,4 +54,4 @@ def needs(path) -> str:
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
         f"{found.outputs} outputs, mechanics {mechanics}",
         f"memory  {resources.size(found.memory)} ({found.parts()}); here {available}",
-        f"on disk {resources.size(found.disk)} for the dataset"])
+        f"on disk {resources.size(found.disk)} for the dataset"] + _refused(found, "a run needs"))
