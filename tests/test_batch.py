@@ -11,6 +11,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from biostudy.cli import app
+from biostudy.commands import sweep as sweep_command
 from biostudy.errors import BadInput
 from biostudy.execution import ownership
 
@@ -45,9 +46,25 @@ def test_array_tasks_race_into_one_directory_then_combine_to_the_sweep(tiny_stud
     assert not (out / "study.nc").exists()  # the tasks leave study.nc to --combine
     combined = invoke("sweep", tiny_study, "-o", out, "--combine", *FAST)
     assert combined.exit_code == 0 and "combined 4 cases (4 done, 0 failed, 0 missing)" in combined.stderr
+    assert "--array" not in combined.stderr  # nothing to submit again
     same_study(xr.open_dataset(out / "study.nc"), xr.open_dataset(tmp_path / "whole" / "study.nc"))
     again = invoke("sweep", tiny_study, "-o", out, "-q", *FAST)  # an ordinary run: nothing left to run
     assert again.exit_code == 0 and "0 cases run, 4 skipped" in again.stderr
+
+
+def test_array_indices_are_case_numbers_so_resubmitting_some_runs_exactly_those(tiny_study, tmp_path):
+    """`sbatch --array=1,3` (task N alone: case number N of the study's order) runs cases 1 and 3, and --combine
+    names the others for `--array=0,2`; a share of a fixed M is the same cases whatever indices are submitted."""
+    ids = [case.id for case in sweep_command.load(tiny_study).plan.cases]
+    out = tmp_path / "out"
+    for index in (3, 1):
+        assert invoke("sweep", tiny_study, "-o", out, "-q", "--task", index, *FAST).exit_code == 0
+    assert sorted(os.listdir(out / "cases")) == sorted(f"{ids[n]}.nc" for n in (1, 3))
+    partial = invoke("sweep", tiny_study, "-o", out, "--combine", *FAST)
+    assert "2 done, 0 failed, 2 missing" in partial.stderr and "`sbatch --array=0,2`" in partial.stderr
+    shares = tmp_path / "shares"
+    assert invoke("sweep", tiny_study, "-o", shares, "-q", "--task", 1, "--tasks", 2, *FAST).exit_code == 0
+    assert sorted(os.listdir(shares / "cases")) == sorted(f"{ids[n]}.nc" for n in (1, 3))
 
 
 def test_one_case_by_its_id_and_bad_choices(tiny_study, tmp_path):
@@ -58,7 +75,8 @@ def test_one_case_by_its_id_and_bad_choices(tiny_study, tmp_path):
     assert "1 done, 0 failed, 3 missing" in partial.stderr
     bad = {("--case", "g=1e7"): "--case: no case 'g=1e7' in this study (its 4 cases: g=1e+08_r=50,",
            ("--task", "3", "--tasks", "3"): "--task: must be in 0..2 for --tasks 3 (got 3)",
-           ("--task", "1"): "--tasks: --task N and --tasks M go together",
+           ("--task", "4"): "--task: no case number 4 in this study (its 4 cases are numbered 0..3",
+           ("--tasks", "2"): "--tasks: needs --task N",
            ("--combine", "--case", "g=1e+09_r=50"): "--combine: --combine runs no case",
            ("--scheduler-file", tmp_path / "none.json"): "--scheduler-file: no such file",
            ("--scheduler-file", tiny_study): "--scheduler-file: not a Dask scheduler file",

@@ -435,7 +435,8 @@ def test_too_many_outputs_workers_or_bytes_are_refused_before_running(tiny_scene
 def test_show_tells_what_a_scene_or_a_study_needs(tiny_scene, tiny_study):
     scene = invoke("show", tiny_scene)
     assert scene.exit_code == 0 and "16 × 16 cells, 20 steps, 3 outputs" in scene.stdout
-    assert "memory  ~" in scene.stdout and "available here" in scene.stdout and "for the dataset" in scene.stdout
+    assert "memory  ~" in scene.stdout and "; here ~" in scene.stdout and "for the dataset" in scene.stdout
+    assert "of memory available (BIOSTUDY_MEMORY=16 GB)" in scene.stdout  # the binding limit and its source
     study = invoke("show", tiny_study)
     assert study.exit_code == 0 and "4 cases of tiny.toml" in study.stdout and "largest case" in study.stdout
     catalogue = invoke("show", Path(__file__).resolve().parents[1] / "studies" / "stability.toml")

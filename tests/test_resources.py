@@ -5,16 +5,21 @@ import sys
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
+from biostudy.cli import app
 from biostudy.errors import BadInput
-from biostudy.inputs import resources
+from biostudy.inputs import memory, resources
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 # The peak is the process's own high-water mark (VmHWM), not getrusage's ru_maxrss, which Linux carries over from
 # the parent that forked it (a test runner of 700 MB would be measured, not the run).
 PEAK = """\
 import re, sys
-from biostudy.inputs import resources
+from typer.testing import CliRunner
+
+from biostudy.cli import app
+from biostudy.inputs import memory, resources
 from biostudy.inputs.scene import load_scene
 import solver
 scene = load_scene(sys.argv[1], sys.argv[2:])
@@ -39,19 +44,95 @@ def test_the_memory_estimate_is_within_its_stated_factor_of_a_measured_peak(over
     assert 1 / 1.5 <= peak / estimate <= 1.5, (estimate, peak)
 
 
-def test_the_available_memory_is_the_machines_within_its_cgroup_or_as_given(monkeypatch, tmp_path):
-    monkeypatch.setenv("BIOSTUDY_MEMORY", "3.5 GB")
+def fake_kernel(root: Path, groups: str, files: dict[str, str]) -> tuple[Path, Path]:
+    """A /proc and a /sys under `root`: /proc/self/cgroup holding `groups`, and cgroup files by path."""
+    (root / "proc" / "self").mkdir(parents=True)
+    (root / "proc" / "self" / "cgroup").write_text(groups)
+    for name, text in files.items():
+        (root / "sys" / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / "sys" / name).write_text(text)
+    return root / "proc", root / "sys"
+
+
+JOB_V2 = "fs/cgroup/system.slice/slurmstepd.scope/job_7"
+
+
+def test_the_cgroup_room_is_the_tightest_level_from_the_jobs_group_up(tmp_path):
+    proc, sys_ = fake_kernel(tmp_path, "0::/system.slice/slurmstepd.scope/job_7/step_0\n", {
+        f"{JOB_V2}/step_0/memory.max": "max\n", f"{JOB_V2}/step_0/memory.current": "1000\n",
+        f"{JOB_V2}/memory.max": "2000000000\n", f"{JOB_V2}/memory.current": "500000000\n",
+        "fs/cgroup/system.slice/memory.max": "8000000000\n", "fs/cgroup/system.slice/memory.current": "1e9\n"})
+    found = memory.cgroup(proc, sys_)
+    assert found.bytes == pytest.approx(1.5e9) and found.source == "cgroup v2 /system.slice/slurmstepd.scope/job_7"
+    (tmp_path / "sys" / "fs/cgroup/system.slice/memory.current").write_text("7000000000\n")
+    assert memory.cgroup(proc, sys_).source == "cgroup v2 /system.slice"  # a parent nearly full binds
+
+
+def test_a_cgroup_v1_memory_controller_is_read_and_no_limit_is_none(tmp_path):
+    job = "fs/cgroup/memory/slurm/uid_1/job_7"
+    proc, sys_ = fake_kernel(tmp_path, "5:cpuset:/slurm/uid_1/job_7\n4:memory:/slurm/uid_1/job_7\n0::/\n", {
+        f"{job}/memory.limit_in_bytes": "3000000000\n", f"{job}/memory.usage_in_bytes": "1000000000\n",
+        "fs/cgroup/memory/memory.limit_in_bytes": "9223372036854771712\n",  # v1's "no limit"
+        "fs/cgroup/memory.max": "max\n"})
+    found = memory.cgroup(proc, sys_)
+    assert found.bytes == pytest.approx(2e9) and found.source == "cgroup v1 /slurm/uid_1/job_7"
+    (tmp_path / "sys" / job / "memory.limit_in_bytes").write_text("9223372036854771712\n")
+    assert memory.cgroup(proc, sys_) is None
+    assert memory.cgroup(tmp_path / "nowhere", sys_) is None  # no /proc/self/cgroup: not Linux, or hidden
+
+
+@pytest.mark.parametrize("environ, mib, source", [
+    ({"SLURM_MEM_PER_NODE": "1500"}, 1500, "SLURM_MEM_PER_NODE=1500"),
+    ({"SLURM_MEM_PER_CPU": "1000", "SLURM_CPUS_ON_NODE": "4", "SLURM_CPUS_PER_TASK": "2"}, 4000, "CPUS_ON_NODE=4"),
+    ({"SLURM_MEM_PER_CPU": "1000", "SLURM_CPUS_PER_TASK": "2(x3)"}, 2000, "CPUS_PER_TASK=2"),
+    ({"SLURM_MEM_PER_CPU": "1000"}, 1000, "1 CPU"),
+])
+def test_a_slurm_allocation_is_read_from_the_jobs_environment(environ, mib, source):
+    found = memory.scheduler(environ)
+    assert found.bytes == mib * 1024**2 and source in found.source
+    assert memory.scheduler({"SLURM_JOB_ID": "7", "SLURM_MEM_PER_NODE": ""}) is None
+
+
+@pytest.fixture
+def machine_of(monkeypatch, tmp_path):
+    """A machine with 24 GB available, inside a job's cgroup of 2 GB (free: 1.5 GB), and no BIOSTUDY_MEMORY."""
+    proc, sys_ = fake_kernel(tmp_path, "0::/job_7\n", {"fs/cgroup/job_7/memory.max": "2000000000\n",
+                                                        "fs/cgroup/job_7/memory.current": "400000000\n"})
+    monkeypatch.setattr(memory, "PROC", proc)
+    monkeypatch.setattr(memory, "SYS", sys_)
+    monkeypatch.setattr(memory, "machine", lambda: memory.Limit(24e9, "the machine"))
+    monkeypatch.delenv("BIOSTUDY_MEMORY")
+    for name in ("SLURM_MEM_PER_NODE", "SLURM_MEM_PER_CPU"):
+        monkeypatch.delenv(name, raising=False)
+
+
+def test_the_available_memory_is_the_smallest_limit_unless_given(machine_of, monkeypatch):
+    assert resources.available_memory() == pytest.approx(1.6e9)
+    assert resources.available_text() == "~1.6 GB of memory available (cgroup v2 /job_7; the machine: ~24 GB)"
+    monkeypatch.setenv("SLURM_MEM_PER_NODE", "1000")  # MiB
+    assert resources.available_memory() == 1000 * 1024**2
+    assert resources.available_text().startswith("~1.05 GB of memory available (SLURM_MEM_PER_NODE=1000 (MB); cgroup")
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "3.5 GB")  # the user's word replaces them all
     assert resources.available_memory() == 3.5e9
     monkeypatch.setenv("BIOSTUDY_MEMORY", "lots")
     with pytest.raises(BadInput, match="BIOSTUDY_MEMORY: 'lots' is not a size"):
         resources.available_memory()
-    monkeypatch.delenv("BIOSTUDY_MEMORY")
-    (tmp_path / "memory.max").write_text("2000000000\n")
-    (tmp_path / "memory.current").write_text("500000000\n")
-    monkeypatch.setattr(resources, "CGROUP", tmp_path)
-    assert resources.available_memory() == pytest.approx(1.5e9)  # a batch job's limit, below the machine's
-    (tmp_path / "memory.max").write_text("max\n")
-    assert resources.available_memory() > 1.5e9
+
+
+def test_show_says_a_slurm_allocation_binds_and_a_run_beyond_it_is_refused(machine_of, monkeypatch, write_toml,
+                                                                             tiny_scene, tmp_path):
+    """`SLURM_MEM_PER_NODE=1500 biostudy show big.toml`: ~1.57 GB available, said with its source, and that a
+    run would be refused; run refuses it."""
+    monkeypatch.setenv("SLURM_MEM_PER_NODE", "1500")
+    big = write_toml("big.toml", tiny_scene.read_text().replace("shape = [16, 16]", "shape = [1000, 1000]"))
+    shown = CliRunner().invoke(app, ["show", str(big)])
+    assert shown.exit_code == 0, shown.output
+    assert "~1.57 GB of memory available (SLURM_MEM_PER_NODE=1500 (MB); cgroup v2 /job_7: ~1.6 GB; the machine" \
+        in shown.stdout
+    assert "refused here: a run needs ~" in shown.stdout and "of memory, 1.57 GB available" in shown.stdout
+    refused = CliRunner().invoke(app, ["run", str(big), "-o", str(tmp_path / "big.nc")])
+    assert refused.exit_code == 2 and "of memory, 1.57 GB available" in refused.stderr
+    assert not (tmp_path / "big.nc").exists()
 
 
 @pytest.mark.parametrize("text, size", [("16 GB", 16e9), ("512MB", 512e6), ("2.5e9", 2.5e9), (".5 gb", 0.5e9)])

@@ -54,7 +54,7 @@ def study(tiny_study, tmp_path):
 
 
 def test_the_job_array_recipe_then_combine(study, tmp_path):
-    sbatch("--array=1-3", BATCH / "sweep-array.sbatch", study, tmp_path / "array", cwd=tmp_path)  # waits for all
+    sbatch("--array=0-3", BATCH / "sweep-array.sbatch", study, tmp_path / "array", cwd=tmp_path)  # waits for all
     combined = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "array"), "--combine"])
     assert combined.exit_code == 0 and "(4 done, 0 failed, 0 missing)" in combined.stderr
     same_study(xr.open_dataset(tmp_path / "array" / "study.nc"), xr.open_dataset(tmp_path / "here" / "study.nc"))

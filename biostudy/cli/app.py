@@ -193,9 +193,10 @@ def sweep(
         "--case", metavar="ID", help="run only this case (an array task; repeatable): its file goes into DIR "
                                      "beside those of other such tasks; study.nc is left to --combine")] = [],
     task: Annotated[Optional[int], typer.Option(
-        "--task", metavar="N", help="an array task: run share N (0..M-1) of --tasks M (cases N, N+M, ...)")] = None,
-    tasks: Annotated[Optional[int], typer.Option("--tasks", metavar="M", help="how many array tasks share the "
-                                                                             "study")] = None,
+        "--task", metavar="N", help="an array task: run case number N (the study's order from 0), or with "
+                                    "--tasks M share N (0..M-1): cases N, N+M, ...")] = None,
+    tasks: Annotated[Optional[int], typer.Option("--tasks", metavar="M", help="how many shares --task numbers "
+                                                                             "(fixed, not the array's size)")] = None,
     combine_only: Annotated[bool, typer.Option(
         "--combine", metavar=FLAG, help="run nothing: write DIR/study.nc from the case files there (after array "
                                         "tasks)")] = False,

@@ -4,9 +4,12 @@ Re-running skips finished cases (`execution.jobs.run_jobs`); the directory
 belongs to one study (`execution.targets.owned`).
 
 Array jobs without Dask (a SLURM or PBS job array; README, "Batch clusters"):
-``--case ID`` runs the cases named, ``--task N --tasks M`` the N-th of M
-shares (cases N, N + M, N + 2M, ... in the study's order, so every share
-gets cheap and dear cases alike).  Such tasks hold the directory's lock
+``--case ID`` runs the cases named; ``--task N`` alone case number N, the
+fixed numbering of the study's order from 0 (an array index: resubmitting
+``--array=3,5`` runs cases 3 and 5 again, nothing else); ``--task N --tasks
+M`` the N-th of M shares (cases N, N + M, N + 2M, ..., so every share gets
+cheap and dear cases alike; M fixed by the user, never the array's size, so
+that share N is the same cases whichever indices are submitted).  Such tasks hold the directory's lock
 shared (`ownership`): any number of them write their own case files into
 one directory at once, none removes another's temporary file (another node's
 writer is alive though its process id is not here), and none writes
@@ -30,14 +33,17 @@ from .finished import Finished
 
 @dataclass(frozen=True)
 class Share:
-    """Which cases an array task runs: those named, or the `task`-th of `tasks` shares."""
+    """Which cases an array task runs: those named, case number `task` (from 0, in the study's order), or with
+    `tasks` the `task`-th of `tasks` shares."""
 
     cases: tuple[str, ...] = ()
     task: int | None = None
     tasks: int | None = None
 
     def describe(self) -> str:
-        return f"cases {', '.join(self.cases)}" if self.cases else f"share {self.task} of {self.tasks}"
+        if self.cases:
+            return f"cases {', '.join(self.cases)}"
+        return f"case number {self.task}" if self.tasks is None else f"share {self.task} of {self.tasks}"
 
 
 def choose(plan: Plan, share: Share) -> list[str]:
@@ -49,9 +55,13 @@ def choose(plan: Plan, share: Share) -> list[str]:
             listed = ", ".join(ids[:4]) + (", ..." if len(ids) > 4 else "")
             raise BadInput(f"no case {unknown[0]!r} in this study (its {len(ids)} cases: {listed})", "--case")
         return [i for i in ids if i in share.cases]
-    if share.task is None or share.tasks is None:
-        raise BadInput("--task N and --tasks M go together (task N of M, N from 0 to M - 1)",
-                       "--task" if share.task is None else "--tasks")
+    if share.task is None:
+        raise BadInput("needs --task N (share N of M, N from 0 to M - 1)", "--tasks")
+    if share.tasks is None:
+        if not 0 <= share.task < len(ids):
+            raise BadInput(f"no case number {share.task} in this study (its {len(ids)} cases are numbered 0.."
+                           f"{len(ids) - 1} in the study's order)", "--task")
+        return [ids[share.task]]
     if share.tasks < 1 or not 0 <= share.task < share.tasks:
         raise BadInput(f"must be in 0..{share.tasks - 1} for --tasks {share.tasks} (got {share.task})", "--task")
     return ids[share.task::share.tasks]
@@ -110,7 +120,10 @@ class Sweep:
         if self.combine_only:
             written = combine_study(self.plan, self.directory, execution.force)
             statuses = _statuses(written)
-            return Finished(f"combined {len(self.plan.cases)} cases ({statuses}) into {written}", {},
+            again = not_done(self.plan, written)
+            rerun = (f"; cases {','.join(map(str, again))} are not done: `sbatch --array={','.join(map(str, again))}`"
+                     " runs just those again as one-case array tasks (docs/clusters.md)") if again else ""
+            return Finished(f"combined {len(self.plan.cases)} cases ({statuses}) into {written}{rerun}", {},
                             len(self.plan.cases), result=written)
         report = run_study(self.plan, self.directory, execution, self.share)
         total = len(self.plan.cases) if self.share is None else len(report.ran) + len(report.skipped)
@@ -122,6 +135,15 @@ class Sweep:
         return Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
                         f"{len(report.failed)} failed; wrote {report.study}", report.failed, total,
                         warnings=report.warnings(), result=report)
+
+
+def not_done(plan: Plan, study: Path) -> list[int]:
+    """The case numbers (`--task N`: the study's order from 0) whose status in `study` is not "done"."""
+    import xarray as xr
+
+    with xr.open_dataset(study) as ds:
+        status = dict(zip(map(str, ds["case_id"].values.ravel()), map(str, ds["status"].values.ravel())))
+    return [number for number, case in enumerate(plan.cases) if status.get(case.id, "missing") != "done"]
 
 
 def _statuses(study: Path) -> str:

@@ -1,7 +1,8 @@
 """The bundled scenes and studies in `studies/`, and finding a scene by name.
 
-The directory is `$BIOSTUDY_STUDIES` if set, else `studies/` beside the
-package (a checkout or an editable install), else `./studies`.  A file
+The directory is `$BIOSTUDY_STUDIES` if set, else the package data `biostudy/studies` (an installed
+wheel: setup.py maps `studies/` there), else `studies/` beside the package (a checkout or an editable
+install), else `./studies`.  A file
 with a ``[grid]`` table is a scene, one with ``scene = ...`` a study, and with ``[data]`` too a
 calibration.
 """
@@ -19,8 +20,11 @@ from ..errors import BadInput, first_line
 def studies_dir() -> Path:
     if os.environ.get("BIOSTUDY_STUDIES"):
         return Path(os.environ["BIOSTUDY_STUDIES"])
-    beside = Path(__file__).resolve().parents[2] / "studies"  # biostudy/inputs/bundled.py -> the checkout
-    return beside if beside.is_dir() else Path("studies")
+    package = Path(__file__).resolve().parents[1]  # biostudy/inputs/bundled.py -> biostudy
+    for candidate in (package / "studies", package.parent / "studies"):
+        if candidate.is_dir():
+            return candidate
+    return Path("studies")
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,7 @@ from pathlib import Path
 from solver.mechanics import linear_solver_for
 
 from ..errors import BadInput
+from . import memory
 
 PROCESS = 0.2e9  # bytes: an interpreter with the solver imported
 TRANSPORT_PER_CELL = {2: 1.6e3, 3: 2.4e3}
@@ -101,19 +102,7 @@ def estimate(scene) -> Estimate:
                     COPIES * (written + PER_OUTPUT * outputs), written)
 
 
-MEMORY_VARIABLE = "BIOSTUDY_MEMORY"  # e.g. "16 GB": the memory this process may use, instead of the machine's
-CGROUP = Path("/sys/fs/cgroup")
-
-
-def _cgroup_room() -> float:
-    """Bytes left under this process's cgroup (v2) memory limit (a batch job's allocation), inf if none."""
-    try:
-        limit = (CGROUP / "memory.max").read_text().strip()
-        if limit == "max":
-            return float("inf")
-        return max(0.0, float(limit) - float((CGROUP / "memory.current").read_text()))
-    except (OSError, ValueError):
-        return float("inf")
+MEMORY_VARIABLE = "BIOSTUDY_MEMORY"  # e.g. "16 GB": the memory this process may use, instead of the others
 
 
 SIZE = re.compile(r"^\s*(?P<number>[0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*(?P<unit>[KMGT]?B)?\s*$", re.IGNORECASE)
@@ -128,19 +117,31 @@ def parse_size(text: str) -> float:
     return float(found["number"]) * SCALES[(found["unit"] or "").upper()]
 
 
-def available_memory() -> float:
-    """Bytes a run may use here: what the machine has available, within a batch job's cgroup limit; the
-    variable BIOSTUDY_MEMORY (e.g. "16 GB") says it instead, for a scheduler's allocation the machine
-    cannot see.  A run is refused when its estimate exceeds it."""
+def memory_limits() -> list[memory.Limit]:
+    """Every account of the memory a run may use here, the binding one first (`biostudy.inputs.memory`: the
+    machine, the job's cgroup, a scheduler's allocation); the variable BIOSTUDY_MEMORY (e.g. "16 GB") replaces
+    them all, for an allocation none of them shows."""
     given = os.environ.get(MEMORY_VARIABLE)
     if given:
         try:
-            return parse_size(given)
+            return [memory.Limit(parse_size(given), f"{MEMORY_VARIABLE}={given}")]
         except ValueError as error:
             raise BadInput(f"{error}", MEMORY_VARIABLE) from None
-    import psutil  # lazily: `show` of a run's file imports this module but never asks
+    return memory.limits()
 
-    return min(float(psutil.virtual_memory().available), _cgroup_room())
+
+def available_memory() -> float:
+    """Bytes a run may use here (the smallest of `memory_limits`).  A run is refused when its estimate exceeds
+    it."""
+    return memory_limits()[0].bytes
+
+
+def available_text() -> str:
+    """'~1.57 GB of memory available (SLURM_MEM_PER_NODE=1500 (MB); the machine: ~24.3 GB)': the limit that
+    binds, and the looser ones after it."""
+    binding, *looser = memory_limits()
+    others = "".join(f"; {limit.source}: {size(limit.bytes)}" for limit in looser)
+    return f"{size(binding.bytes)} of memory available ({binding.source}{others})"
 
 
 def free_disk(path: str | Path) -> float:

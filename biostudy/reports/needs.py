@@ -14,9 +14,16 @@ from ..plans.calibration import load_calibration
 from ..plans.study import load_study
 
 
+def _refused(found: resources.Estimate, what: str) -> list[str]:
+    """[] if a run of this estimate fits in the memory here, else the line saying it would be refused (as `run`
+    and `sweep` refuse it)."""
+    problem = resources.too_big(found.memory, what)
+    return [f"refused here: {problem}"] if problem else []
+
+
 def needs(path) -> str:
     """What running a scene or a study file needs (validated first: bad input is `BadInput`), as text."""
-    available = f"{resources.size(resources.available_memory()).lstrip('~')} of memory available"
+    available = resources.available_text()
     what = bundled.kind(read_toml(path))
     if what in ("study", "stability"):
         plan = load_study(path) if what == "study" else catalogue.load(path)
@@ -27,7 +34,8 @@ def needs(path) -> str:
             f"largest case  {largest}: {resources.size(found[largest].memory)} of memory ({found[largest].parts()})",
             f"on disk       {resources.size(sum(e.disk for e in found.values()))} of case files, as much again "
             "for study.nc",
-            f"here          {available}; N local workers need about N times the largest case"])
+            f"here          {available}; N local workers need about N times the largest case"]
+                         + _refused(found[largest], f"the largest case, {largest}, needs"))
     if what == "calibration":
         plan = load_calibration(path)
         found = {name: resources.estimate(scene) for name, scene in plan.plan.scenes.items()}
@@ -37,12 +45,13 @@ def needs(path) -> str:
             f"{len(found)} conditions of {plan.plan.scene_file.name}",
             f"one simulation {resources.size(found[largest].memory)} of memory ({found[largest].parts()}), "
             f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/)",
-            f"here          {available}; N local workers need about N times one simulation"])
+            f"here          {available}; N local workers need about N times one simulation"]
+                         + _refused(found[largest], "one simulation needs"))
     scene = load_scene(path)
     found = resources.estimate(scene)
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
     return "\n".join([
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
         f"{found.outputs} outputs, mechanics {mechanics}",
-        f"memory  {resources.size(found.memory)} ({found.parts()}); {available} here",
-        f"on disk {resources.size(found.disk)} for the dataset"])
+        f"memory  {resources.size(found.memory)} ({found.parts()}); here {available}",
+        f"on disk {resources.size(found.disk)} for the dataset"] + _refused(found, "a run needs"))

@@ -1,7 +1,8 @@
 """Preconditioners for the tangent, apart from the Krylov loop: `build(A)`, then `M(r) ~ A^-1 r`.
 
 * `Direct`: a sparse factorisation, PARDISO (pypardiso, symmetric
-  indefinite, x86_64 wheels) or scipy's SuperLU elsewhere.  Exact, but its
+  indefinite, x86_64 wheels: the `pardiso` extra) or scipy's SuperLU
+  without it (docs/install.md: what PARDISO gains).  Exact, but its
   cost grows like n^2 in 3-D: the choice for small problems only.
 * `GeometricMultigrid`: `multigrid.Multigrid`, the default beyond
   `Settings.direct_limit` dofs.
@@ -23,7 +24,7 @@ import scipy.sparse as sp
 from .multigrid import Multigrid, superlu
 from .settings import linear_solver_for
 
-try:  # PARDISO from PyPI wheels (x86_64); SuperLU is the portable fallback
+try:  # PARDISO from PyPI wheels (x86_64, `pip install biostudy[pardiso]`); SuperLU without it
     import pypardiso
 except ImportError:  # pragma: no cover - depends on the platform
     pypardiso = None
