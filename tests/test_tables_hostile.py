@@ -217,7 +217,7 @@ def test_a_header_of_a_hundred_thousand_columns_is_a_few_lines_at_once(tmp_path)
         read_measurements(table)
     assert refused.value.lines() == [f"{table}: unknown column 'x' (PEtab's measurement table: observableId, time, "
                                      "measurement, noiseParameters, optionally simulationConditionId, datasetId, "
-                                     f"replicateId)", f"{table}: column 'time' comes twice",
+                                     f"replicateId, datapointId)", f"{table}: column 'time' comes twice",
                                      f"{table}: column 'x' comes 100,000 times"]
 
 
@@ -290,3 +290,20 @@ def test_a_set_value_nested_too_deeply_is_one_line(tmp_path):
     scene.write_text(TINY_SCENE)
     line = error_lines(invoke("run", scene, "-o", tmp_path / "x.nc", "--set", "params.g=" + "[" * 100_000))
     assert line == ["error: --set: the value of params.g is nested too deeply to be read"]
+
+
+def test_petabs_optional_columns_are_read_and_pre_equilibration_refused_where_given(tmp_path):
+    table = tmp_path / "t.tsv"
+    header = ("observableId\tpreequilibrationConditionId\tsimulationConditionId\ttime\tmeasurement\t"
+              "observableParameters\tnoiseParameters\tdatasetId\treplicateId\tdatapointId\n")
+    table.write_text(header + "biomass\t\t\t0.05\t2.9\t\t0.15\tday1\trep2\tp7\n")
+    row, = read_measurements(table)
+    assert (row.dataset, row.replicate, row.datapoint, row.value) == ("day1", "rep2", "p7", 2.9)
+    table.write_text(header + "biomass\tsteady\t\t0.05\t2.9\tscale\t0.15\t\t\t\n")
+    with pytest.raises(BadInput) as refused:
+        read_measurements(table)
+    assert refused.value.lines() == [
+        f"{table}: line 2: preequilibrationConditionId: pre-equilibration is not supported (leave the column empty) "
+        "(got 'steady')",
+        f"{table}: line 2: observableParameters: the observables have no parameters (leave the column empty) "
+        "(got 'scale')"]

@@ -13,9 +13,11 @@ observable's units (biomass in µm³/µm² = µm), `noiseParameters` is the
 measurement's standard deviation σ (a number > 0: PEtab also allows a
 parameter's name there, which is not supported), `simulationConditionId`
 names one of the calibration's `[conditions]` (empty or absent without them).
-PEtab's `datasetId` and `replicateId` are read and kept; its
-`preequilibrationConditionId` and `observableParameters`, and any other
-column, are refused rather than ignored.  The delimiter is whichever of tab,
+PEtab's optional `datasetId`, `replicateId` and `datapointId` are read and
+kept (calibration.nc and simulation.tsv carry them); its
+`preequilibrationConditionId` and `observableParameters` are accepted empty
+(a value there is refused: nothing here pre-equilibrates, and the observables
+have no parameters); any other column is refused rather than ignored.  The delimiter is whichever of tab,
 comma and semicolon splits the header line into column names (ties go to the
 file's suffix: a tab for `.tsv` and `.tab`, a comma for `.csv`): European
 spreadsheets write `;`, and then often decimal commas, which such a table may
@@ -41,9 +43,10 @@ from ..errors import BadInput
 from .files import read_text
 
 REQUIRED = ("observableId", "time", "measurement", "noiseParameters")
-OPTIONAL = ("simulationConditionId", "datasetId", "replicateId")
-REFUSED = {"preequilibrationConditionId": "pre-equilibration is not supported",
-           "observableParameters": "observable parameters are not supported (the observables have none)"}
+OPTIONAL = ("simulationConditionId", "datasetId", "replicateId", "datapointId")
+EMPTY_ONLY = {"preequilibrationConditionId": "pre-equilibration is not supported (leave the column empty)",
+              "observableParameters": "the observables have no parameters (leave the column empty)"}
+REFUSED: dict[str, str] = {}  # columns refused whatever they hold
 NUMBERS = ("time", "measurement", "noiseParameters")
 TABLE_BYTES = 16 << 20  # 16 MiB: ~400,000 rows
 SHOWN_PROBLEMS = 20  # lines a refused table prints; the others are counted
@@ -64,13 +67,14 @@ class Measurement:
     condition: str = ""
     dataset: str = ""
     replicate: str = ""
+    datapoint: str = ""
 
 
 def _delimiter(path: Path, header: str) -> str:
     """The separator that splits `header` into the most column names of the table; ties go to the suffix's."""
     suffix = path.suffix.lower()
     preferred = {".tsv": "\t", ".tab": "\t", ".csv": ","}.get(suffix, "\t" if "\t" in header else ",")
-    names = set(REQUIRED + OPTIONAL) | set(REFUSED)
+    names = set(REQUIRED + OPTIONAL) | set(EMPTY_ONLY) | set(REFUSED)
 
     def found(separator: str) -> int:
         try:
@@ -166,7 +170,7 @@ def read_measurements(path: str | Path) -> list[Measurement]:
     for name in counts:
         if name in REFUSED:
             problems.append(BadInput(f"column {name}: {REFUSED[name]}", path))
-        elif name not in REQUIRED + OPTIONAL:
+        elif name not in REQUIRED + OPTIONAL + tuple(EMPTY_ONLY):
             problems.append(BadInput(f"unknown column {name!r} (PEtab's measurement table: {', '.join(REQUIRED)}, "
                                      f"optionally {', '.join(OPTIONAL)})", path))
     problems += [BadInput(f"column {name!r} comes {'twice' if counts[name] == 2 else f'{counts[name]:,} times'}",
@@ -185,13 +189,15 @@ def read_measurements(path: str | Path) -> list[Measurement]:
         row = {name: cell.strip() for name, cell in zip(header, cells)}
         if not row["observableId"]:
             problems.append(BadInput("missing (the observable's name)", path, f"line {line}: observableId"))
+        problems += [BadInput(f"{why} (got {row[name]!r})", path, f"line {line}: {name}")
+                     for name, why in EMPTY_ONLY.items() if row.get(name)]
         time = _number(row["time"], "time", line, path, problems, decimals)
         value = _number(row["measurement"], "measurement", line, path, problems, decimals)
         sigma = _number(row["noiseParameters"], "noiseParameters", line, path, problems, decimals, positive=True)
         if None not in (time, value, sigma) and row["observableId"]:
             rows.append(Measurement(line, row["observableId"], time, value, sigma,
                                     row.get("simulationConditionId", ""), row.get("datasetId", ""),
-                                    row.get("replicateId", "")))
+                                    row.get("replicateId", ""), row.get("datapointId", "")))
     if not problems and not rows:
         problems.append(BadInput("has a header but no measurements", path))
     if problems:
