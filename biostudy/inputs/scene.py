@@ -142,11 +142,13 @@ class NumericsSpec(BaseModel):
                                                "dense on 1 µm cells (docs/paper.md)")
     front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
                                                      "the front take the front's speed", "1", ge=1, le=10)
+    nutrient_tolerance: float = _field(_NUMERICS.nutrient_tolerance, "relative residual of the nutrient's linear "
+                                                                     "solves", "1", gt=0, lt=1)
+    biofilm_tolerance: float = _field(_NUMERICS.biofilm_tolerance, "relative residual of the biofilm's linear "
+                                                                   "solves", "1", gt=0, lt=1)
 
     def solver_numerics(self) -> solver.Numerics:
-        return solver.Numerics(advection=self.advection, gradient_floor=self.gradient_floor,
-                               max_substeps=self.max_substeps, time_tolerance=self.time_tolerance,
-                               growth_velocity=self.growth_velocity, front_band=self.front_band)
+        return solver.Numerics(**self.model_dump())
 
 
 Face = Literal[FACES]
