@@ -13,6 +13,8 @@ import time as clock
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
+from .pace import Lumps, Mark, time_left
+
 if TYPE_CHECKING:
     from rich.console import Console
 
@@ -40,21 +42,29 @@ class Lines:
     EVERY = 0.1
     SECONDS = 30.0
 
-    def __init__(self, title: str, total: float):
-        self.title, self.total = title, total
+    def __init__(self, title: str, total: float, lumps: str = ""):
+        self.title, self.total, self.lumps = title, total, lumps  # lumps: what they are ("mechanics solves")
         self.began = self.last_time = clock.monotonic()
         self.last_done = 0.0
+        self.first: Mark | None = None  # at the first report
 
-    def update(self, done: float, position: str, counts: str, force: bool = False) -> None:
+    def update(self, done: float, position: str, counts: str, force: bool = False, lumps: Lumps = (0.0, 0, 0)
+               ) -> None:
+        """`lumps`: work that comes in lumps, not in proportion to `done` (`pace.Lumps`)."""
         now = clock.monotonic()
+        mark = Mark(now, done, *lumps)
+        if self.first is None:
+            self.first = mark
         fraction = done / self.total if self.total else 1.0
         if not (force or fraction - self.last_done >= self.EVERY - 1e-12 or now - self.last_time >= self.SECONDS
                 or (fraction >= 1.0 > self.last_done)):
             return
         self.last_done, self.last_time = fraction, now
         elapsed = now - self.began
-        left = f", left ~{duration(elapsed * (1 - fraction) / fraction)}" if 0 < fraction < 1 else ""
-        print(f"{self.title}: {position} ({fraction:.0%}), {counts}, elapsed {duration(elapsed)}{left}",
+        left = time_left(self.first, mark, self.total)
+        then = f" + {left.unpriced} {self.lumps}" if left and left.unpriced else ""
+        left_text = f", left ~{duration(left.seconds)}{then}" if left else ""
+        print(f"{self.title}: {position} ({fraction:.0%}), {counts}, elapsed {duration(elapsed)}{left_text}",
               file=sys.stderr, flush=True)
 
 
@@ -73,9 +83,10 @@ def simulation(name: str, t_end: float, quiet: bool):
     """Progress of one simulation: simulated time, steps and bisections; yields the solver's callback."""
     console = err()
     if not quiet and not console.is_terminal:
-        lines = Lines(name, t_end)
+        lines = Lines(name, t_end, "mechanics solves")
         yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
-                                     f"steps {p.steps}, bisections {p.bisections}")
+                                     f"steps {p.steps}, bisections {p.bisections}",
+                                     lumps=(p.mechanics_seconds, p.mechanics_solves, p.mechanics_left))
         return
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
