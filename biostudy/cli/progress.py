@@ -19,11 +19,21 @@ if TYPE_CHECKING:
     from rich.console import Console
 
 
+UNCUT = 100_000  # the width of a console that is not a terminal: what fits the content, nothing cut
+
+
 @lru_cache(maxsize=None)
 def _console(stderr: bool, stream_id: int) -> Console:
+    """soft_wrap: a long message stays one line in a log.  Not a terminal (a pipe, a file, a batch log):
+    tables as wide as their content, never cut to 80 columns ('17…'); rich pads a table's lines to the
+    table's own width, not the console's.  Full width rather than TSV: the same table as on a terminal,
+    and `--json` is the form for programs."""
     from rich.console import Console  # rich when first printed to: `--version` and `-h` do not pay for it
 
-    return Console(stderr=stderr, soft_wrap=True)  # soft_wrap: a long message stays one line in a log
+    console = Console(stderr=stderr, soft_wrap=True)
+    if not console.is_terminal:
+        console.width = UNCUT
+    return console
 
 
 def err() -> Console:
