@@ -2,9 +2,15 @@
 `-q`/`-v` with the `logging` module."""
 from __future__ import annotations
 
+import json
+import re
+
+import numpy as np
 from typer.testing import CliRunner
 
 from biostudy.cli import app
+from biostudy.data import store
+from biostudy.formatting import number
 
 runner = CliRunner()  # stdout and stderr are not terminals here, as in a pipe or a batch log
 
@@ -22,3 +28,81 @@ def test_tables_to_a_pipe_are_not_cut(write_toml, tmp_path):
     assert result.exit_code == 0, result.output
     row = next(line for line in result.stdout.splitlines() if "wide-scene-with-a-long-name.toml" in line)
     assert description.strip() in row and "…" not in result.stdout
+
+
+def _strict(text: str):
+    """json.loads that refuses NaN and infinities (Python's accepts them; JSON has none)."""
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def _rows(table: str, first: str) -> dict[str, list[str]]:
+    """Rows of a rich table (cells split on its vertical bars) by their first cell."""
+    rows = {}
+    for line in table.splitlines():
+        cells = [c.strip() for c in re.split(r"[│┃]", line)]
+        if len(cells) > 2 and cells[0] and cells[0] != first:
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+def test_show_json_of_a_run_has_every_observable_with_the_tables_numbers(tiny_scene, tmp_path):
+    out = tmp_path / "run.nc"
+    assert invoke("run", tiny_scene, "-o", out, "-q").exit_code == 0
+    shown, table = invoke("show", "--json", out), invoke("show", out)
+    assert shown.exit_code == 0 and table.exit_code == 0, shown.output + table.output
+    record = _strict(shown.stdout)  # stdout is the JSON and nothing else
+    ds = store.open_dataset(out)
+    names = [n.strip() for n in ds.attrs["observables"].split(",")]
+    assert list(record["observables"]) == names and record["time"] == ds.time.values.tolist()
+    rows = _rows(table.stdout, "observable")
+    for name in names:
+        values = record["observables"][name]["values"]
+        assert values == [None if np.isnan(v) else v for v in ds[name].values.tolist()]
+        first, last = (number(np.nan if v is None else v) for v in (values[0], values[-1]))
+        assert rows[name][:2] == [first, last], name
+    assert record["attributes"]["g"] == 1e8 and record["scene"] == "tiny"
+
+
+def test_sweep_json_is_the_study_with_the_numbers_of_show(tiny_study, tmp_path):
+    out = tmp_path / "sweep"
+    swept = invoke("sweep", tiny_study, "-o", out, "--json")
+    assert swept.exit_code == 0, swept.output
+    record = _strict(swept.stdout)
+    assert record["kind"] == "study" and record["swept"] == ["g", "r"] and len(record["cases"]) == 4
+    rows = _rows(invoke("show", out).stdout, "case")
+    for case in record["cases"]:
+        row = rows[case["case_id"]]
+        assert row[0] == case["status"] == "done"
+        assert row[1:3] == [number(case["wall_time"]), number(case["steps_taken"])]
+        observables = [number(case[n]) for n in record["observables_units"]]
+        assert row[3:3 + len(observables)] == observables, case["case_id"]
+    assert _strict(invoke("show", "--json", out).stdout)["cases"] == record["cases"]
+
+
+def test_convergence_json_holds_the_tables_levels(tiny_scene, tmp_path):
+    result = invoke("convergence", tiny_scene, "-o", tmp_path / "conv", "--levels", "2", "--series", "time",
+                    "--json", "-q")
+    assert result.exit_code == 0, result.output
+    record = _strict(result.stdout)
+    variables = record["variables"]
+    table = (tmp_path / "conv" / "convergence.md").read_text()
+    for level in (0, 1):
+        steps = variables["steps_taken"]["values"][0][level]
+        assert f"| time | {level} | 256 |" in table and f"| {number(steps, 9)} |" in table
+
+
+def test_json_has_no_nan_and_no_infinity():
+    """NaN and infinities are null: every record reads with a strict JSON parser."""
+    from biostudy.reports.records import text
+
+    assert _strict(text({"a": float("nan"), "b": np.array([1.0, np.inf]), "c": np.float32(2.5)})) == \
+        {"a": None, "b": [1.0, None], "c": 2.5}
+
+
+def test_show_json_of_a_scene_file_is_refused_in_one_line(tiny_scene):
+    result = invoke("show", "--json", tiny_scene)
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, result.output
+    assert "--json" in result.stderr and result.stdout == ""

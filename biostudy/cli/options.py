@@ -58,3 +58,6 @@ CatalogueArgument = Annotated[str, typer.Argument(metavar="CATALOGUE", help="sta
                                                   autocompletion=_complete("stability"))]
 Overrides = Annotated[List[str], overrides()]
 CaseOverrides = Annotated[List[str], overrides("every case")]
+Json = Annotated[bool, typer.Option("--json", metavar=FLAG,
+                                    help="print the result as JSON on stdout instead of the table (the same numbers "
+                                         "unrounded; NaN as null; docs/scripting.md)")]
