@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import re
 
 import numpy as np
@@ -106,3 +107,45 @@ def test_show_json_of_a_scene_file_is_refused_in_one_line(tiny_scene):
     result = invoke("show", "--json", tiny_scene)
     assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, result.output
     assert "--json" in result.stderr and result.stdout == ""
+
+
+PROGRESS = re.compile(r"T\* = [\d.e-]+ / 0\.2 \(\d+%\)")
+
+
+def test_quiet_and_verbose_before_or_after_the_command(tiny_scene, tmp_path):
+    """-q: no progress lines (the result's line stays); -v: the library's detail (the scene's size, where the
+    time went); the same given before the command (every command) or after it."""
+    plain = invoke("run", tiny_scene, "-o", tmp_path / "plain.nc")
+    assert plain.exit_code == 0, plain.output
+    detail = "tiny: 16 × 16 cells of 1 µm, 20 steps to T* = 0.2, 3 outputs"
+    assert PROGRESS.search(plain.stderr) and detail not in plain.stderr
+    for args in (["-q", "-v", "run", tiny_scene, "-o", tmp_path / "global.nc"],
+                 ["run", tiny_scene, "-o", tmp_path / "command.nc", "-q", "-v"]):
+        result = invoke(*args)
+        assert result.exit_code == 0, result.output
+        assert not PROGRESS.search(result.stderr) and "wrote" in result.stderr, result.stderr
+        assert detail in result.stderr and re.search(r"tiny: wall time [\d.e-]+ s \(nutrient", result.stderr)
+    assert [type(h).__name__ for h in logging.getLogger("biostudy").handlers] == ["NullHandler"]  # as it was
+
+
+def test_the_library_prints_nothing_and_logs_to_its_logger(tiny_scene, tmp_path, capfd):
+    """biostudy.run from Python: nothing on stdout or stderr (no handler is configured), while a handler the
+    caller puts on the 'biostudy' logger gets what the run did and, at DEBUG, its detail."""
+    import biostudy
+
+    got: list[logging.LogRecord] = []
+    handler = logging.Handler(logging.DEBUG)
+    handler.emit = got.append  # type: ignore[method-assign]
+    logger = logging.getLogger("biostudy")
+    logger.addHandler(handler)
+    logger.setLevel(logging.DEBUG)
+    try:
+        biostudy.run(tiny_scene, output=tmp_path / "run.nc")
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(logging.NOTSET)
+    assert capfd.readouterr() == ("", "")
+    said = [(r.levelno, r.getMessage()) for r in got]
+    assert any(level == logging.INFO and message.startswith("tiny: 20 steps") and "wrote" in message
+               for level, message in said), said
+    assert any(level == logging.DEBUG and "16 × 16 cells" in message for level, message in said), said

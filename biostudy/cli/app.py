@@ -22,7 +22,7 @@ import typer
 from ..errors import BadInput, Failed
 from ..execution import worker
 from ..inputs import bundled
-from . import output, progress
+from . import logs, output, progress
 from .options import (
     FLAG,
     CaseOverrides,
@@ -38,6 +38,7 @@ from .options import (
     Scheduler,
     SchedulerFile,
     StudyArgument,
+    Verbose,
     Workers,
     overrides,
 )
@@ -90,7 +91,15 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _process(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, metavar=FLAG,
-                                                   help="print the version and exit")] = False) -> None:
+                                                   help="print the version and exit")] = False,
+             quiet: Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG,
+                                                 help="no progress bar or lines, for every command")] = False,
+             verbose: Annotated[bool, typer.Option("-v", "--verbose", metavar=FLAG,
+                                                   help="more detail on stderr, for every command")] = False,
+             ctx: typer.Context = None) -> None:  # type: ignore[assignment]  # typer passes it
+    logs.start(quiet, verbose)
+    if ctx is not None:
+        ctx.call_on_close(logs.stop)
     # Where a biostudy process starts, before FiPy or matplotlib is imported: FiPy's scipy solver suite,
     # and pictures drawn to files, never to a screen.
     worker.pin_solvers()
@@ -133,6 +142,7 @@ def run(
                                         help="replace OUT.nc even if it holds the result of another scene or a "
                                              "sweep's file (never an input or a file biostudy did not write)")] = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     continue_from: Annotated[Optional[Path], typer.Option(
         "--continue", metavar="RUN.nc", help="go on from the last state of this finished run of the same scene "
                                               "(give a later --set time.t_end=...); writes the whole history "
@@ -193,6 +203,7 @@ def sweep(
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     cases: Annotated[List[str], typer.Option(
         "--case", metavar="ID", help="run only this case (an array task; repeatable): its file goes into DIR "
                                      "beside those of other such tasks; study.nc is left to --combine")] = [],
@@ -395,6 +406,7 @@ def convergence(
                                                   help="compare at the output nearest this T* (default: the "
                                                        "last)")] = None,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     as_json: Json = False,
 ):
     """Refine grid, time step and both; measure each level's error and cost (work-precision)."""
@@ -420,6 +432,7 @@ def stability(
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     as_json: Json = False,
 ):
     """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
@@ -449,6 +462,7 @@ def calibrate(
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     as_json: Json = False,
 ):
     """Estimate scene parameters from measurements: least squares, profile likelihoods, 95 % intervals."""

@@ -13,6 +13,7 @@ import time as clock
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
+from . import logs
 from .pace import Lumps, Mark, time_left
 
 if TYPE_CHECKING:
@@ -92,6 +93,7 @@ def duration(seconds: float) -> str:
 def simulation(name: str, t_end: float, quiet: bool):
     """Progress of one simulation: simulated time, steps and bisections; yields the solver's callback."""
     console = err()
+    quiet = quiet or logs.is_quiet()
     if not quiet and not console.is_terminal:
         lines = Lines(name, t_end, "mechanics solves")
         yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
@@ -116,6 +118,7 @@ def jobs(title: str, quiet: bool, noun: str = "cases"):
     first job on: input found bad before (an output directory in use, say) is told on its own line.  When
     every job had finished before, it says so instead of showing an empty bar."""
     console = err()
+    quiet = quiet or logs.is_quiet()
     counts = {"start": 0, "skip": 0, "failed before": 0, "finished": 0, "failed": 0}
     lines = None if quiet or console.is_terminal else Lines(title, 0)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn

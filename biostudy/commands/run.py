@@ -15,6 +15,7 @@ else is not replaced.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,8 @@ from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
 from ..quantities import dense
+
+log = logging.getLogger(__name__)  # detail for `-v` and for Python callers who configure logging (cli.logs)
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,9 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     else:
         path = bundled.resolve(scene)
         loaded = load_scene(path, overrides, runs_here=True)
+    log.debug("%s: %s cells of %g µm, %d steps to T* = %g, %d outputs, mechanics %s", loaded.name,
+              " × ".join(map(str, loaded.grid.shape)), loaded.grid.spacing, loaded.time.steps, loaded.time.t_end,
+              loaded.time.count(), "on" if loaded.mechanics is not None and loaded.mechanics.enabled else "off")
     previous = None
     if continue_from is not None:
         continue_from = Path(continue_from)
@@ -107,6 +113,9 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
         ds = solver.simulate(problem, progress=progress)
     except solver.SimulationError as error:
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
+    log.debug("%s: wall time %.3g s (%s)", loaded.scene.name, ds.attrs["wall_time"], ", ".join(
+        f"{name.removeprefix('wall_time_')} {seconds:.3g} s" for name, seconds in ds.attrs.items()
+        if name.startswith("wall_time_")))
     if loaded.previous is not None and loaded.previous_path is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
