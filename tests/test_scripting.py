@@ -65,6 +65,7 @@ def test_show_json_of_a_run_has_every_observable_with_the_tables_numbers(tiny_sc
         first, last = (number(np.nan if v is None else v) for v in (values[0], values[-1]))
         assert rows[name][:2] == [first, last], name
     assert record["attributes"]["g"] == 1e8 and record["scene"] == "tiny"
+    assert _strict(invoke("show", "--json", out, out).stdout) == [record, record]  # several files: a list
 
 
 def test_sweep_json_is_the_study_with_the_numbers_of_show(tiny_study, tmp_path):
@@ -81,6 +82,14 @@ def test_sweep_json_is_the_study_with_the_numbers_of_show(tiny_study, tmp_path):
         observables = [number(case[n]) for n in record["observables_units"]]
         assert row[3:3 + len(observables)] == observables, case["case_id"]
     assert _strict(invoke("show", "--json", out).stdout)["cases"] == record["cases"]
+    analysed = invoke("analyze", out, "--output", "biofilm_volume", "--json")
+    assert analysed.exit_code == 0, analysed.output
+    variables = _strict(analysed.stdout)["variables"]
+    table = (out / "analysis.md").read_text()
+    for j, parameter in enumerate(["g", "r"]):
+        rho = variables["spearman"]["values"][0][j]
+        row = next(line for line in table.splitlines() if line.startswith(f"| biofilm_volume | {parameter} |"))
+        assert ("-" if rho is None else number(rho, 2)) in row.split("|")[-4], row  # the Spearman column
 
 
 def test_convergence_json_holds_the_tables_levels(tiny_scene, tmp_path):
