@@ -7,6 +7,7 @@ import logging
 import re
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from biostudy.cli import app
@@ -158,3 +159,22 @@ def test_the_library_prints_nothing_and_logs_to_its_logger(tiny_scene, tmp_path,
     assert any(level == logging.INFO and message.startswith("tiny: 20 steps") and "wrote" in message
                for level, message in said), said
     assert any(level == logging.DEBUG and "16 × 16 cells" in message for level, message in said), said
+
+
+def test_scenes_json_lists_what_the_table_lists(write_toml, tmp_path):
+    write_toml("mine.toml", 'description = "my own scene"\n[grid]\nshape = [4, 4]\n')
+    env = {"BIOSTUDY_STUDIES": str(tmp_path)}
+    record = _strict(invoke("scenes", "--json", env=env).stdout)
+    assert record["entries"] == [{"file": "mine.toml", "kind": "scene", "description": "my own scene"}]
+    assert _rows(invoke("scenes", env=env).stdout, "file")["mine.toml"] == ["scene", "my own scene"]
+
+
+def test_a_runs_warnings_reach_python_callers_as_warnings(tiny_scene, monkeypatch):
+    """What `biostudy run` prints as 'warning: ...' (a vanished dense biofilm) is a Python warning from
+    biostudy.run, as from sweep and calibrate."""
+    import biostudy
+    from biostudy.commands import run as command
+
+    monkeypatch.setattr(command.Result, "warnings", lambda self: ["dense biofilm (phi >= 0.8) vanished"])
+    with pytest.warns(UserWarning, match="dense biofilm"):
+        biostudy.run(tiny_scene)
