@@ -4,7 +4,8 @@ Every command calls one function of `biostudy.commands` with keyword-only
 options.  Exit status: 0 done, 1 a computation failed (the message says why),
 2 bad input (one line per problem: file, key, problem; no traceback), 130
 interrupted (no file is left half-written).  Progress goes to stderr
-(`progress`).  The commands' modules are imported inside the commands: `--version`
+(`progress`), as much as -q/-v ask (`logs`); --json puts a table's numbers on
+stdout instead of the table (`output`).  The commands' modules are imported inside the commands: `--version`
 and `-h` do not pay for numpy, xarray and FiPy.
 """
 from __future__ import annotations
@@ -90,16 +91,15 @@ def _version(value: bool) -> None:
 
 
 @app.callback()
-def _process(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, metavar=FLAG,
+def _process(ctx: typer.Context,
+             version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, metavar=FLAG,
                                                    help="print the version and exit")] = False,
              quiet: Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG,
                                                  help="no progress bar or lines, for every command")] = False,
              verbose: Annotated[bool, typer.Option("-v", "--verbose", metavar=FLAG,
-                                                   help="more detail on stderr, for every command")] = False,
-             ctx: typer.Context = None) -> None:  # type: ignore[assignment]  # typer passes it
-    logs.start(quiet, verbose)
-    if ctx is not None:
-        ctx.call_on_close(logs.stop)
+                                                   help="more detail on stderr, for every command")] = False) -> None:
+    logs.start(quiet, verbose)  # the library's logger to stderr while this command line runs
+    ctx.call_on_close(logs.stop)
     # Where a biostudy process starts, before FiPy or matplotlib is imported: FiPy's scipy solver suite,
     # and pictures drawn to files, never to a screen.
     worker.pin_solvers()
