@@ -104,8 +104,16 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
 
 
+def _first_dataset() -> None:
+    """xarray's first dataset with a variable loads its array backends (dask: a second or more): made before
+    the steps, so that it is not a cost after the last one that the progress lines' time left (paced on the
+    steps) cannot see; the run takes as long."""
+    xr.Dataset({"warm": ("warm", [0.0])})
+
+
 def _simulated(loaded: Loaded, progress) -> xr.Dataset:
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped."""
+    _first_dataset()
     problem = loaded.scene.problem()
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
