@@ -71,9 +71,11 @@ def test_show_json_of_a_run_has_every_observable_with_the_tables_numbers(tiny_sc
 
 def test_sweep_json_is_the_study_with_the_numbers_of_show(tiny_study, tmp_path):
     out = tmp_path / "sweep"
-    swept = invoke("sweep", tiny_study, "-o", out, "--json")
+    swept = invoke("sweep", tiny_study, "-o", out, "--json", "-v")
     assert swept.exit_code == 0, swept.output
     record = _strict(swept.stdout)
+    ended = {line for line in swept.stderr.splitlines() if line.endswith(" done") and " " not in line[:-5]}
+    assert ended == {f"{case['case_id']} done" for case in record["cases"]}  # -v: each case's end, a line each
     assert record["kind"] == "study" and record["swept"] == ["g", "r"] and len(record["cases"]) == 4
     rows = _rows(invoke("show", out).stdout, "case")
     for case in record["cases"]:

@@ -8,6 +8,7 @@ that redirects stderr gets what it redirected to.
 from __future__ import annotations
 
 import contextlib
+import logging
 import sys
 import time as clock
 from functools import lru_cache
@@ -15,6 +16,8 @@ from typing import TYPE_CHECKING
 
 from . import logs
 from .pace import Lumps, Mark, time_left
+
+detail = logging.getLogger("biostudy.cli")  # each job's end with -v (`logs`)
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -136,10 +139,12 @@ def jobs(title: str, quiet: bool, noun: str = "cases"):
             elif event == "skip":
                 counts["skip"] += 1
                 counts["failed before"] += message == "failed"
+                detail.debug("%s skipped: %s before", job_id, message)
             elif event == "start":
                 counts["start"] += 1
                 progress.update(task, total=counts["start"], visible=True)
             elif event in ("done", "failed"):
+                detail.debug("%s %s%s", job_id, event, f": {message}" if message and event == "done" else "")
                 counts["finished"] += 1
                 counts["failed"] += event == "failed"
                 progress.update(task, advance=1, last=f"{job_id} {event}")
