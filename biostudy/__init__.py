@@ -23,6 +23,13 @@ From Python (a notebook, a script; README, "From Python"):
 """
 from __future__ import annotations
 
+import logging
+
+# The library prints nothing: what it has to say goes to this logger (detail at DEBUG, what an API call did at
+# INFO), silent unless the caller configures logging; warnings a result carries are `warnings.warn`
+# (docs/scripting.md).  The command line puts its own handler here (`cli.logs`).
+logging.getLogger("biostudy").addHandler(logging.NullHandler())
+
 __all__ = ["run", "sweep", "open", "calibrate", "BadInput", "Failed"]
 
 _API = {"run": "run", "sweep": "sweep", "calibrate": "calibrate", "open": "open_result"}

@@ -9,6 +9,7 @@ not the notebook kernel's command line.
 """
 from __future__ import annotations
 
+import logging
 import warnings
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -20,6 +21,7 @@ from .execution import worker
 from .inputs.tomltext import literal
 
 Overrides = Mapping[str, Any] | Sequence[str] | None
+log = logging.getLogger("biostudy")  # what a call did, at INFO; silent unless logging is configured
 
 
 def _overrides(given: Overrides) -> list[str]:
@@ -67,6 +69,11 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
                               output=None if output is None else Path(output), force=force,
                               continue_from=continue_from, write=output is not None)
         result = command.compute(loaded, progress=progress)
+    attrs = result.dataset.attrs
+    log.info("%s: %s steps, %s bisected, wall time %.3g s%s", loaded.scene.name, attrs["steps_taken"],
+             attrs["steps_bisected"], attrs["wall_time"], f"; wrote {output}" if output is not None else "")
+    for said in result.warnings():
+        warnings.warn(said, stacklevel=2)
     return netcdf.as_run(result.dataset)
 
 
@@ -91,6 +98,7 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
                            runs_here=runs_here(scheduler, scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      retry_failed=retry_failed, rerun_all=rerun_all, force=force))
+    log.info(finished.summary)
     for said in finished.warnings:
         warnings.warn(said, stacklevel=2)
     if finished.failures:
@@ -117,6 +125,7 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
                            overrides=_overrides(set), runs_here=runs_here(scheduler, scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      rerun_all=rerun_all, force=force))
+    log.info(finished.summary)
     for said in finished.warnings:
         warnings.warn(said, stacklevel=2)
     return store.open_dataset(job.directory / "calibration.nc")

@@ -42,6 +42,9 @@ class Progress:
     steps: int
     bisections: int
     rejected: int
+    mechanics_seconds: float = 0.0  # wall time of the mechanics solves so far: their cost is not in proportion
+    mechanics_solves: int = 0  # to simulated time (they come at outputs), so a time-left estimate counts them
+    mechanics_left: int = 0  # apart: how many are done and how many are still to come
 
 
 @dataclass
@@ -84,6 +87,7 @@ class Clock:
         self.dt = min(problem.first_step or self.nominal, self.nominal)  # a continuation goes on with its step
         self.steps = self.bisections = self.rejected = 0
         self.largest_error = 0.0
+        self.mechanics_solves = self.mechanics_left = 0  # kept by `Simulation`, told in `Progress`
 
     def counters(self) -> Counters:
         return {"steps_taken": self.steps,
@@ -116,7 +120,9 @@ class Clock:
             state = new if abs(new.t - until) > eps else replace(new, t=until)
             self.steps += 1
             if self.progress is not None:
-                self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected))
+                self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected,
+                                       self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
+                                       self.mechanics_left))
         return state
 
     def _check_smallest(self, state: State, dt: float, cause: str, where: str):
@@ -174,9 +180,11 @@ class Simulation:
         # the mechanics is solved at the same outputs as in a run straight to t_end)
         first = 0 if problem.start_time == 0 else int(np.searchsorted(
             problem.output_times, problem.start_time * (1 + 1e-12) + 1e-12 * problem.t_end, side="right"))
+        solved_at = [i for i in range(first, last + 1) if self._solves_mechanics(i, last)]
         for index, when in enumerate(problem.output_times):
             if index < first:
                 continue
+            clock.mechanics_left = sum(i >= index for i in solved_at)
             with threadpool_limits(limits=1, user_api="blas"):
                 state = clock.advance(state, float(when))
             assert state.c is not None  # an accepted step ends with its nutrient solved
@@ -185,11 +193,16 @@ class Simulation:
                 alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
                 rejected=clock.rejected, elapsed=0.0,
             )
-            if self.mechanics is not None and problem.mechanics is not None and (
-                    index % problem.mechanics.every == 0 or index == last):
+            if self._solves_mechanics(index, last):
                 self._solve_mechanics(snapshot)
+                clock.mechanics_solves += 1
             snapshot.elapsed = time.perf_counter() - self.started
             yield snapshot
+
+    def _solves_mechanics(self, index: int, last: int) -> bool:
+        """Whether u and p are solved at output `index` (every `mechanics.every`-th, and the last)."""
+        every = self.problem.mechanics.every if self.problem.mechanics is not None else 0
+        return self.mechanics is not None and every > 0 and (index % every == 0 or index == last)
 
     def _solve_mechanics(self, snapshot: Snapshot):
         began = time.perf_counter()

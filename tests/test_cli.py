@@ -61,7 +61,7 @@ def test_show_summarises_a_run(tiny_scene, tmp_path):
 def test_scenes_lists_the_bundled_files_with_descriptions(write_toml, tmp_path):
     result = invoke("scenes")
     assert result.exit_code == 0
-    text = " ".join(result.stdout.split())  # descriptions wrap in an 80-column table
+    text = " ".join(result.stdout.split())
     assert "directional.toml" in text and "nutrient" in text
     assert "directional-sweep.toml" in result.stdout
     write_toml("mine.toml", 'description = "my own scene"\n[grid]\nshape = [4, 4]\n')

@@ -93,6 +93,20 @@ def test_progress_reports_every_accepted_step():
     assert seen[-1].time == pytest.approx(0.2) and seen[-1].t_end == 0.2
 
 
+def test_progress_tells_the_mechanics_solves_done_and_to_come():
+    """Solves at outputs 0, 3 and 4 (every 3rd and the last): each report says how many are done, how many come,
+    and their wall time so far (a time-left estimate counts them apart from the steps)."""
+    from solver.problem import MechanicsSetup
+
+    seen = []
+    simulate(sphere_problem(n=4, steps=8, outputs=(0.0, 0.05, 0.1, 0.15, 0.2), mechanics=MechanicsSetup(every=3)),
+             progress=seen.append)
+    told = [(p.mechanics_solves, p.mechanics_left) for p in seen]
+    assert told[0] == (1, 2) and told[-1] == (2, 1)  # before the solves at T* = 0.15 and 0.2
+    assert all(done + left == 3 for done, left in told)
+    assert seen[0].mechanics_seconds > 0 and seen[-1].mechanics_seconds > seen[0].mechanics_seconds
+
+
 def test_two_dimensional_scene_is_solved_in_two_dimensions():
     """A 2-D scene is the 3-D scene extruded along z with zero flux on the z faces: phi, c and alpha of the
     2-D run equal every layer of a 3-D run of three layers (volumes per µm of thickness aside)."""

@@ -4,7 +4,8 @@ Every command calls one function of `biostudy.commands` with keyword-only
 options.  Exit status: 0 done, 1 a computation failed (the message says why),
 2 bad input (one line per problem: file, key, problem; no traceback), 130
 interrupted (no file is left half-written).  Progress goes to stderr
-(`progress`).  The commands' modules are imported inside the commands: `--version`
+(`progress`), as much as -q/-v ask (`logs`); --json puts a table's numbers on
+stdout instead of the table (`output`).  The commands' modules are imported inside the commands: `--version`
 and `-h` do not pay for numpy, xarray and FiPy.
 """
 from __future__ import annotations
@@ -22,13 +23,14 @@ import typer
 from ..errors import BadInput, Failed
 from ..execution import worker
 from ..inputs import bundled
-from . import progress
+from . import logs, output, progress
 from .options import (
     FLAG,
     CaseOverrides,
     CatalogueArgument,
     Directory,
     Force,
+    Json,
     Overrides,
     Quiet,
     RerunAll,
@@ -37,6 +39,7 @@ from .options import (
     Scheduler,
     SchedulerFile,
     StudyArgument,
+    Verbose,
     Workers,
     overrides,
 )
@@ -88,8 +91,15 @@ def _version(value: bool) -> None:
 
 
 @app.callback()
-def _process(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, metavar=FLAG,
-                                                   help="print the version and exit")] = False) -> None:
+def _process(ctx: typer.Context,
+             version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, metavar=FLAG,
+                                                   help="print the version and exit")] = False,
+             quiet: Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG,
+                                                 help="no progress bar or lines, for every command")] = False,
+             verbose: Annotated[bool, typer.Option("-v", "--verbose", metavar=FLAG,
+                                                   help="more detail on stderr, for every command")] = False) -> None:
+    logs.start(quiet, verbose)  # the library's logger to stderr while this command line runs
+    ctx.call_on_close(logs.stop)
     # Where a biostudy process starts, before FiPy or matplotlib is imported: FiPy's scipy solver suite,
     # and pictures drawn to files, never to a screen.
     worker.pin_solvers()
@@ -132,6 +142,7 @@ def run(
                                         help="replace OUT.nc even if it holds the result of another scene or a "
                                              "sweep's file (never an input or a file biostudy did not write)")] = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     continue_from: Annotated[Optional[Path], typer.Option(
         "--continue", metavar="RUN.nc", help="go on from the last state of this finished run of the same scene "
                                               "(give a later --set time.t_end=...); writes the whole history "
@@ -149,12 +160,13 @@ def run(
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
 
 
-def _job_command(quiet: bool, load: Callable, **execution) -> None:
+def _job_command(quiet: bool, load: Callable, as_json: bool = False, **execution) -> None:
     """The one path of every job command (sweep, convergence, stability).
 
     load() reads and validates (bad input: exit 2 before anything runs) and returns a `commands.JobCommand`,
     which runs the jobs on the chosen pool and says what came of them (`commands.finished.Finished`).  A job
-    that failed, or a pool that broke down, is exit status 1.
+    that failed, or a pool that broke down, is exit status 1.  `as_json`: the result as JSON on stdout
+    instead of the table (`output.finished`).
     """
     with _guarded():
         from ..execution.dask import check_choice  # lazily (module docstring)
@@ -168,7 +180,9 @@ def _job_command(quiet: bool, load: Callable, **execution) -> None:
         job = load()
         with progress.jobs(job.title, quiet, job.noun) as notify:
             finished = job.run(Execution(notify=notify, **execution))
-        if finished.table:
+        if as_json:
+            output.emit(output.finished(job, finished.result))
+        elif finished.table:
             typer.echo(finished.table)
         for warning in finished.warnings:
             typer.echo(f"warning: {warning}", err=True)
@@ -189,6 +203,7 @@ def sweep(
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
     cases: Annotated[List[str], typer.Option(
         "--case", metavar="ID", help="run only this case (an array task; repeatable): its file goes into DIR "
                                      "beside those of other such tasks; study.nc is left to --combine")] = [],
@@ -200,6 +215,7 @@ def sweep(
     combine_only: Annotated[bool, typer.Option(
         "--combine", metavar=FLAG, help="run nothing: write DIR/study.nc from the case files there (after array "
                                         "tasks)")] = False,
+    as_json: Json = False,
 ):
     """Run every case of a study; re-running skips finished cases."""
     def load():
@@ -209,16 +225,19 @@ def sweep(
         return command.load(study, output=output, overrides=overrides, cases=cases, task=task, tasks=tasks,
                             combine_only=combine_only, runs_here=runs_here(scheduler, scheduler_file))
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  retry_failed=retry_failed, force=force, rerun_all=rerun_all)
 
 
 @app.command()
-def scenes():
+def scenes(as_json: Json = False):
     """List the bundled scenes and studies with their descriptions."""
     from rich.table import Table
 
     directory = bundled.studies_dir()
+    if as_json:
+        output.emit(output.scenes(directory))
+        return
     table = Table(title=f"bundled scenes and studies in {directory}", show_edge=False)
     table.add_column("file", no_wrap=True)
     table.add_column("kind", no_wrap=True)
@@ -232,10 +251,16 @@ def scenes():
 def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="dataset written by run or sweep (a "
                                                                            "case file, study.nc, or a sweep's "
                                                                            "directory), or a scene or study file "
-                                                                           "(TOML); several runs: side by side")]):
+                                                                           "(TOML); several runs: side by side")],
+         as_json: Json = False):
     """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
     running it needs (memory, disk); for several runs, how they differ (scenes, parameters, observables at their
     common times, the largest field differences)."""
+    if as_json:
+        with _guarded():
+            records = [output.shown(p) for p in paths]
+            output.emit(records[0] if len(paths) == 1 else records)
+        return
     if len(paths) > 1:
         with _guarded():
             from ..data.store import open_result  # lazily (module docstring)
@@ -308,13 +333,14 @@ def analyze(
     times: Annotated[List[float], typer.Option("--time", metavar="T",
                                                help="analyse at the output nearest this T*; repeatable (default: "
                                                     "the last output)")] = [],
+    as_json: Json = False,
 ):
     """Which parameter matters: Sobol' or Morris indices of a sampled study, rank correlations of any study."""
     with _guarded():
         from ..commands.analyze import analyze as command  # lazily (module docstring)
 
         written, table = command(path, outputs=outputs, times=times)
-        typer.echo(table)
+        output.emit(output.written(written[0])) if as_json else typer.echo(table)  # [0]: analysis.nc
         progress.err().print("wrote " + ", ".join(str(p) for p in written))
 
 
@@ -381,6 +407,8 @@ def convergence(
                                                   help="compare at the output nearest this T* (default: the "
                                                        "last)")] = None,
     quiet: Quiet = False,
+    verbose: Verbose = False,
+    as_json: Json = False,
 ):
     """Refine grid, time step and both; measure each level's error and cost (work-precision)."""
     def load():
@@ -389,8 +417,8 @@ def convergence(
         return command.load(scene, output=output, levels=levels, series=series, tolerance=tolerance,
                             overrides=overrides, reference=reference, time=time)
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
-                 rerun_all=rerun_all)
+    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+                 force=force, rerun_all=rerun_all)
 
 
 @app.command()
@@ -405,6 +433,8 @@ def stability(
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
+    as_json: Json = False,
 ):
     """Run stiff and extreme cases: each completes within its bounds or stops with a diagnosis."""
     def load():
@@ -414,8 +444,8 @@ def stability(
         return command.load(catalogue, output=output, overrides=overrides,
                             runs_here=runs_here(scheduler, scheduler_file))
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
-                 rerun_all=rerun_all)
+    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+                 force=force, rerun_all=rerun_all)
 
 
 @app.command()
@@ -433,6 +463,8 @@ def calibrate(
     force: Force = False,
     rerun_all: RerunAll = False,
     quiet: Quiet = False,
+    verbose: Verbose = False,
+    as_json: Json = False,
 ):
     """Estimate scene parameters from measurements: least squares, profile likelihoods, 95 % intervals."""
     def load():
@@ -442,5 +474,5 @@ def calibrate(
         return command.load(calibration, output=output, overrides=overrides,
                             runs_here=runs_here(scheduler, scheduler_file))
 
-    _job_command(quiet, load, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file, force=force,
-                 rerun_all=rerun_all)
+    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+                 force=force, rerun_all=rerun_all)

@@ -6,6 +6,8 @@ from typing import Annotated, List, Optional
 
 import typer
 
+from . import logs
+
 SET = "KEY=VALUE"  # metavars: what an option takes
 FLAG = ""  # a flag takes nothing (typer would show <bool>)
 SET_HELP = "override a scene key, KEY=VALUE with the value as TOML (params.g=1e10, grid.shape=[40,40,40]); repeatable"
@@ -35,7 +37,11 @@ RerunAll = Annotated[bool, typer.Option("--rerun-all", metavar=FLAG,
 RetryFailed = Annotated[bool, typer.Option("--retry-failed", metavar=FLAG,
                                            help="run failed cases again (finished ones are skipped unless "
                                                 "--rerun-all)")]
-Quiet = Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG, help="no progress bar or lines")]
+Quiet = Annotated[bool, typer.Option("-q", "--quiet", metavar=FLAG, callback=logs.quiet,
+                                     help="no progress bar or lines (as `biostudy -q COMMAND`)")]
+Verbose = Annotated[bool, typer.Option("-v", "--verbose", metavar=FLAG, callback=logs.verbose,
+                                       help="more detail on stderr: the scene's size, where the time went (as "
+                                            "`biostudy -v COMMAND`)")]
 Directory = Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
                                                    help="directory for cases/ and the results (default: from "
                                                         "the file's name)")]
@@ -58,3 +64,6 @@ CatalogueArgument = Annotated[str, typer.Argument(metavar="CATALOGUE", help="sta
                                                   autocompletion=_complete("stability"))]
 Overrides = Annotated[List[str], overrides()]
 CaseOverrides = Annotated[List[str], overrides("every case")]
+Json = Annotated[bool, typer.Option("--json", metavar=FLAG,
+                                    help="print the result as JSON on stdout instead of the table (the same numbers "
+                                         "unrounded; NaN as null; docs/scripting.md)")]

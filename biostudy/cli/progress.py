@@ -8,20 +8,36 @@ that redirects stderr gets what it redirected to.
 from __future__ import annotations
 
 import contextlib
+import logging
 import sys
 import time as clock
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
+from . import logs
+from .pace import Lumps, Mark, time_left
+
+detail = logging.getLogger("biostudy.cli")  # each job's end with -v (`logs`)
+
 if TYPE_CHECKING:
     from rich.console import Console
 
 
+UNCUT = 100_000  # the width of a console that is not a terminal: what fits the content, nothing cut
+
+
 @lru_cache(maxsize=None)
 def _console(stderr: bool, stream_id: int) -> Console:
+    """soft_wrap: a long message stays one line in a log.  Not a terminal (a pipe, a file, a batch log):
+    tables as wide as their content, never cut to 80 columns ('17…'); rich pads a table's lines to the
+    table's own width, not the console's.  Full width rather than TSV: the same table as on a terminal,
+    and `--json` is the form for programs."""
     from rich.console import Console  # rich when first printed to: `--version` and `-h` do not pay for it
 
-    return Console(stderr=stderr, soft_wrap=True)  # soft_wrap: a long message stays one line in a log
+    console = Console(stderr=stderr, soft_wrap=True)
+    if not console.is_terminal:
+        console.width = UNCUT
+    return console
 
 
 def err() -> Console:
@@ -40,21 +56,29 @@ class Lines:
     EVERY = 0.1
     SECONDS = 30.0
 
-    def __init__(self, title: str, total: float):
-        self.title, self.total = title, total
+    def __init__(self, title: str, total: float, lumps: str = ""):
+        self.title, self.total, self.lumps = title, total, lumps  # lumps: what they are ("mechanics solves")
         self.began = self.last_time = clock.monotonic()
         self.last_done = 0.0
+        self.first: Mark | None = None  # at the first report
 
-    def update(self, done: float, position: str, counts: str, force: bool = False) -> None:
+    def update(self, done: float, position: str, counts: str, force: bool = False, lumps: Lumps = (0.0, 0, 0)
+               ) -> None:
+        """`lumps`: work that comes in lumps, not in proportion to `done` (`pace.Lumps`)."""
         now = clock.monotonic()
+        mark = Mark(now, done, *lumps)
+        if self.first is None:
+            self.first = mark
         fraction = done / self.total if self.total else 1.0
         if not (force or fraction - self.last_done >= self.EVERY - 1e-12 or now - self.last_time >= self.SECONDS
                 or (fraction >= 1.0 > self.last_done)):
             return
         self.last_done, self.last_time = fraction, now
         elapsed = now - self.began
-        left = f", left ~{duration(elapsed * (1 - fraction) / fraction)}" if 0 < fraction < 1 else ""
-        print(f"{self.title}: {position} ({fraction:.0%}), {counts}, elapsed {duration(elapsed)}{left}",
+        left = time_left(self.first, mark, self.total)
+        then = f" + {left.unpriced} {self.lumps}" if left and left.unpriced else ""
+        left_text = f", left ~{duration(left.seconds)}{then}" if left else ""
+        print(f"{self.title}: {position} ({fraction:.0%}), {counts}, elapsed {duration(elapsed)}{left_text}",
               file=sys.stderr, flush=True)
 
 
@@ -72,10 +96,12 @@ def duration(seconds: float) -> str:
 def simulation(name: str, t_end: float, quiet: bool):
     """Progress of one simulation: simulated time, steps and bisections; yields the solver's callback."""
     console = err()
+    quiet = quiet or logs.is_quiet()
     if not quiet and not console.is_terminal:
-        lines = Lines(name, t_end)
+        lines = Lines(name, t_end, "mechanics solves")
         yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
-                                     f"steps {p.steps}, bisections {p.bisections}")
+                                     f"steps {p.steps}, bisections {p.bisections}",
+                                     lumps=(p.mechanics_seconds, p.mechanics_solves, p.mechanics_left))
         return
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -95,6 +121,7 @@ def jobs(title: str, quiet: bool, noun: str = "cases"):
     first job on: input found bad before (an output directory in use, say) is told on its own line.  When
     every job had finished before, it says so instead of showing an empty bar."""
     console = err()
+    quiet = quiet or logs.is_quiet()
     counts = {"start": 0, "skip": 0, "failed before": 0, "finished": 0, "failed": 0}
     lines = None if quiet or console.is_terminal else Lines(title, 0)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -112,10 +139,12 @@ def jobs(title: str, quiet: bool, noun: str = "cases"):
             elif event == "skip":
                 counts["skip"] += 1
                 counts["failed before"] += message == "failed"
+                detail.debug("%s skipped: %s before", job_id, message)
             elif event == "start":
                 counts["start"] += 1
                 progress.update(task, total=counts["start"], visible=True)
             elif event in ("done", "failed"):
+                detail.debug("%s %s%s", job_id, event, f": {message}" if message and event == "done" else "")
                 counts["finished"] += 1
                 counts["failed"] += event == "failed"
                 progress.update(task, advance=1, last=f"{job_id} {event}")

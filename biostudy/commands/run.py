@@ -15,6 +15,7 @@ else is not replaced.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,8 @@ from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
 from ..quantities import alerts
+
+log = logging.getLogger(__name__)  # detail for `-v` and for Python callers who configure logging (cli.logs)
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,9 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     else:
         path = bundled.resolve(scene)
         loaded = load_scene(path, overrides, runs_here=True)
+    log.debug("%s: %s cells of %g µm, %d steps to T* = %g, %d outputs, mechanics %s", loaded.name,
+              " × ".join(map(str, loaded.grid.shape)), loaded.grid.spacing, loaded.time.steps, loaded.time.t_end,
+              loaded.time.count(), "on" if loaded.mechanics is not None and loaded.mechanics.enabled else "off")
     previous = None
     if continue_from is not None:
         continue_from = Path(continue_from)
@@ -98,8 +104,16 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
 
 
+def _first_dataset() -> None:
+    """xarray's first dataset with a variable loads its array backends (dask: a second or more): made before
+    the steps, so that it is not a cost after the last one that the progress lines' time left (paced on the
+    steps) cannot see; the run takes as long."""
+    xr.Dataset({"warm": ("warm", [0.0])})
+
+
 def _simulated(loaded: Loaded, progress) -> xr.Dataset:
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped."""
+    _first_dataset()
     problem = loaded.scene.problem()
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
@@ -107,6 +121,9 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
         ds = solver.simulate(problem, progress=progress)
     except solver.SimulationError as error:
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
+    log.debug("%s: wall time %.3g s (%s)", loaded.scene.name, ds.attrs["wall_time"], ", ".join(
+        f"{name.removeprefix('wall_time_')} {seconds:.3g} s" for name, seconds in ds.attrs.items()
+        if name.startswith("wall_time_")))
     if loaded.previous is not None and loaded.previous_path is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}

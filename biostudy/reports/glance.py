@@ -18,9 +18,18 @@ from rich.console import Group
 from ..data.netcdf import OBSERVABLES
 from .show import summary_of
 
+Series = list[tuple[str, np.ndarray, dict]]  # observables: name, values over time, their attributes
+
 
 def glance(path: str | Path) -> Group | None:
     """The summary of a run, a case or a failed case's record, or None when the full reader must do it."""
+    found = read(path)
+    return summary_of(*found) if found is not None else None
+
+
+def read(path: str | Path) -> tuple[dict, np.ndarray | None, Series] | None:
+    """A run's attributes, output times and observables, read with netCDF4 alone; None when the full reader
+    must do it (not a run's file, observables not stored, damaged)."""
     import netCDF4
 
     from ..data.store import intact  # lazily: only to tell a damaged file
@@ -32,7 +41,7 @@ def glance(path: str | Path) -> Group | None:
             if "biostudy_version" not in attrs or "sweep_mode" in attrs:
                 return None
             if attrs.get("status") == "failed" and not nc.variables:
-                return summary_of(attrs, None, [])
+                return attrs, None, []
             names = [n.strip() for n in str(attrs.get(OBSERVABLES, "")).split(",") if n.strip()]
             if not names or "time" not in nc.variables or any(n not in nc.variables for n in names):
                 return None
@@ -46,4 +55,4 @@ def glance(path: str | Path) -> Group | None:
                 series.append((name, values, {key: var.getncattr(key) for key in var.ncattrs()}))
     except (OSError, RuntimeError, ValueError, KeyError, AttributeError):
         return None
-    return summary_of(attrs, times, series) if intact(path) else None
+    return (attrs, times, series) if intact(path) else None

@@ -34,7 +34,7 @@ def _rows(rows: list[tuple[str, str]]) -> Table:
     return table
 
 
-def _scene_title(attrs: dict) -> tuple[str, str]:
+def scene_title(attrs: dict) -> tuple[str, str]:
     try:
         scene = tomllib.loads(str(attrs.get("scene", "")))
     except tomllib.TOMLDecodeError:
@@ -83,14 +83,19 @@ def _software(attrs: dict) -> str:
     return ", ".join([f"biostudy {attrs.get('biostudy_version', '?')}", *versions])
 
 
-def run_summary(ds: xr.Dataset) -> Group:
-    """One run: scene, parameters, cost, and the observables at the start and the end."""
+def run_series(ds: xr.Dataset) -> tuple[dict, np.ndarray | None, list[tuple[str, np.ndarray, dict]]]:
+    """A run's attributes, output times and observables (name, values over time, their attributes)."""
     if "time" not in ds.dims or "phi" not in ds:
-        return summary_of(ds.attrs, None, [])
+        return ds.attrs, None, []
     from ..quantities import observables  # lazily: a file that holds its observables needs none of this
 
     series = [(name, values.values, values.attrs) for name, values in observables.variables(ds).items()]
-    return summary_of(ds.attrs, ds.time.values, series)
+    return ds.attrs, ds.time.values, series
+
+
+def run_summary(ds: xr.Dataset) -> Group:
+    """One run: scene, parameters, cost, and the observables at the start and the end."""
+    return summary_of(*run_series(ds))
 
 
 def _value(values: np.ndarray, index: int, attrs: dict) -> str:
@@ -101,7 +106,7 @@ def _value(values: np.ndarray, index: int, attrs: dict) -> str:
 
 def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np.ndarray, dict]]) -> Group:
     """One run from its attributes, output times and observables (name, values over time, their attributes)."""
-    name, description = _scene_title(attrs)
+    name, description = scene_title(attrs)
     status = str(attrs.get("status", "done"))
     rows = _header(attrs)
     if status != "done":
@@ -130,8 +135,6 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
 
 def study_summary(ds: xr.Dataset) -> Group:
     """A study.nc: what was swept, how many cases finished, one row per case."""
-    from ..quantities import observables  # lazily: `show` at a glance needs none (reports.glance)
-
     attrs = ds.attrs
     dims = [d.strip() for d in str(attrs.get("sweep_dimensions", "case")).split(",")]
     rows = [("study file", str(attrs.get("study_file", ""))), *_header(attrs)]
@@ -147,7 +150,7 @@ def study_summary(ds: xr.Dataset) -> Group:
         ("software", _software(attrs)),
     ]
     name = str(attrs.get("title", "study")).removeprefix("biofilm growth study: ")
-    shown = [n for n in observables.SUMMARY if n in ds] or [n for n in AVERAGES if n in ds]
+    shown = shown_in_study(ds)
     table = Table(show_edge=False, caption="observables at the last output time (" + ", ".join(
         f"{n} {units_text(ds[n].attrs.get('units', '1')) or '1'}" for n in shown) + "; `biostudy analyze` for all)")
     table.add_column("case", no_wrap=True)
@@ -156,13 +159,7 @@ def study_summary(ds: xr.Dataset) -> Group:
         table.add_column(column, justify="right")
     table.add_column("message")
 
-    def flat(var: str) -> np.ndarray:
-        values = ds[var]
-        if "time" in values.dims:
-            values = values.isel(time=-1)
-        return values.transpose(*dims, ...).values.ravel()
-
-    columns = {v: flat(v) for v in ("case_id", "status", "wall_time", "steps_taken", "message", *shown) if v in ds}
+    columns = case_columns(ds, ("case_id", "status", "wall_time", "steps_taken", "message", *shown))
     for i, case in enumerate(columns["case_id"]):
         status = str(columns["status"][i])
         colour = {"done": "green", "failed": "red"}.get(status, "yellow")
@@ -171,6 +168,29 @@ def study_summary(ds: xr.Dataset) -> Group:
                       *(_value(columns[v], i, ds[v].attrs) if v in columns else "-" for v in shown),
                       str(columns["message"][i]))
     return Group(Text.from_markup(f"[bold]{name}[/bold]"), _rows(rows), table)
+
+
+def shown_in_study(ds: xr.Dataset) -> list[str]:
+    """The observables a study's summary shows (those the study has)."""
+    from ..quantities import observables  # lazily: `show` at a glance needs none (reports.glance)
+
+    return [n for n in observables.SUMMARY if n in ds] or [n for n in AVERAGES if n in ds]
+
+
+def case_columns(ds: xr.Dataset, names) -> dict[str, np.ndarray]:
+    """The study's variables of these names (those it has), one entry per case in the order of the
+    study's dimensions; a time series at its last output."""
+    dims = [d.strip() for d in str(ds.attrs.get("sweep_dimensions", "case")).split(",")]
+
+    def flat(var: str) -> np.ndarray:
+        values = ds[var]
+        if "time" in values.dims:
+            values = values.isel(time=-1)
+        if not set(dims) <= set(values.dims):  # a swept key's coordinate: along its own dimension only
+            values = values.broadcast_like(ds["case_id"])
+        return values.transpose(*dims, ...).values.ravel()
+
+    return {v: flat(v) for v in names if v in ds}
 
 
 def summarize(ds: xr.Dataset, console: Console) -> None:
