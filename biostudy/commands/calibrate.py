@@ -33,7 +33,7 @@ from ..fitting.posterior import Options, posterior
 from ..inputs import bundled
 from ..inputs.keys import id_text
 from ..inputs.scene import overrides_text
-from ..plans.calibration import SCENE, CalibrationPlan, load_calibration
+from ..plans.calibration import SCENE, CalibrationPlan, label, load_calibration
 from ..plots.calibration import corner_figure, fit_figure, profiles_figure
 from ..plots.style import save
 from ..quantities import observables
@@ -74,7 +74,7 @@ class Simulations:
 
     def job(self, condition: str, values: dict[str, float]) -> Job:
         own = [p for p in self.plan.parameters if condition in p.conditions]
-        job_id = "_".join([condition, *(f"{p.name}={id_text(values[p.name])}" for p in own)])
+        job_id = "_".join([label(condition), *(f"{p.label}={id_text(values[p.name])}" for p in own)])
         scene = self.plan.scene_at(condition, values)
         return Job(job_id, scene, self.plan.plan.scene_file, overrides_text(self.plan.overrides(condition, values)),
                    {"case_id": job_id, "calibration_file": str(self.plan.file.resolve()), "condition": condition})

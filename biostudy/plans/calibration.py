@@ -48,7 +48,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
-from ..inputs.keys import dimension, field_of, flatten, key_parts, set_key, takes_integers
+from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
@@ -194,6 +194,13 @@ class Calibration(ManyCases):
         for name in self.conditions:
             if not name or name != name.strip():
                 raise InvalidAt(f"conditions.{name}", "a condition needs a name without surrounding spaces")
+        labels: dict[str, str] = {}
+        for name in self.conditions:
+            twin = labels.setdefault(label(name), name)
+            if twin != name:
+                raise InvalidAt(f"conditions.{name}", f"conditions {twin} and {name} collide as file names: both "
+                                f"are {label(name)} in a case id (a case id keeps letters, digits and . _ + -; "
+                                "others become -)")
         return self
 
     def condition_names(self) -> list[str]:
@@ -247,6 +254,12 @@ class Calibration(ManyCases):
             raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
 
 
+def label(name: str) -> str:
+    """A condition's name in case ids and file names: spelled as a sweep spells a text value (`id_text`: a
+    path's / and every character but letters, digits and . + - become -), its underscores kept."""
+    return "_".join(id_text(part) for part in name.split("_"))
+
+
 def _spelled(key: str) -> tuple[str, ...]:
     """A dotted key as the scene reads it (g and params.g are the same key)."""
     try:
@@ -279,6 +292,7 @@ class Parameter:
     key: str
     range: Range
     conditions: tuple[str, ...]
+    label: str  # the name in case ids (a condition's own parameter: its condition's `label`)
 
     @property
     def log(self) -> bool:
@@ -341,9 +355,10 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     found = []
     for key, rng in spec.estimate.items():
         sharing = tuple(n for n in names if key not in (spec.conditions[n].estimate if n in spec.conditions else {}))
-        found.append(Parameter(dimension(key), key, rng, sharing))
+        found.append(Parameter(dimension(key), key, rng, sharing, dimension(key)))
     for name, condition in spec.conditions.items():
-        found += [Parameter(f"{dimension(key)}[{name}]", key, rng, (name,)) for key, rng in condition.estimate.items()]
+        found += [Parameter(f"{dimension(key)}[{name}]", key, rng, (name,), f"{dimension(key)}[{label(name)}]")
+                  for key, rng in condition.estimate.items()]
     return found
 
 

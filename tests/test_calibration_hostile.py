@@ -1,0 +1,111 @@
+"""Calibration files as a hostile user writes them (issue 25): condition names that are paths, costs that cannot
+fit, extreme table numbers, the same key under two spellings, too few measurements.  Most are checks made before
+anything runs; the few that simulate use a 8 x 8 colony of 10 steps (a few hundredths of a second each).
+"""
+from __future__ import annotations
+
+import hashlib
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from biostudy.cli import app
+
+SCENE = """\
+name = "speck"
+[grid]
+shape = [8, 8]
+[time]
+t_end = 0.1
+steps = 10
+[[nutrient]]
+shape = "face"
+face = "y-"
+[[biofilm]]
+shape = "box"
+lower = [2.0, 0.0]
+upper = [6.0, 3.0]
+"""
+
+cli = CliRunner()
+
+
+def invoke(*args):
+    return cli.invoke(app, [str(a) for a in args])
+
+
+def table(*rows: tuple[str, str, float, float, float]) -> str:
+    """A measurement table: (observable, condition, time in h, measurement, sigma) per row."""
+    lines = ["observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters"]
+    return "\n".join(lines + ["\t".join(map(str, row)) for row in rows]) + "\n"
+
+
+def calibration(folder: Path, rows: str, body: str, scene: str = SCENE) -> Path:
+    """The scene, the table and a calibration file (times in h, t_ref = 1 h) in `folder`; `body` follows [data]."""
+    (folder / "speck.toml").write_text(scene)
+    (folder / "t.tsv").write_text(rows)
+    path = folder / "c.toml"
+    path.write_text('scene = "speck.toml"\n[data]\nmeasurements = "t.tsv"\ntime_unit = "h"\nt_ref = "1 h"\n'
+                    + textwrap.dedent(body))
+    return path
+
+
+def one_line(result, expected: str) -> str:
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in result.output, result.stderr
+    assert expected in lines[0], lines[0]
+    return lines[0]
+
+
+# ---- 1. a condition's name is a name, never a path -----------------------------------------------------------------
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("name", ["../../victim", "/tmp/biostudy-absolute-condition", "day1/rep2"])
+def test_a_condition_named_like_a_path_writes_its_case_files_under_cases(tmp_path, name):
+    from biostudy.commands.calibrate import Simulations, load
+    from biostudy.execution.jobs import Execution
+
+    folder = tmp_path / "lab"
+    folder.mkdir()
+    victim = folder / "victim.nc"
+    victim.write_bytes(b"the user's own results")
+    before = _digest(victim)
+    # "a" estimates r for itself; the hostile condition estimates nothing, so its case id is its name alone
+    rows = table(("biomass", "a", 0.05, 1.0, 0.1), ("biomass", name, 0.05, 1.0, 0.1))
+    path = calibration(folder, rows, f"""\
+        [conditions.a.estimate]
+        r = [50.0, 150.0]
+        [conditions."{name}"]
+        "params.k" = 2.0
+        """)
+    out = folder / "out"
+    command = load(path, output=out)
+    simulations = Simulations(command.plan, out, Execution())
+    [residuals] = simulations.evaluate([np.array([0.5])])
+    assert residuals is not None and np.all(np.isfinite(residuals))
+    assert _digest(victim) == before
+    written = [p for p in tmp_path.rglob("*.nc") if p != victim]
+    assert len(written) == 2 and all(p.parent == out / "cases" for p in written), written
+    assert not Path("/tmp/biostudy-absolute-condition").exists()
+    ids = {p.stem for p in written}
+    assert "-".join(filter(None, name.split("/"))) in "|".join(ids)  # still readable
+
+
+def test_conditions_whose_names_collide_as_file_names_are_refused(tmp_path):
+    rows = table(("biomass", "day1/rep2", 0.05, 1.0, 0.1), ("biomass", "day1-rep2", 0.05, 1.0, 0.1))
+    path = calibration(tmp_path, rows, """\
+        [estimate]
+        r = [50.0, 150.0]
+        [conditions."day1/rep2"]
+        [conditions.day1-rep2]
+        """)
+    one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
+             "conditions day1/rep2 and day1-rep2 collide as file names")
+    assert not (tmp_path / "out").exists()
