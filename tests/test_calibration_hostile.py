@@ -109,3 +109,38 @@ def test_conditions_whose_names_collide_as_file_names_are_refused(tmp_path):
     one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
              "conditions day1/rep2 and day1-rep2 collide as file names")
     assert not (tmp_path / "out").exists()
+
+
+# ---- 11, 14: checks of the estimated keys before anything runs -----------------------------------------------------
+
+TWO_ROWS = table(("biomass", "", 0.05, 1.0, 0.1), ("biomass", "", 0.08, 1.2, 0.1))
+
+
+@pytest.mark.parametrize("body, expected", [
+    ('[estimate]\ng = [1e7, 1e10, "log"]\n"params.g" = [1e7, 1e10, "log"]\n',
+     "c.toml: estimate.params.g: is the same key as g"),
+    ('[estimate]\nr = [20.0, 250.0]\n[conditions.a]\n[conditions.a.estimate]\ng = [1e7, 1e10]\n'
+     '"params.g" = [1e8, 1e9]\n', "c.toml: conditions.a.estimate.params.g: is the same key as g"),
+    ('[estimate]\n"time.t_end" = [0.01, 0.2]\n',
+     "c.toml: estimate.time.t_end: low end 0.01 ends a run before the measurement at T* = 0.08 (t.tsv, line 3)"),
+], ids=["two spellings", "two spellings in a condition", "t_end before a measurement"])
+def test_estimated_keys_are_checked_before_anything_runs(tmp_path, body, expected):
+    rows = TWO_ROWS.replace("\t\t", "\ta\t") if "conditions.a" in body else TWO_ROWS
+    path = calibration(tmp_path, rows, body)
+    one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"), expected)
+    assert not (tmp_path / "out").exists()
+    one_line(invoke("show", path), expected)
+
+
+def test_a_key_shared_and_estimated_by_a_condition_under_another_spelling_is_the_condition_s_own(tmp_path):
+    from biostudy.plans.calibration import load_calibration
+
+    path = calibration(tmp_path, TWO_ROWS.replace("\t\t0.05", "\ta\t0.05").replace("\t\t", "\tb\t"), """\
+        [estimate]
+        r = [20.0, 250.0]
+        [conditions.a]
+        [conditions.b.estimate]
+        "params.r" = [20.0, 250.0]
+        """)
+    plan = load_calibration(path)
+    assert [(p.name, p.conditions) for p in plan.parameters] == [("r", ("a",)), ("r[b]", ("b",))]

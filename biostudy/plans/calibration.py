@@ -60,9 +60,17 @@ METHODS = ("least-squares", "posterior")
 
 
 def _ranges(table: Any, where: str) -> dict[str, Range]:
+    """The bounds of a table of estimated keys; a key given twice under two spellings (g, params.g) is
+    `InvalidAt`, as in a study's [sample]."""
     if not isinstance(table, dict):
         raise InvalidAt(where, f"must be a table of keys and [low, high] bounds (got {value_text(table)})")
-    return {key: parse_range(key, given, where) for key, given in flatten(table).items()}
+    ranges = {key: parse_range(key, given, where) for key, given in flatten(table).items()}
+    seen: dict[tuple[str, ...], str] = {}
+    for key in ranges:
+        twin = seen.setdefault(_spelled(key), key)
+        if twin != key:
+            raise InvalidAt(f"{where}.{key}", f"is the same key as {twin}")
+    return ranges
 
 
 class DataSpec(BaseModel):
@@ -246,8 +254,8 @@ class Calibration(ManyCases):
                     check_ends({key: ranges[key]}, data, scene_file, path, table)
                 except BadInput as error:
                     problems.append(error)
-        shared = [k for k in self.estimate
-                  if self.conditions and all(k in c.estimate for c in self.conditions.values())]
+        shared = [k for k in self.estimate if self.conditions and all(
+            _spelled(k) in {_spelled(own) for own in c.estimate} for c in self.conditions.values())]
         problems += [BadInput("every condition estimates it for itself: leave it out of [estimate]", path,
                               f"estimate.{key}") for key in shared]
         if problems:
@@ -354,7 +362,8 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     names = spec.condition_names()
     found = []
     for key, rng in spec.estimate.items():
-        sharing = tuple(n for n in names if key not in (spec.conditions[n].estimate if n in spec.conditions else {}))
+        own = {n: {_spelled(k) for k in spec.conditions[n].estimate} for n in spec.conditions}
+        sharing = tuple(n for n in names if _spelled(key) not in own.get(n, set()))
         found.append(Parameter(dimension(key), key, rng, sharing, dimension(key)))
     for name, condition in spec.conditions.items():
         found += [Parameter(f"{dimension(key)}[{name}]", key, rng, (name,), f"{dimension(key)}[{label(name)}]")
@@ -404,12 +413,33 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             problems.append(BadInput(f"{value_text(m.time)}{unit} is T* = {t:.4g}{reference}, {when}: the scene "
                                      f"runs over T* = 0 to {value_text(t_end)} (time.t_end)", data_file,
                                      f"line {m.line}: time"))
+    problems += _runs_too_short(spec, rows, times, data_file, path)
     named = {m.condition for m in rows}
     problems += [BadInput("no row of the measurement table names it (simulationConditionId): nothing to fit", path,
                           f"conditions.{name}") for name in spec.conditions if name not in named]
     if problems:
         raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
+
+
+def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarray, data_file: Path,
+                    path: Path) -> list[BadInput]:
+    """A `BadInput` for every estimated time.t_end whose low end stops a run before its condition's last
+    measurement: a simulation there could not be compared with it."""
+    problems = []
+    for p in _parameters(spec):
+        if _spelled(p.key) != ("time", "t_end"):
+            continue
+        measured = [(t, m.line) for m, t in zip(rows, times) if _condition(m) in p.conditions]
+        if not measured:
+            continue
+        latest, line = max(measured)
+        if p.range.low < latest:
+            where = f"estimate.{p.key}" if p.label == p.name else f"conditions.{p.conditions[0]}.estimate.{p.key}"
+            problems.append(BadInput(f"low end {value_text(p.range.low)} ends a run before the measurement at "
+                                     f"T* = {latest:.4g} ({data_file.name}, line {line}): every run must reach "
+                                     "the last measurement of its condition", path, where))
+    return problems
 
 
 def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
