@@ -144,3 +144,50 @@ def test_a_key_shared_and_estimated_by_a_condition_under_another_spelling_is_the
         """)
     plan = load_calibration(path)
     assert [(p.name, p.conditions) for p in plan.parameters] == [("r", ("a",)), ("r[b]", ("b",))]
+
+
+# ---- 6. what a calibration costs is said before it runs, and refused when it cannot fit -------------------------
+
+def _many_times(n: int) -> str:
+    """A table of n distinct times inside the speck's run (T* 0 to 0.1)."""
+    return table(*(("biomass", "", 0.1 * (i + 1) / n, 1.0, 0.1) for i in range(n)))
+
+
+def test_a_table_of_many_distinct_times_is_refused_when_its_outputs_cannot_fit_and_show_says_so(tmp_path,
+                                                                                               monkeypatch):
+    # 20,000 outputs of 8 x 8 cells: ~0.2 GB held three times over, beside the process's 0.2 GB
+    path = calibration(tmp_path, _many_times(20_000), '[estimate]\nr = [20.0, 250.0]\n')
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "300 MB")
+    refused = one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
+                       "t.tsv: 20,000 outputs per simulation of condition scene (one per distinct measurement time): "
+                       "needs ~")
+    assert "300 MB available" in refused and not (tmp_path / "out").exists()
+    shown = invoke("show", path)
+    assert shown.exit_code == 0, shown.output
+    memory = refused.split("needs ")[1].split(" of memory")[0]
+    assert f"one simulation {memory} of memory" in shown.stdout and "20,000 outputs per simulation" in shown.stdout
+
+
+def test_many_outputs_are_said_before_the_first_simulation_runs(tmp_path, monkeypatch):
+    from biostudy.commands import calibrate
+    from biostudy.errors import Failed
+
+    def stopped(*args, **kwargs):
+        raise Failed("stopped before the fit")
+
+    monkeypatch.setattr(calibrate, "least_squares", stopped)
+    path = calibration(tmp_path, _many_times(1_500), '[estimate]\nr = [20.0, 250.0]\n')
+    result = invoke("calibrate", path, "-o", tmp_path / "out", "-q")
+    assert result.exit_code == 1 and "stopped before the fit" in result.stderr, result.output
+    assert "1,500 outputs per simulation of condition scene" in result.stderr.split("stopped")[0]
+
+
+def test_posterior_chains_that_cannot_fit_are_refused_before_anything_runs(tmp_path):
+    path = calibration(tmp_path, TWO_ROWS, '[estimate]\nr = [20.0, 250.0]\n[method]\nname = "posterior"\n'
+                                           'walkers = 1000\nsteps = 1000000\n')
+    one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
+             "c.toml: method.steps: the posterior's chains (1000 walkers × 1000000 steps × 1 parameters) need ~32 GB "
+             "of memory, 16 GB available: lower steps or walkers")
+    assert not (tmp_path / "out").exists()
+    shown = invoke("show", path)
+    assert shown.exit_code == 0 and "chains        ~32 GB of memory" in shown.stdout, shown.output
