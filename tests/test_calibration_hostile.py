@@ -191,3 +191,49 @@ def test_posterior_chains_that_cannot_fit_are_refused_before_anything_runs(tmp_p
     assert not (tmp_path / "out").exists()
     shown = invoke("show", path)
     assert shown.exit_code == 0 and "chains        ~32 GB of memory" in shown.stdout, shown.output
+
+
+# ---- 12. what the fit says about the parameters, in words -----------------------------------------------------------
+
+COST = {"simulations": 0, "simulations_reused": 0, "rounds": 0, "wall_time": 0.0, "wall_time_simulations": 0.0,
+        "wall_time_reading": 0.0}
+
+
+def fitted(folder: Path, rows: str, body: str, model):
+    """calibration.nc's dataset and table of a fit whose simulations are `model(values) -> one value per row`
+    (an analytic model in place of the solver: what is tested is what the fit's numbers are said as)."""
+    from biostudy.commands.calibrate import starts
+    from biostudy.fitting.estimate import least_squares
+    from biostudy.plans.calibration import load_calibration
+    from biostudy.reports.calibration import dataset, table_text
+
+    plan = load_calibration(calibration(folder, rows, body))
+    data = np.array([m.value for m in plan.measurements])
+    sigma = np.array([m.sigma for m in plan.measurements])
+
+    def evaluate(points):
+        return [(model(plan.values(p)) - data) / sigma for p in points]
+
+    design = starts(len(plan.parameters), plan.spec.method.starts, plan.spec.method.seed)
+    found = least_squares(design, len(data), np.full(len(data), 1e-9), evaluate, plan.spec.method.profiles)
+    ds = dataset(plan, found, design, model(plan.values(found.best.x)), COST, {}, [])
+    return ds, table_text(ds)
+
+
+def test_a_parameter_the_data_cannot_see_is_not_identifiable_without_profiles(tmp_path):
+    ds, text = fitted(tmp_path, TWO_ROWS, '[estimate]\ng = [1e7, 1e10, "log"]\nr = [20.0, 250.0]\n'
+                                          '[method]\nstarts = 1\nprofiles = false\n',
+                      lambda values: np.array([values["r"] / 100, values["r"] / 80]))
+    j = list(ds.parameter.values).index("g")
+    assert np.isinf(ds.standard_error.values[j]) and not bool(ds.identifiable.values[j])
+    assert "| g | " in text and "| inf | - | no |" in text
+
+
+def test_fewer_measurements_than_parameters_are_said_in_words(tmp_path):
+    ds, text = fitted(tmp_path, table(("biomass", "", 0.05, 1.0, 0.1)),
+                      '[estimate]\ng = [1e7, 1e10, "log"]\nr = [20.0, 250.0]\n[method]\nstarts = 1\nprofiles = false\n',
+                      lambda values: np.array([values["r"] / 100 + np.log10(values["g"]) / 10]))
+    assert "degrees of freedom" not in text and "-1" not in text
+    assert "1 measurement for 2 parameters: the data cannot determine them all" in text
+    assert "1 measurement for 2 parameters" in ds.attrs["statements"]
+    assert not np.any(ds.identifiable.values)
