@@ -237,3 +237,29 @@ def test_fewer_measurements_than_parameters_are_said_in_words(tmp_path):
     assert "1 measurement for 2 parameters: the data cannot determine them all" in text
     assert "1 measurement for 2 parameters" in ds.attrs["statements"]
     assert not np.any(ds.identifiable.values)
+
+
+# ---- 8, 10: numbers a fit cannot compute with, and sigma in the wrong unit --------------------------------------
+
+@pytest.mark.parametrize("measurement, sigma, expected", [
+    (1.0, 1e-320, "t.tsv: line 2: noiseParameters: σ = 1e-320 lies outside 1e-100 to 1e100"),
+    (1e308, 0.1, "t.tsv: line 2: measurement: 1e+308 lies outside -1e100 to 1e100,"),
+    (1.0, 1e308, "t.tsv: line 2: noiseParameters: σ = 1e+308 lies outside 1e-100 to 1e100"),
+    (1e90, 1e-20, "t.tsv: line 2: noiseParameters: the measurement is 1e+110 σ from 0"),
+], ids=["sigma 1e-320", "measurement 1e308", "sigma 1e308", "measurement over sigma 1e110"])
+def test_table_numbers_beyond_what_a_fit_computes_with_are_one_line(tmp_path, measurement, sigma, expected):
+    path = calibration(tmp_path, table(("biomass", "", 0.05, measurement, sigma), ("biomass", "", 0.08, 1.2, 0.1)),
+                       '[estimate]\nr = [20.0, 250.0]\n')
+    one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"), expected)
+    assert not (tmp_path / "out").exists()
+
+
+def test_sigma_in_the_wrong_unit_says_how_far_the_fit_is_not_that_every_evaluation_failed(tmp_path):
+    from biostudy.errors import Failed
+
+    with pytest.raises(Failed) as error:  # sigma 1e-8 of measurements of order 1: every residual ~1e8 sigma
+        fitted(tmp_path, TWO_ROWS.replace("\t0.1\n", "\t1e-08\n"), '[estimate]\nr = [20.0, 250.0]\n'
+               '[method]\nstarts = 1\nprofiles = false\n', lambda values: np.array([values["r"] / 100, 0.5]))
+    said = str(error.value)
+    assert "every evaluation" not in said and "e+07 σ from the measurement of line 3" in said, said
+    assert "is σ (noiseParameters) in the measurement's units?" in said

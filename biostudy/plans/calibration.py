@@ -57,6 +57,7 @@ from .designs import Range, check_ends, parse_range
 
 SCENE = "scene"  # the condition of a calibration without [conditions]
 METHODS = ("least-squares", "posterior")
+EXTREME = 1e100  # the largest |measurement|, σ and |measurement| / σ (and 1 / it the smallest σ) a fit takes
 
 
 def _ranges(table: Any, where: str) -> dict[str, Range]:
@@ -394,6 +395,9 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             problems.append(BadInput(f"unknown condition {m.condition!r} ({what})", data_file,
                                      f"line {m.line}: simulationConditionId"))
             continue
+        extreme = _extreme(m)
+        if extreme:
+            problems.append(BadInput(extreme[1], data_file, f"line {m.line}: {extreme[0]}"))
         scene = plan.scenes[condition]
         try:
             observable = observables.get(m.observable)
@@ -420,6 +424,21 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
     if problems:
         raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
+
+
+def _extreme(m: Measurement) -> tuple[str, str] | None:
+    """(column, why) for a row whose numbers a fit cannot compute with: its weighted residuals (model - value) / σ,
+    their squares and their derivatives must stay far inside floating point (`EXTREME`)."""
+    beyond = "beyond what a fit computes with"
+    if not 1 / EXTREME <= m.sigma <= EXTREME:
+        return "noiseParameters", (f"σ = {m.sigma!r} lies outside {value_text(1 / EXTREME)} to "
+                                   f"{value_text(EXTREME)}, {beyond}: give σ in the measurement's units")
+    if not abs(m.value) <= EXTREME:
+        return "measurement", f"{m.value!r} lies outside -{value_text(EXTREME)} to {value_text(EXTREME)}, {beyond}"
+    if not abs(m.value) / m.sigma <= EXTREME:
+        return "noiseParameters", (f"the measurement is {abs(m.value) / m.sigma:.3g} σ from 0 (σ = {m.sigma!r}), "
+                                   f"{beyond}: give σ in the measurement's units")
+    return None
 
 
 def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarray, data_file: Path,

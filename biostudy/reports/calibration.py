@@ -96,6 +96,21 @@ def _too_few(n: int, k: int) -> list[str]:
     return []
 
 
+def _no_fit(plan: CalibrationPlan, model: np.ndarray, failed: dict[str, str]) -> str:
+    """Why the best fit is no better than failed simulations: they all failed, or the model, finished, lies
+    so many σ from the data that σ is likely in another unit."""
+    if np.isnan(model).any() or not len(model):
+        return (f"every evaluation of the calibration failed (e.g. {next(iter(failed.values()), '')}); the case "
+                "files under cases/ say why")
+    rows = plan.measurements
+    residual = (model - np.array([m.value for m in rows])) / np.array([m.sigma for m in rows])
+    i = int(np.argmax(np.abs(residual)))
+    m = rows[i]
+    return (f"the best fit lies {abs(residual[i]):.3g} σ from the measurement of line {m.line} ({m.observable} "
+            f"{number(m.value)} ± {number(m.sigma)}, the model {number(model[i])}), though its simulations "
+            f"finished: is σ (noiseParameters) in the measurement's units?")
+
+
 def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: np.ndarray, cost: dict,
             failed: dict[str, str], vanished: list[str], sampled: Posterior | None = None) -> xr.Dataset:
     """calibration.nc's contents (module docstring): `model` at the estimate per measurement, `cost` the counts and
@@ -103,8 +118,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
     `vanished` those whose dense biofilm vanished, `sampled` the posterior when sampled."""
     best = found.best
     if best.chi2 >= len(model) * PENALTY**2:
-        raise Failed(f"every evaluation of the calibration failed (e.g. {next(iter(failed.values()), '')}); the case "
-                     "files under cases/ say why")
+        raise Failed(_no_fit(plan, model, failed))
     params = plan.parameters
     k, n = len(params), len(model)
     measured = np.array([m.value for m in plan.measurements])
