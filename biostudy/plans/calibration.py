@@ -36,12 +36,10 @@ from __future__ import annotations
 
 import copy
 import difflib
-import functools
-import math
 import typing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -52,12 +50,12 @@ from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_
 from ..inputs.measurements import Measurement, read_measurements
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
+from .calibration_method import MethodSpec
+from .calibration_table import DataSpec, extreme_numbers
 from .cases import Case, ManyCases, Plan, base_scene, case_scene, load_plan
 from .designs import Range, check_ends, parse_range
 
 SCENE = "scene"  # the condition of a calibration without [conditions]
-METHODS = ("least-squares", "posterior")
-EXTREME = 1e100  # the largest |measurement|, σ and |measurement| / σ (and 1 / it the smallest σ) a fit takes
 
 
 def _ranges(table: Any, where: str) -> dict[str, Range]:
@@ -72,52 +70,6 @@ def _ranges(table: Any, where: str) -> dict[str, Range]:
         if twin != key:
             raise InvalidAt(f"{where}.{key}", f"is the same key as {twin}")
     return ranges
-
-
-class DataSpec(BaseModel):
-    """The measurements: the table and the unit of its times."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-    measurements: str = Field(description="measurement table (CSV or TSV, PEtab's columns), relative to this file")
-    time_unit: str | None = Field(None, description="unit of the table's times, e.g. \"h\", \"min\", \"d\" "
-                                                     "(absent: the times are T*)")
-    t_ref: str | None = Field(None, description="the real time of T* = 1, e.g. \"48 h\"")
-
-    @model_validator(mode="after")
-    def _both(self):
-        if (self.time_unit is None) != (self.t_ref is None):
-            raise InvalidAt("t_ref" if self.t_ref is None else "time_unit",
-                            "give both time_unit and t_ref (the real time of T* = 1), or neither (times in T*)")
-        return self
-
-    def time_factor(self) -> float:
-        """T* per unit of the table's time: t / t_ref with pint; `InvalidAt` for a unit that is not a time."""
-        if self.time_unit is None:
-            return 1.0
-        import pint  # lazily: a second of start-up, only for calibrations with real times
-
-        units = _registry()
-        try:
-            unit = units.Quantity(1.0, self.time_unit)
-        except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
-            raise InvalidAt("time_unit", f"{self.time_unit!r} is not a unit pint reads ({error})") from None
-        try:
-            reference = units.Quantity(self.t_ref)
-        except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
-            raise InvalidAt("t_ref", f"{self.t_ref!r} is not a time pint reads ({error})") from None
-        for key, quantity, text in (("time_unit", unit, self.time_unit), ("t_ref", reference, self.t_ref)):
-            if quantity.dimensionality != units.second.dimensionality:
-                raise InvalidAt(key, f"{text!r} is not a time (its dimension is {quantity.dimensionality})")
-        if not reference.magnitude > 0 or not math.isfinite(reference.magnitude):
-            raise InvalidAt("t_ref", f"must be a positive time (got {self.t_ref!r})")
-        return float((unit / reference).to("dimensionless").magnitude)
-
-
-@functools.lru_cache(maxsize=1)
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
 
 
 class Condition(BaseModel):
@@ -135,40 +87,6 @@ class Condition(BaseModel):
         data = dict(data)
         estimate = data.pop("estimate", {})
         return {"set": flatten(data), "estimate": _ranges(estimate, "estimate")}
-
-
-POSTERIOR_KEYS = ("design", "held_out", "walkers", "steps", "box")  # [method] keys of "posterior" alone
-
-
-class MethodSpec(BaseModel):
-    """How the parameters are estimated."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-    name: Literal[METHODS] = Field("least-squares", description="least-squares: weighted least squares, "
-                                   "multi-start, profile likelihoods; posterior: least squares, then samples of "
-                                   "the posterior on a Gaussian-process surrogate")
-    starts: int = Field(4, ge=1, le=64, description="starts of the optimiser, from a Latin hypercube in the bounds")
-    profiles: bool = Field(True, description="a profile likelihood per parameter: its 95 % interval (posterior: "
-                                             "false unless set)")
-    seed: int = Field(0, ge=0, description="seed of the starts' design (posterior: of its design and chains too)")
-    design: int = Field(30, ge=4, le=2000, description="posterior: simulations of the surrogate's training design "
-                                                       "(the least-squares fit's own join them)")
-    held_out: int = Field(8, ge=1, le=500, description="posterior: simulations held out to measure the surrogate's "
-                                                       "error")
-    walkers: int = Field(16, ge=4, le=1000, description="posterior: emcee's walkers (at least twice the parameters)")
-    steps: int = Field(2000, ge=100, le=1_000_000, description="posterior: steps of every walker")
-    box: float = Field(6.0, ge=2.0, le=1e6, description="posterior: the surrogate's box, the least-squares "
-                                                         "estimate ± this many standard errors (within the bounds)")
-
-    @model_validator(mode="after")
-    def _keys_of_the_method(self):
-        if self.name != "posterior":
-            given = [key for key in POSTERIOR_KEYS if key in self.model_fields_set]
-            if given:
-                raise InvalidAt(given[0], f"applies to name = \"posterior\" only (this method is {self.name!r})")
-        elif "profiles" not in self.model_fields_set:
-            self.profiles = False
-        return self
 
 
 class Calibration(ManyCases):
@@ -395,7 +313,7 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             problems.append(BadInput(f"unknown condition {m.condition!r} ({what})", data_file,
                                      f"line {m.line}: simulationConditionId"))
             continue
-        extreme = _extreme(m)
+        extreme = extreme_numbers(m)
         if extreme:
             problems.append(BadInput(extreme[1], data_file, f"line {m.line}: {extreme[0]}"))
         scene = plan.scenes[condition]
@@ -424,21 +342,6 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
     if problems:
         raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
-
-
-def _extreme(m: Measurement) -> tuple[str, str] | None:
-    """(column, why) for a row whose numbers a fit cannot compute with: its weighted residuals (model - value) / σ,
-    their squares and their derivatives must stay far inside floating point (`EXTREME`)."""
-    beyond = "beyond what a fit computes with"
-    if not 1 / EXTREME <= m.sigma <= EXTREME:
-        return "noiseParameters", (f"σ = {m.sigma!r} lies outside {value_text(1 / EXTREME)} to "
-                                   f"{value_text(EXTREME)}, {beyond}: give σ in the measurement's units")
-    if not abs(m.value) <= EXTREME:
-        return "measurement", f"{m.value!r} lies outside -{value_text(EXTREME)} to {value_text(EXTREME)}, {beyond}"
-    if not abs(m.value) / m.sigma <= EXTREME:
-        return "noiseParameters", (f"the measurement is {abs(m.value) / m.sigma:.3g} σ from 0 (σ = {m.sigma!r}), "
-                                   f"{beyond}: give σ in the measurement's units")
-    return None
 
 
 def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarray, data_file: Path,

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from ..errors import BadInput
 from ..inputs import resources
-from .calibration import CalibrationPlan, MethodSpec
+from .calibration import CalibrationPlan
+from .calibration_method import MethodSpec
 
 MANY_OUTPUTS = 1000  # outputs per simulation from which `calibrate` says, before it runs, what they cost
 
