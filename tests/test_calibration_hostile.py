@@ -123,7 +123,9 @@ TWO_ROWS = table(("biomass", "", 0.05, 1.0, 0.1), ("biomass", "", 0.08, 1.2, 0.1
      '"params.g" = [1e8, 1e9]\n', "c.toml: conditions.a.estimate.params.g: is the same key as g"),
     ('[estimate]\n"time.t_end" = [0.01, 0.2]\n',
      "c.toml: estimate.time.t_end: low end 0.01 ends a run before the measurement at T* = 0.08 (t.tsv, line 3)"),
-], ids=["two spellings", "two spellings in a condition", "t_end before a measurement"])
+    ('[estimate]\nr = [20.0, 250.0]\n[conditions.a]\n[conditions.a.estimate]\n"time.t_end" = [0.01, 0.2]\n',
+     "c.toml: conditions.a.estimate.time.t_end: low end 0.01 ends a run before the measurement at T* = 0.08"),
+], ids=["two spellings", "two spellings in a condition", "t_end before a measurement", "a condition's own t_end"])
 def test_estimated_keys_are_checked_before_anything_runs(tmp_path, body, expected):
     rows = TWO_ROWS.replace("\t\t", "\ta\t") if "conditions.a" in body else TWO_ROWS
     path = calibration(tmp_path, rows, body)

@@ -357,7 +357,8 @@ def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarra
             continue
         latest, line = max(measured)
         if p.range.low < latest:
-            where = f"estimate.{p.key}" if p.label == p.name else f"conditions.{p.conditions[0]}.estimate.{p.key}"
+            shared = p.name == dimension(p.key)
+            where = f"estimate.{p.key}" if shared else f"conditions.{p.conditions[0]}.estimate.{p.key}"
             problems.append(BadInput(f"low end {value_text(p.range.low)} ends a run before the measurement at "
                                      f"T* = {latest:.4g} ({data_file.name}, line {line}): every run must reach "
                                      "the last measurement of its condition", path, where))
