@@ -23,7 +23,7 @@ import numpy as np
 from scipy.stats import qmc
 
 from ..data import store
-from ..errors import Failed
+from ..errors import BadInput, Failed
 from ..execution.backends import Kept
 from ..execution.jobs import Execution, Job, run_jobs
 from ..execution.ownership import Owner
@@ -33,7 +33,8 @@ from ..fitting.posterior import Options, posterior
 from ..inputs import bundled
 from ..inputs.keys import id_text
 from ..inputs.scene import overrides_text
-from ..plans.calibration import SCENE, CalibrationPlan, load_calibration
+from ..plans import calibration_cost
+from ..plans.calibration import SCENE, CalibrationPlan, label, load_calibration
 from ..plots.calibration import corner_figure, fit_figure, profiles_figure
 from ..plots.style import save
 from ..quantities import alerts, observables, substratum
@@ -74,7 +75,7 @@ class Simulations:
 
     def job(self, condition: str, values: dict[str, float]) -> Job:
         own = [p for p in self.plan.parameters if condition in p.conditions]
-        job_id = "_".join([condition, *(f"{p.name}={id_text(values[p.name])}" for p in own)])
+        job_id = "_".join([label(condition), *(f"{p.label}={id_text(values[p.name])}" for p in own)])
         scene = self.plan.scene_at(condition, values)
         return Job(job_id, scene, self.plan.plan.scene_file, overrides_text(self.plan.overrides(condition, values)),
                    {"case_id": job_id, "calibration_file": str(self.plan.file.resolve()), "condition": condition})
@@ -191,6 +192,9 @@ class Calibrate:
         """Fit, write DIR/calibration.nc, calibration.md and the pictures; the table is the result's summary."""
         began = time.perf_counter()
         method = self.plan.spec.method
+        said = calibration_cost.note(self.plan)
+        if said and execution.notify is not None:
+            execution.notify("note", "", said)
         with owned(self.directory, self.owner(), "calibration.nc", execution.force):
             backend = _backend(execution)
             simulations = Simulations(self.plan, self.directory, execution, backend)
@@ -272,4 +276,7 @@ def load(calibration: str | Path, *, output: Path | None = None,
     """Read and validate a calibration file (a path or a bundled name), its scene, conditions and measurements;
     bad input is `BadInput` (`runs_here`: as for `commands.sweep.load`)."""
     plan = load_calibration(bundled.resolve(calibration), overrides, runs_here)
+    too_costly = calibration_cost.problems(plan, runs_here)
+    if too_costly:
+        raise BadInput.every(too_costly)
     return Calibrate(plan, Path(output) if output is not None else Path(plan.spec.name))

@@ -40,7 +40,7 @@ import functools
 import typing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -48,42 +48,30 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
 from ..inputs import real_times
-from ..inputs.keys import dimension, field_of, flatten, key_parts, set_key, takes_integers
+from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements, refusal
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
+from .calibration_method import MethodSpec
+from .calibration_table import DataSpec, extreme_numbers
 from .cases import Case, ManyCases, Plan, base_scene, case_scene, load_plan
 from .designs import Range, check_ends, parse_range
 
 SCENE = "scene"  # the condition of a calibration without [conditions]
-METHODS = ("least-squares", "posterior")
 
 
 def _ranges(table: Any, where: str) -> dict[str, Range]:
+    """The bounds of a table of estimated keys; a key given twice under two spellings (g, params.g) is
+    `InvalidAt`, as in a study's [sample]."""
     if not isinstance(table, dict):
         raise InvalidAt(where, f"must be a table of keys and [low, high] bounds (got {value_text(table)})")
-    return {key: parse_range(key, given, where) for key, given in flatten(table).items()}
-
-
-class DataSpec(BaseModel):
-    """The measurements: the table and the unit of its times."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-    measurements: str = Field(description="measurement table (CSV or TSV, PEtab's columns), relative to this file")
-    time_unit: str | None = Field(None, description="unit of the table's times, e.g. \"h\", \"min\", \"d\" "
-                                                     "(absent: the times are T*)")
-    t_ref: str | None = Field(None, description="the real time of T* = 1, e.g. \"48 h\"")
-
-    @model_validator(mode="after")
-    def _both(self):
-        if (self.time_unit is None) != (self.t_ref is None):
-            raise InvalidAt("t_ref" if self.t_ref is None else "time_unit",
-                            "give both time_unit and t_ref (the real time of T* = 1), or neither (times in T*)")
-        return self
-
-    def time_factor(self) -> float:
-        """T* per unit of the table's time (`inputs.real_times.factor`); `InvalidAt` for a unit that is not a time."""
-        return 1.0 if self.time_unit is None else real_times.factor(self.time_unit, str(self.t_ref))
+    ranges = {key: parse_range(key, given, where) for key, given in flatten(table).items()}
+    seen: dict[tuple[str, ...], str] = {}
+    for key in ranges:
+        twin = seen.setdefault(_spelled(key), key)
+        if twin != key:
+            raise InvalidAt(f"{where}.{key}", f"is the same key as {twin}")
+    return ranges
 
 
 class Condition(BaseModel):
@@ -101,40 +89,6 @@ class Condition(BaseModel):
         data = dict(data)
         estimate = data.pop("estimate", {})
         return {"set": flatten(data), "estimate": _ranges(estimate, "estimate")}
-
-
-POSTERIOR_KEYS = ("design", "held_out", "walkers", "steps", "box")  # [method] keys of "posterior" alone
-
-
-class MethodSpec(BaseModel):
-    """How the parameters are estimated."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-    name: Literal[METHODS] = Field("least-squares", description="least-squares: weighted least squares, "
-                                   "multi-start, profile likelihoods; posterior: least squares, then samples of "
-                                   "the posterior on a Gaussian-process surrogate")
-    starts: int = Field(4, ge=1, le=64, description="starts of the optimiser, from a Latin hypercube in the bounds")
-    profiles: bool = Field(True, description="a profile likelihood per parameter: its 95 % interval (posterior: "
-                                             "false unless set)")
-    seed: int = Field(0, ge=0, description="seed of the starts' design (posterior: of its design and chains too)")
-    design: int = Field(30, ge=4, le=2000, description="posterior: simulations of the surrogate's training design "
-                                                       "(the least-squares fit's own join them)")
-    held_out: int = Field(8, ge=1, le=500, description="posterior: simulations held out to measure the surrogate's "
-                                                       "error")
-    walkers: int = Field(16, ge=4, le=1000, description="posterior: emcee's walkers (at least twice the parameters)")
-    steps: int = Field(2000, ge=100, le=1_000_000, description="posterior: steps of every walker")
-    box: float = Field(6.0, ge=2.0, le=1e6, description="posterior: the surrogate's box, the least-squares "
-                                                         "estimate ± this many standard errors (within the bounds)")
-
-    @model_validator(mode="after")
-    def _keys_of_the_method(self):
-        if self.name != "posterior":
-            given = [key for key in POSTERIOR_KEYS if key in self.model_fields_set]
-            if given:
-                raise InvalidAt(given[0], f"applies to name = \"posterior\" only (this method is {self.name!r})")
-        elif "profiles" not in self.model_fields_set:
-            self.profiles = False
-        return self
 
 
 class Calibration(ManyCases):
@@ -169,6 +123,13 @@ class Calibration(ManyCases):
         for name in self.conditions:
             if not name or name != name.strip():
                 raise InvalidAt(f"conditions.{name}", "a condition needs a name without surrounding spaces")
+        labels: dict[str, str] = {}
+        for name in self.conditions:
+            twin = labels.setdefault(label(name), name)
+            if twin != name:
+                raise InvalidAt(f"conditions.{name}", f"conditions {twin} and {name} collide as file names: both "
+                                f"are {label(name)} in a case id (a case id keeps letters, digits and . _ + -; "
+                                "others become -)")
         return self
 
     def condition_names(self) -> list[str]:
@@ -214,12 +175,18 @@ class Calibration(ManyCases):
                     check_ends({key: ranges[key]}, data, scene_file, path, table)
                 except BadInput as error:
                     problems.append(error)
-        shared = [k for k in self.estimate
-                  if self.conditions and all(k in c.estimate for c in self.conditions.values())]
+        shared = [k for k in self.estimate if self.conditions and all(
+            _spelled(k) in {_spelled(own) for own in c.estimate} for c in self.conditions.values())]
         problems += [BadInput("every condition estimates it for itself: leave it out of [estimate]", path,
                               f"estimate.{key}") for key in shared]
         if problems:
             raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
+
+
+def label(name: str) -> str:
+    """A condition's name in case ids and file names: spelled as a sweep spells a text value (`id_text`: a
+    path's / and every character but letters, digits and . + - become -), its underscores kept."""
+    return "_".join(id_text(part) for part in name.split("_"))
 
 
 def _spelled(key: str) -> tuple[str, ...]:
@@ -254,6 +221,7 @@ class Parameter:
     key: str
     range: Range
     conditions: tuple[str, ...]
+    label: str  # the name in case ids (a condition's own parameter: its condition's `label`)
 
     @property
     def log(self) -> bool:
@@ -315,10 +283,12 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     names = spec.condition_names()
     found = []
     for key, rng in spec.estimate.items():
-        sharing = tuple(n for n in names if key not in (spec.conditions[n].estimate if n in spec.conditions else {}))
-        found.append(Parameter(dimension(key), key, rng, sharing))
+        own = {n: {_spelled(k) for k in spec.conditions[n].estimate} for n in spec.conditions}
+        sharing = tuple(n for n in names if _spelled(key) not in own.get(n, set()))
+        found.append(Parameter(dimension(key), key, rng, sharing, dimension(key)))
     for name, condition in spec.conditions.items():
-        found += [Parameter(f"{dimension(key)}[{name}]", key, rng, (name,)) for key, rng in condition.estimate.items()]
+        found += [Parameter(f"{dimension(key)}[{name}]", key, rng, (name,), f"{dimension(key)}[{label(name)}]")
+                  for key, rng in condition.estimate.items()]
     return found
 
 
@@ -353,6 +323,9 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             problems.append(BadInput(f"unknown condition {m.condition!r} ({what})", data_file,
                                      f"line {m.line}: simulationConditionId"))
             continue
+        extreme = extreme_numbers(m)
+        if extreme:
+            problems.append(BadInput(extreme[1], data_file, f"line {m.line}: {extreme[0]}"))
         scene = plan.scenes[condition]
         try:
             observable = observables.get(m.observable)
@@ -369,12 +342,34 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             told = f"{real_times.exact(m.time)}{unit} is T* = {real_times.apart(t, t_end)}{reference}"
             problems.append(BadInput(f"{told}, {when}: the scene runs over T* = 0 to {real_times.exact(t_end)} "
                                      "(time.t_end)", data_file, f"line {m.line}: time"))
+    problems += _runs_too_short(spec, rows, times, data_file, path)
     named = {m.condition for m in rows}
     problems += [BadInput("no row of the measurement table names it (simulationConditionId): nothing to fit", path,
                           f"conditions.{name}") for name in spec.conditions if name not in named]
     if problems:
         raise refusal(problems, data_file)
     return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
+
+
+def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarray, data_file: Path,
+                    path: Path) -> list[BadInput]:
+    """A `BadInput` for every estimated time.t_end whose low end stops a run before its condition's last
+    measurement: a simulation there could not be compared with it."""
+    problems = []
+    for p in _parameters(spec):
+        if _spelled(p.key) != ("time", "t_end"):
+            continue
+        measured = [(t, m.line) for m, t in zip(rows, times) if _condition(m) in p.conditions]
+        if not measured:
+            continue
+        latest, line = max(measured)
+        if p.range.low < latest:
+            shared = p.name == dimension(p.key)
+            where = f"estimate.{p.key}" if shared else f"conditions.{p.conditions[0]}.estimate.{p.key}"
+            problems.append(BadInput(f"low end {value_text(p.range.low)} ends a run before the measurement at "
+                                     f"T* = {latest:.4g} ({data_file.name}, line {line}): every run must reach "
+                                     "the last measurement of its condition", path, where))
+    return problems
 
 
 def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),

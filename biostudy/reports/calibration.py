@@ -86,6 +86,31 @@ def statements(plan: CalibrationPlan, found: Estimate) -> list[str]:
     return said
 
 
+def _too_few(n: int, k: int) -> list[str]:
+    """Words for a fit with no degrees of freedom left (n measurements, k parameters)."""
+    rows = f"{n} measurement{'s' if n != 1 else ''} for {k} parameter{'s' if k != 1 else ''}"
+    if n < k:
+        return [f"{rows}: the data cannot determine them all, and chi² says nothing of how well the model fits"]
+    if n == k:
+        return [f"{rows}: no degree of freedom is left, so chi² says nothing of how well the model fits"]
+    return []
+
+
+def _no_fit(plan: CalibrationPlan, model: np.ndarray, failed: dict[str, str]) -> str:
+    """Why the best fit is no better than failed simulations: they all failed, or the model, finished, lies
+    so many σ from the data that σ is likely in another unit."""
+    if np.isnan(model).any() or not len(model):
+        return (f"every evaluation of the calibration failed (e.g. {next(iter(failed.values()), '')}); the case "
+                "files under cases/ say why")
+    rows = plan.measurements
+    residual = (model - np.array([m.value for m in rows])) / np.array([m.sigma for m in rows])
+    i = int(np.argmax(np.abs(residual)))
+    m = rows[i]
+    return (f"the best fit lies {abs(residual[i]):.3g} σ from the measurement of line {m.line} ({m.observable} "
+            f"{number(m.value)} ± {number(m.sigma)}, the model {number(model[i])}), though its simulations "
+            f"finished: is σ (noiseParameters) in the measurement's units?")
+
+
 def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: np.ndarray, cost: dict,
             failed: dict[str, str], raised: dict[str, dict[str, str]], sampled: Posterior | None = None) -> xr.Dataset:
     """calibration.nc's contents (module docstring): `model` at the estimate per measurement, `cost` the counts and
@@ -94,8 +119,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
     sampled."""
     best = found.best
     if best.chi2 >= len(model) * PENALTY**2:
-        raise Failed(f"every evaluation of the calibration failed (e.g. {next(iter(failed.values()), '')}); the case "
-                     "files under cases/ say why")
+        raise Failed(_no_fit(plan, model, failed))
     params = plan.parameters
     k, n = len(params), len(model)
     measured = np.array([m.value for m in plan.measurements])
@@ -112,7 +136,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
     upper = np.array([p.value(prof.upper) for p, prof in zip(params, found.profiles)]) \
         if profiled else np.full(k, np.nan)
     identifiable = np.array([prof.identifiable for prof in found.profiles]) if profiled \
-        else ~np.isnan(found.local.standard_error)
+        else np.isfinite(found.local.standard_error)
     length = max((len(prof.u) for prof in found.profiles), default=1)
     profile_value = np.full((k, length), np.nan)
     profile_chi2 = np.full((k, length), np.nan)
@@ -189,7 +213,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         "profile_point": ("profile_point", np.arange(length), {"units": "1", "long_name": "point of a profile"}),
     }
     dof = n - k
-    said = statements(plan, found) if profiled else []
+    said = (statements(plan, found) if profiled else []) + _too_few(n, k)
     attrs = {
         "Conventions": "CF-1.10",
         "title": f"calibration: {plan.spec.name}",
@@ -326,8 +350,9 @@ def table_text(ds: xr.Dataset) -> str:
                       f"{number(attrs['surrogate_error_max'], 2)} sigma (added to sigma² in the likelihood)"]
         for said in filter(None, str(attrs.get("posterior_statements", "")).split("; ")):
             lines += ["", f"**{said[0].upper() + said[1:]}.**"]
-    lines += ["", f"chi² = {number(attrs['chi2'], 4)} for {attrs['dof']} degrees of freedom "
-                  f"(p = {number(attrs['chi2_p_value'], 2)}); {attrs['simulations']} simulations run, "
+    fit = (f"for {attrs['dof']} degrees of freedom (p = {number(attrs['chi2_p_value'], 2)})" if attrs["dof"] > 0
+           else "(no degree of freedom left)")
+    lines += ["", f"chi² = {number(attrs['chi2'], 4)} {fit}; {attrs['simulations']} simulations run, "
                   f"{attrs['simulations_reused']} reused, in {attrs['rounds']} rounds; wall time "
                   f"{number(attrs['wall_time'], 3)} s ({number(attrs['wall_time_simulations'], 3)} s in the rounds)"]
     for said in filter(None, str(attrs.get("statements", "")).split("; ")):

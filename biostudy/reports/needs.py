@@ -9,7 +9,7 @@ from __future__ import annotations
 from ..inputs import bundled, resources
 from ..inputs.files import read_toml
 from ..inputs.scene import load_scene
-from ..plans import catalogue
+from ..plans import calibration_cost, catalogue
 from ..plans.calibration import load_calibration
 from ..plans.study import load_study
 
@@ -38,13 +38,18 @@ def needs(path) -> str:
                          + _refused(found[largest], f"the largest case, {largest}, needs"))
     if what == "calibration":
         plan = load_calibration(path)
-        found = {name: resources.estimate(scene) for name, scene in plan.plan.scenes.items()}
+        found = calibration_cost.estimates(plan)  # outputs at the measurement times, as `calibrate` runs them
         largest = max(found, key=lambda i: found[i].memory)
+        method, k = plan.spec.method, len(plan.parameters)
+        chains = ([f"chains        {resources.size(calibration_cost.posterior_memory(method, k))} of memory "
+                   f"({calibration_cost.chains_text(method, k)})"] if method.name == "posterior" else [])
         return "\n".join([
-            f"{plan.spec.name}: {len(plan.parameters)} parameters, {len(plan.measurements)} measurements, "
+            f"{plan.spec.name}: {k} parameters, {len(plan.measurements)} measurements, "
             f"{len(found)} conditions of {plan.plan.scene_file.name}",
             f"one simulation {resources.size(found[largest].memory)} of memory ({found[largest].parts()}), "
-            f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/)",
+            f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/), "
+            f"{calibration_cost.outputs_text(largest, found[largest].outputs)}",
+            *chains,
             f"here          {available}; N local workers need about N times one simulation"]
                          + _refused(found[largest], "one simulation needs"))
     scene = load_scene(path)
