@@ -144,6 +144,21 @@ def test_truncated_case_files_are_named_and_computed_again(finished, tmp_path):
     assert store.intact(cut) and store.intact(emptied)
 
 
+def test_combine_names_the_truncated_and_the_damaged_case_files_it_cannot_read(finished, tmp_path):
+    out = copied(finished, tmp_path)
+    study_nc = (out / "study.nc").read_bytes()
+    cut, damaged = store.case_file(out, "g=1e+08_r=50"), store.case_file(out, "g=1e+09_r=100")
+    cut.write_bytes(cut.read_bytes()[:60_000])
+    raw = bytearray(damaged.read_bytes())
+    half = slice(len(raw) // 4, 3 * len(raw) // 4)
+    raw[half] = bytes(b ^ 0xFF for b in raw[half])  # its data; the attributes still say "done"
+    damaged.write_bytes(raw)
+    lines = lines_of(invoke("sweep", finished["study"], "-o", out, "--combine"))
+    assert len(lines) == 2 and all("damaged or truncated: it cannot be read whole" in line for line in lines)
+    assert {line.split(": ")[1] for line in lines} == {str(cut), str(damaged)}
+    assert (out / "study.nc").read_bytes() == study_nc  # nothing written over it
+
+
 # ---------------------------------------------------------------------------------------------
 # 2. Two runs into one output: the second is refused or told, never silently replaced
 

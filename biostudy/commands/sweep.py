@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..data import combine
+from ..data import combine, store
 from ..errors import BadInput
 from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
@@ -85,12 +85,19 @@ def write_study(plan: Plan, directory: Path) -> Path:
 
 def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Path:
     """DIR/study.nc from the case files under DIR/cases/ as they are (missing cases: status "missing"),
-    running nothing; the directory must be this study's."""
+    running nothing; the directory must be this study's.  A case file that cannot be read whole is refused,
+    each one named: counted as missing, it would hide a case that was computed."""
     directory = Path(directory)
     if not (directory / "cases").is_dir():
         raise BadInput("has no cases/ directory: nothing to combine (run the study, or its array tasks, first)",
                        directory)
     with owned(directory, plan_owner(plan, "study"), "study.nc", force):
+        damaged = [BadInput("damaged or truncated: it cannot be read whole (header, attributes or data); "
+                            f"`biostudy sweep {plan.file} -o {directory}` without --combine computes it again", path)
+                   for path in (store.case_file(directory, case.id) for case in plan.cases)
+                   if path.exists() and not store.intact(path)]
+        if damaged:
+            raise BadInput.every(damaged)
         return write_study(plan, directory)
 
 
