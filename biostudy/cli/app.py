@@ -23,6 +23,7 @@ from ..errors import BadInput, Failed
 from ..execution import worker
 from ..inputs import bundled
 from . import progress
+from .held import held_warnings
 from .options import (
     FLAG,
     CaseOverrides,
@@ -122,11 +123,14 @@ def _terminate(signum, frame):
 @contextlib.contextmanager
 def _guarded():
     """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C -> exit 130,
-    SIGTERM -> exit 143."""
+    SIGTERM -> exit 143.  Warnings are held and told after the command, one line each, not after bad input."""
     previous = signal.signal(signal.SIGTERM, _terminate)
+    held = []
     try:
-        yield
+        with held_warnings() as held:
+            yield
     except BadInput as error:
+        held.clear()  # a bad input prints only its own lines
         raise _fail("\n".join(f"error: {line}" for line in error.lines()), 2) from None
     except Failed as error:
         raise _fail(f"error: {error}", 1) from None
@@ -135,6 +139,8 @@ def _guarded():
                     interrupted_status(error)) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
+        for line in held:
+            typer.echo(f"warning: {line}", err=True)
 
 
 @app.command()

@@ -52,7 +52,9 @@ def choose(plan: Plan, share: Share) -> list[str]:
     if share.task is None or share.tasks is None:
         raise BadInput("--task N and --tasks M go together (task N of M, N from 0 to M - 1)",
                        "--task" if share.task is None else "--tasks")
-    if share.tasks < 1 or not 0 <= share.task < share.tasks:
+    if share.tasks < 1:
+        raise BadInput(f"must be at least 1 (got {share.tasks})", "--tasks")
+    if not 0 <= share.task < share.tasks:
         raise BadInput(f"must be in 0..{share.tasks - 1} for --tasks {share.tasks} (got {share.task})", "--task")
     return ids[share.task::share.tasks]
 

@@ -48,6 +48,7 @@ if TYPE_CHECKING:
     import xarray as xr  # imported where a dataset is read or made: `show` of a run's file needs none
 
 from ..errors import BadInput, Failed, first_line
+from ..inputs.files import LOOP, link_loop
 from ..inputs.resources import size
 from . import netcdf
 
@@ -247,6 +248,8 @@ def writable(path: str | Path) -> None:
     """`BadInput` unless a dataset can be written to `path` (checked before anything is computed): not a
     directory, under a directory (or where one can be made), whose file system takes the file's temporary."""
     path = Path(path)
+    if link_loop(path):
+        raise BadInput(LOOP, path)
     try:
         if path.is_dir():
             raise BadInput("is a directory; give a file name for the dataset", path)

@@ -9,6 +9,7 @@ catalogue) may hold `TOML_BYTES`, a mask `MASK_BYTES` (a 1000³ boolean grid).
 """
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import tomllib
@@ -18,6 +19,19 @@ from ..errors import BadInput, from_toml_error
 
 TOML_BYTES = 16 << 20  # 16 MiB: a study listing a hundred thousand values is ~2 MB
 MASK_BYTES = 1 << 30  # 1 GiB
+
+
+LOOP = "is a symbolic link loop (it leads back to itself)"
+
+
+def link_loop(path: str | Path) -> bool:
+    """Whether `path` (or a directory on the way to it) is a symbolic link leading back to itself: `Path.exists`
+    says False for it, as for a missing file, so it would be told as one."""
+    try:
+        os.stat(path)
+    except OSError as error:
+        return error.errno == errno.ELOOP
+    return False
 
 
 def _kind(mode: int) -> str:
@@ -46,7 +60,8 @@ def checked(path: str | Path, limit: int, what: str) -> os.stat_result:
     except FileNotFoundError:
         raise BadInput("no such file", path) from None
     except OSError as error:
-        raise BadInput(f"cannot read: {error.strerror or error}", path) from None
+        raise BadInput(LOOP if error.errno == errno.ELOOP else f"cannot read: {error.strerror or error}",
+                       path) from None
     if not stat.S_ISREG(found.st_mode):
         raise BadInput(f"is {_kind(found.st_mode)}, not {what}", path)
     if found.st_size > limit:
