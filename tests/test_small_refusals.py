@@ -55,13 +55,20 @@ def test_did_you_mean_never_offers_the_key_refused(tiny_scene, write_toml):
     assert line.endswith("grid.spacin: unknown key (did you mean 'spacing'?)"), line
 
 
-def test_a_symbolic_link_loop_is_named_as_such(tiny_scene, tmp_path):
+def test_a_symbolic_link_loop_is_named_as_such(tiny_scene, tiny_study, tmp_path, tiny_run):
     (tmp_path / "a").symlink_to(tmp_path / "b")
     (tmp_path / "b").symlink_to(tmp_path / "a")
     loop = tmp_path / "a"
-    assert lines_of(invoke("run", loop)) == [f"error: {loop}: is a symbolic link loop (it leads back to itself)"]
-    assert lines_of(invoke("run", tiny_scene, "-o", loop)) == [
-        f"error: {loop}: is a symbolic link loop (it leads back to itself)"]
+    said = f"{loop}: is a symbolic link loop (it leads back to itself)"
+    for args in (["run", loop], ["run", tiny_scene, "-o", loop], ["sweep", tiny_study, "-o", loop],
+                 ["run", tiny_scene, "--continue", loop, "--set", "time.t_end=1"]):
+        assert lines_of(invoke(*args)) == [f"error: {said}"], args
+    from biostudy.data import store
+
+    run = store.write_atomic(tiny_run((8, 8)).assign_attrs(biostudy_version="0"), tmp_path / "run.nc")
+    for kind in ("vtu", "tiff"):
+        [line] = lines_of(invoke("export", run, loop, "--format", kind))
+        assert f"{loop} is a symbolic link loop (it leads back to itself)" in line, line
     assert loop.is_symlink() and (tmp_path / "b").is_symlink()  # untouched
 
 

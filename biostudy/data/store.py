@@ -325,7 +325,8 @@ def open_dataset(path: str | Path) -> xr.Dataset:
     a file that is not netCDF, or one that cannot be read whole (damaged), is `BadInput` in one line."""
     path = Path(path)
     if not path.is_file():
-        raise BadInput("no such file" if not path.exists() else "is not a regular file", path)
+        raise BadInput(LOOP if link_loop(path) else "no such file" if not path.exists() else "is not a regular file",
+                       path)
     from . import netcdf_io  # lazily, as in `write_atomic`
 
     try:

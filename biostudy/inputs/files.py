@@ -34,6 +34,13 @@ def link_loop(path: str | Path) -> bool:
     return False
 
 
+def no_directory(path: str | Path) -> str:
+    """Why `path` cannot be an output directory ('' if it can): a link loop, or a file that is there."""
+    if link_loop(path):
+        return LOOP
+    return "is a file, not a directory" if os.path.lexists(path) and not os.path.isdir(path) else ""
+
+
 def _kind(mode: int) -> str:
     for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
                        (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
