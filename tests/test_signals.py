@@ -97,3 +97,16 @@ def test_a_fork_server_killed_while_its_worker_computes_costs_no_case():
     finally:
         workers.close(False)
 
+
+
+def test_an_error_while_an_interruption_unwinds_is_still_the_interruption(tiny_study, tmp_path, monkeypatch):
+    def cleanup_fails(*args, **kwargs):  # as closing a file whose write SIGTERM cut short can fail in HDF5
+        try:
+            signal.raise_signal(signal.SIGTERM)
+        finally:
+            raise RuntimeError("NetCDF: HDF error")
+
+    monkeypatch.setattr(sweep, "run_study", cleanup_fails)
+    result = cli.invoke(app, ["sweep", str(tiny_study), "-o", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 143, result.output
+    assert result.stderr.strip() == "interrupted: finished files are kept, nothing is left half-written"

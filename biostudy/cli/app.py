@@ -120,6 +120,15 @@ def _terminate(signum, frame):
     raise Terminated
 
 
+def _unwinding(error: BaseException) -> KeyboardInterrupt | None:
+    """The interruption `error` was raised while handling, if any: an error on the way out of an interrupted
+    write (closing a file HDF5 was writing) is the interruption's, not a failure of its own."""
+    seen: BaseException | None = error.__context__
+    while seen is not None and not isinstance(seen, KeyboardInterrupt):
+        seen = seen.__context__
+    return seen
+
+
 @contextlib.contextmanager
 def _guarded():
     """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C -> exit 130,
@@ -128,7 +137,13 @@ def _guarded():
     held = []
     try:
         with held_warnings() as held:
-            yield
+            try:
+                yield
+            except Exception as error:
+                interruption = _unwinding(error)
+                if interruption is None:
+                    raise
+                raise interruption from None
     except BadInput as error:
         held.clear()  # a bad input prints only its own lines
         raise _fail("\n".join(f"error: {line}" for line in error.lines()), 2) from None
