@@ -142,7 +142,7 @@ def test_run_continue_goes_on_from_a_sweeps_case_file(tmp_path, monkeypatch):
     scene.write_text(SCENE.replace("every = 2", "enabled = false"))
     study = tmp_path / "one.toml"
     study.write_text('scene = "grow.toml"\n[sweep]\ng = [1e8]\n')
-    assert cli.invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q", "--workers", "1"]).exit_code == 0
+    assert cli.invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q"]).exit_code == 0
     case = tmp_path / "out" / "cases" / "g=1e+08.nc"
     later = [a for s in ["g=1e8", *LATER] for a in ("--set", s)]
     result = _run(scene, "--continue", case, *later, "-o", tmp_path / "on.nc")
