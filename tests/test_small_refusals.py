@@ -112,7 +112,7 @@ def test_warnings_while_an_input_is_read_do_not_come_between_the_error_lines(tin
 
 
 def test_a_calibration_box_of_nan_is_not_a_finite_number(write_toml, tiny_scene, tmp_path):
-    (tmp_path / "m.tsv").write_text("time\tobservable\tvalue\tsigma\n0.1\tbiomass\t1.0\t0.1\n")
+    (tmp_path / "m.tsv").write_text("observableId\ttime\tmeasurement\tnoiseParameters\nbiomass\t0.1\t1.0\t0.1\n")
     calibration = write_toml("cal.toml", """\
         scene = "tiny.toml"
         [data]
