@@ -110,3 +110,21 @@ def test_an_error_while_an_interruption_unwinds_is_still_the_interruption(tiny_s
     result = cli.invoke(app, ["sweep", str(tiny_study), "-o", str(tmp_path / "out"), "-q"])
     assert result.exit_code == 143, result.output
     assert result.stderr.strip() == "interrupted: finished files are kept, nothing is left half-written"
+
+
+@pytest.mark.slow
+def test_a_sigterm_to_every_process_of_a_job_fails_no_case():
+    """A batch system's SIGTERM reaches the workers too, maybe before the sweep's own process: a worker computes on
+    (the sweep's process, interrupted, ends it), so no case is recorded as failed for it."""
+    pool.warm_up()
+    workers = pool.LocalPool(1)
+    try:
+        workers.submit("a", _tiny_problem())
+        assert [o.status for c, o in workers.finished()] == ["done"]  # the worker has started
+        workers.submit("b", _tiny_problem())
+        workers.workers[0].process.terminate()  # SIGTERM
+        [(case, outcome)] = workers.finished()
+        assert (case, outcome.status) == ("b", "done"), outcome.message
+    finally:
+        workers.close(False)
+    assert all(w.process.exitcode is not None for w in workers.workers)  # ended all the same

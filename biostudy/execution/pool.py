@@ -7,7 +7,9 @@ imports per worker), fresh interpreters (spawn) where there is no fork server; t
 
 Each worker has a pipe of its own for problems and outcomes, so a worker that dies (SIGKILL, the kernel's
 out-of-memory killer, a crash in a library) takes only its own case with it: that case is recorded as
-failed ("worker died: signal 9 ..."), a new worker takes its place and the others compute on.  Every worker
+failed ("worker died: signal 9 ..."), a new worker takes its place and the others compute on.  Ctrl-C and
+SIGTERM are this process's to handle: a worker ignores both (a batch system's SIGTERM to every process of a
+job would otherwise fail the cases in flight) and is ended by this process, with SIGKILL.  Every worker
 also holds the reading end of a "lifeline" pipe whose only writer is this process: when this process ends,
 however it ends, the workers end too (`worker.serve`), and the fork server and the resource tracker after
 them.
@@ -216,13 +218,13 @@ class LocalPool:
 
     def close(self, completed: bool) -> None:
         """Done: workers end when their task pipe closes.  Interrupted: running simulations cannot be
-        cancelled, only ended."""
+        cancelled, only ended (SIGKILL: a worker ignores SIGTERM, `worker.start`; it holds no file)."""
         for w in self.workers:
             if not completed and w.orphaned:  # its Process says it ended (the fork server's report is gone)
                 if not w.tasks.poll():
-                    os.kill(w.process.pid, signal.SIGTERM)
+                    os.kill(w.process.pid, signal.SIGKILL)
             elif not completed:
-                w.process.terminate()
+                w.process.kill()
             w.tasks.close()
         for w in self.workers:
             w.process.join(10)
