@@ -3,12 +3,13 @@
 The run continued must be a finished run of the same scene: the same
 everything but the clock (``[time]``: a later ``t_end``, other steps or
 outputs), and its name and description; a failed case's record, a run that
-stopped before its own ``t_end`` or one of another scene is bad input, told
-in one line, as is a file that lacks what the continuation's history joins to (the fields, the time
-series every run writes, the mechanics of a scene that has it): refused before anything is computed.  A
-sweep's or a calibration's case file is a run (`netcdf.as_run`) whose accepted steps are a total, not a series
-(`combine.CaseLayout`): its outputs before the last count NaN steps, not made-up ones.  The dataset written is
-the whole history: the run's outputs
+stopped before its own ``t_end``, one of another scene, or a file that lacks
+what the continuation's history joins to (the fields, the time series every
+run writes, the mechanics of a scene that has it) is bad input, told in one
+line before anything is computed.  A sweep's case file is a run
+(`netcdf.as_run`) that keeps its accepted steps as a total, not a series
+(`combine.CaseLayout`): its outputs before the last count NaN steps, not
+made-up ones.  The dataset written is the whole history: the run's outputs
 up to its last one, then the continuation's (`solver.restart.joined`), and
 its attributes say so (``continued_from``, ``continuation``; ``history``
 keeps the run's own lines before this one, CF 2.6.2).
@@ -34,7 +35,6 @@ CONTINUE = "--continue"
 FIELDS = ("phi", "c", "alpha")  # on time and the cells: the state a continuation starts from
 SERIES = ("phi_mean", "c_mean", "biofilm_volume", "steps_taken", "steps_bisected", "steps_rejected",
           "elapsed")  # on time: what every run writes (solver.output)
-MECHANICS = {"p": "cells", "u": "nodes", "newton_iterations": ""}  # on time_mechanics, with the mechanics on
 
 
 def _differences(recorded: dict, scene: dict) -> list[str]:
@@ -63,8 +63,8 @@ def _lacking(ds: xr.Dataset, scene: Scene) -> list[str]:
     wanted = {name: {"time", *cells} for name in FIELDS} | {name: {"time"} for name in SERIES}
     if scene.mechanics is not None and scene.mechanics.enabled:
         nodes = {f"{a}_node" for a in cells}
-        wanted |= {name: {"time_mechanics", *{"cells": cells, "nodes": (*nodes, "component"), "": ()}[on]}
-                   for name, on in MECHANICS.items()}
+        wanted |= {"p": {"time_mechanics", *cells}, "u": {"time_mechanics", *nodes, "component"},
+                   "newton_iterations": {"time_mechanics"}}
     return [f"{name} on {', '.join(sorted(dims))}" for name, dims in wanted.items()
             if name not in ds or set(ds[name].dims) != dims]
 
