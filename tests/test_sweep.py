@@ -206,7 +206,7 @@ def test_unreachable_scheduler_is_bad_input(tiny_study, tmp_path, monkeypatch):
     monkeypatch.setattr(dask, "CONNECT_TIMEOUT", 1.0)
     result = sweep_cli(tiny_study, "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
     assert result.exit_code == 2
-    assert result.stderr.startswith("error: --scheduler: cannot connect to a Dask scheduler at tcp://127.0.0.1:9")
+    assert result.stderr.startswith("error: --scheduler: nothing listens at tcp://127.0.0.1:9")
 
 
 def _wait_for(condition, timeout):
