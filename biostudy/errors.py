@@ -110,8 +110,10 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
     if kind in ("value_error", "assertion_error"):
         return "", str(ctx.get("error", error["msg"]))
     if kind == "extra_forbidden":
-        name = str(error["loc"][-1])
-        close = difflib.get_close_matches(name, sorted(set(known_keys)), n=1)
+        name, known = str(error["loc"][-1]), set(known_keys)
+        if name in known:  # right name, wrong table: offering it back would be no help
+            return "", f"unknown key here ({name} is a key of another table)"
+        close = difflib.get_close_matches(name, sorted(known), n=1)
         return "", "unknown key" + (f" (did you mean '{close[0]}'?)" if close else "")
     if kind == "missing":
         return "", "required key is missing"

@@ -149,7 +149,7 @@ def test_bad_input_is_one_line_exit_2_no_traceback(tiny_scene, tiny_study, write
 
 
 def test_sigterm_during_a_run_leaves_no_file(tmp_path):
-    """SIGTERM mid-run: exit 130, no dataset and no temporary left (a file is complete or absent).
+    """SIGTERM mid-run: exit 143 (128 + 15), no dataset and no temporary left (a file is complete or absent).
 
     The run's progress bar goes to a terminal (a pseudo-terminal here), so the signal is sent as soon as
     it shows steps being taken: mid-run on a fast machine or a slow one, instead of after a guessed delay."""
@@ -166,7 +166,7 @@ def test_sigterm_during_a_run_leaves_no_file(tmp_path):
     shown += _read_until(terminal, None, process, timeout=5)
     os.close(terminal)
     text = shown.decode(errors="replace")
-    assert process.returncode == 130, text[-300:]
+    assert process.returncode == 143, text[-300:]
     assert "interrupted" in text and "Traceback" not in text, text[-300:]
     assert os.listdir(tmp_path) == []
 

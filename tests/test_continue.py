@@ -135,3 +135,33 @@ def test_the_fingerprint_counts_a_start_state_and_not_its_absence(runs):
     assert fingerprint(continued) != fingerprint(fresh)
     assert fingerprint(dataclasses.replace(continued, alpha0=continued.alpha0 * 2)) != fingerprint(continued)
     assert all(getattr(fresh, name) == default for name, default in ADDED_LATER.items())  # left out: old prints
+
+
+def test_run_continue_goes_on_from_a_sweeps_case_file(tmp_path, monkeypatch):
+    scene = tmp_path / "grow.toml"
+    scene.write_text(SCENE.replace("every = 2", "enabled = false"))
+    study = tmp_path / "one.toml"
+    study.write_text('scene = "grow.toml"\n[sweep]\ng = [1e8]\n')
+    assert cli.invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q"]).exit_code == 0
+    case = tmp_path / "out" / "cases" / "g=1e+08.nc"
+    later = [a for s in ["g=1e8", *LATER] for a in ("--set", s)]
+    result = _run(scene, "--continue", case, *later, "-o", tmp_path / "on.nc")
+    assert result.exit_code == 0, result.output
+    ds = store.open_dataset(tmp_path / "on.nc")
+    off = simulate(load_scene(scene, ["g=1e8", *LATER]).problem())
+    np.testing.assert_allclose(ds.time.values, off.time.values)
+    assert float(np.nanmax(np.abs(ds.phi - off.phi))) < AGREE
+    # a case file keeps only the total of its steps: the counts before its last output are not made up
+    assert np.isnan(ds.steps_taken.values[:2]).all() and ds.steps_taken.values[2:].tolist() == [20, 30, 40]
+    assert ds.attrs["steps_taken"] == 40
+
+    # what the continuation could not join is refused before anything is computed
+    edited = store.open_dataset(case).drop_vars("c_mean")
+    store.write_atomic(edited, tmp_path / "edited.nc")
+
+    def simulate_refused(*args, **kwargs):
+        raise AssertionError("simulated before the run continued was checked")
+
+    monkeypatch.setattr("solver.simulate", simulate_refused)
+    result = _run(scene, "--continue", tmp_path / "edited.nc", *later)
+    assert result.exit_code == 2 and "c_mean" in result.stderr and "Traceback" not in result.output, result.output

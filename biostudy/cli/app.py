@@ -3,7 +3,7 @@
 Every command calls one function of `biostudy.commands` with keyword-only
 options.  Exit status: 0 done, 1 a computation failed (the message says why),
 2 bad input (one line per problem: file, key, problem; no traceback), 130
-interrupted (no file is left half-written).  Progress goes to stderr
+interrupted by Ctrl-C (SIGINT), 143 by SIGTERM (no file is left half-written).  Progress goes to stderr
 (`progress`), as much as -q/-v ask (`logs`); --json puts a table's numbers on
 stdout instead of the table (`output`).  The commands' modules are imported inside the commands: `--version`
 and `-h` do not pay for numpy, xarray and FiPy.
@@ -24,6 +24,7 @@ from ..errors import BadInput, Failed
 from ..execution import worker
 from ..inputs import bundled
 from . import logs, output, progress
+from .held import held_warnings
 from .options import (
     FLAG,
     CaseOverrides,
@@ -68,9 +69,14 @@ class _OneLineErrors(typer.core.TyperGroup):
         except _CLICK_ERROR as error:
             typer.echo(f"error: {' '.join(error.format_message().split())}", err=True)
             sys.exit(error.exit_code)
-        except typer.Abort:
+        except typer.Abort as abort:  # click's for a KeyboardInterrupt, and for an EOFError, which is none
+            if isinstance(abort.__cause__, EOFError):
+                raise abort.__cause__ from None
             typer.echo("interrupted", err=True)
-            sys.exit(130)
+            sys.exit(interrupted_status(abort.__cause__))
+        except KeyboardInterrupt as late:  # while click ended the command (Ctrl-C just as it returned)
+            typer.echo("interrupted", err=True)
+            sys.exit(interrupted_status(late))
         sys.exit(status if isinstance(status, int) else 0)
 
 
@@ -111,25 +117,55 @@ def _fail(message: str, status: int) -> typer.Exit:
     return typer.Exit(status)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, unwinding as Ctrl-C does (temporary files are removed on the way out), told apart by its exit
+    status: 143 (128 + 15), where Ctrl-C's is 130 (128 + 2)."""
+
+
+def interrupted_status(error: BaseException | None) -> int:
+    return 128 + (signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT)
+
+
 def _terminate(signum, frame):
-    raise KeyboardInterrupt  # SIGTERM unwinds like Ctrl-C: temporary files are removed on the way out
+    raise Terminated
+
+
+def _unwinding(error: BaseException) -> KeyboardInterrupt | None:
+    """The interruption `error` was raised while handling, if any: an error on the way out of an interrupted
+    write (closing a file HDF5 was writing) is the interruption's, not a failure of its own."""
+    seen: BaseException | None = error.__context__
+    while seen is not None and not isinstance(seen, KeyboardInterrupt):
+        seen = seen.__context__
+    return seen
 
 
 @contextlib.contextmanager
 def _guarded():
-    """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C / SIGTERM ->
-    exit 130."""
+    """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C -> exit 130,
+    SIGTERM -> exit 143.  Warnings are held and told after the command, one line each, not after bad input."""
     previous = signal.signal(signal.SIGTERM, _terminate)
+    held = []
     try:
-        yield
+        with held_warnings() as held:
+            try:
+                yield
+            except Exception as error:
+                interruption = _unwinding(error)
+                if interruption is None:
+                    raise
+                raise interruption from None
     except BadInput as error:
+        held.clear()  # a bad input prints only its own lines
         raise _fail("\n".join(f"error: {line}" for line in error.lines()), 2) from None
     except Failed as error:
         raise _fail(f"error: {error}", 1) from None
-    except KeyboardInterrupt:
-        raise _fail("interrupted: finished files are kept, nothing is left half-written", 130) from None
+    except KeyboardInterrupt as error:
+        raise _fail("interrupted: finished files are kept, nothing is left half-written",
+                    interrupted_status(error)) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
+        for line in held:
+            typer.echo(f"warning: {line}", err=True)
 
 
 @app.command()

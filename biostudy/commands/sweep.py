@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..data import combine
+from ..data import combine, store
 from ..errors import BadInput
 from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
@@ -62,7 +62,9 @@ def choose(plan: Plan, share: Share) -> list[str]:
             raise BadInput(f"no case number {share.task} in this study (its {len(ids)} cases are numbered 0.."
                            f"{len(ids) - 1} in the study's order)", "--task")
         return [ids[share.task]]
-    if share.tasks < 1 or not 0 <= share.task < share.tasks:
+    if share.tasks < 1:
+        raise BadInput(f"must be at least 1 (got {share.tasks})", "--tasks")
+    if not 0 <= share.task < share.tasks:
         raise BadInput(f"must be in 0..{share.tasks - 1} for --tasks {share.tasks} (got {share.task})", "--task")
     return ids[share.task::share.tasks]
 
@@ -95,12 +97,19 @@ def write_study(plan: Plan, directory: Path) -> Path:
 
 def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Path:
     """DIR/study.nc from the case files under DIR/cases/ as they are (missing cases: status "missing"),
-    running nothing; the directory must be this study's."""
+    running nothing; the directory must be this study's.  A case file that cannot be read whole is refused,
+    each one named: counted as missing, it would hide a case that was computed."""
     directory = Path(directory)
     if not (directory / "cases").is_dir():
         raise BadInput("has no cases/ directory: nothing to combine (run the study, or its array tasks, first)",
                        directory)
     with owned(directory, plan_owner(plan, "study"), "study.nc", force):
+        damaged = [BadInput("damaged or truncated: it cannot be read whole (header, attributes or data); "
+                            f"`biostudy sweep {plan.file} -o {directory}` without --combine computes it again", path)
+                   for path in (store.case_file(directory, case.id) for case in plan.cases)
+                   if path.exists() and not store.intact(path)]
+        if damaged:
+            raise BadInput.every(damaged)
         return write_study(plan, directory)
 
 

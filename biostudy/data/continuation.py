@@ -3,8 +3,13 @@
 The run continued must be a finished run of the same scene: the same
 everything but the clock (``[time]``: a later ``t_end``, other steps or
 outputs), and its name and description; a failed case's record, a run that
-stopped before its own ``t_end`` or one of another scene is bad input, told
-in one line.  The dataset written is the whole history: the run's outputs
+stopped before its own ``t_end``, one of another scene, or a file that lacks
+what the continuation's history joins to (the fields, the time series every
+run writes, the mechanics of a scene that has it) is bad input, told in one
+line before anything is computed.  A sweep's case file is a run
+(`netcdf.as_run`) that keeps its accepted steps as a total, not a series
+(`combine.CaseLayout`): its outputs before the last count NaN steps, not
+made-up ones.  The dataset written is the whole history: the run's outputs
 up to its last one, then the continuation's (`solver.restart.joined`), and
 its attributes say so (``continued_from``, ``continuation``; ``history``
 keeps the run's own lines before this one, CF 2.6.2).
@@ -14,6 +19,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from solver.restart import joined
@@ -26,6 +32,9 @@ from . import store
 
 FREE = ("name", "description")  # besides [time]: what a continuation may change
 CONTINUE = "--continue"
+FIELDS = ("phi", "c", "alpha")  # on time and the cells: the state a continuation starts from
+SERIES = ("phi_mean", "c_mean", "biofilm_volume", "steps_taken", "steps_bisected", "steps_rejected",
+          "elapsed")  # on time: what every run writes (solver.output)
 
 
 def _differences(recorded: dict, scene: dict) -> list[str]:
@@ -34,6 +43,30 @@ def _differences(recorded: dict, scene: dict) -> list[str]:
     theirs = {k: v for k, v in flatten(recorded).items() if not k.startswith("time.") and k not in FREE}
     return [f"{key}: {value_text(mine.get(key, '(absent)'))} here, {value_text(theirs.get(key, '(absent)'))} in "
             f"the run" for key in sorted(set(mine) | set(theirs)) if mine.get(key) != theirs.get(key)]
+
+
+def _with_step_series(ds: xr.Dataset) -> xr.Dataset:
+    """A case file's total of accepted steps as a series on time: NaN before the last output, the total there."""
+    total = ds.get("steps_taken")
+    if total is None or "time" in total.dims or total.ndim:
+        return ds
+    series = np.full(ds.sizes["time"], np.nan)
+    series[-1] = float(total)
+    return ds.assign(steps_taken=("time", series, {**total.attrs, "comment": "a case file keeps only the total "
+                                                   "of the run continued: its earlier outputs' counts are unknown"}))
+
+
+def _lacking(ds: xr.Dataset, scene: Scene) -> list[str]:
+    """'NAME on DIMS' for every variable the continuation's history joins to that `ds` lacks (or has on other
+    dimensions)."""
+    cells = ("z", "y", "x")[-len(scene.grid.shape):]
+    wanted = {name: {"time", *cells} for name in FIELDS} | {name: {"time"} for name in SERIES}
+    if scene.mechanics is not None and scene.mechanics.enabled:
+        nodes = {f"{a}_node" for a in cells}
+        wanted |= {"p": {"time_mechanics", *cells}, "u": {"time_mechanics", *nodes, "component"},
+                   "newton_iterations": {"time_mechanics"}}
+    return [f"{name} on {', '.join(sorted(dims))}" for name, dims in wanted.items()
+            if name not in ds or set(ds[name].dims) != dims]
 
 
 def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
@@ -61,6 +94,11 @@ def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
     if not scene.time.t_end > last:
         raise BadInput(f"must be after the last output of the run it continues, T* = {last:g} (got "
                        f"{scene.time.t_end:g}); give e.g. --set time.t_end={2 * last:g}", None, "time.t_end")
+    ds = _with_step_series(ds)
+    lacking = _lacking(ds, scene)
+    if lacking:
+        raise BadInput(f"lacks {'; '.join(lacking[:3])}{'; ...' if len(lacking) > 3 else ''} (damaged or edited): "
+                       "--continue joins its history to the continuation's", path)
     return ds
 
 

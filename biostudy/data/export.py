@@ -37,6 +37,7 @@ import xarray as xr
 from solver import Grid
 from solver.problem import AXES
 
+from ..inputs.files import no_directory
 from .claims import foreign, mark, marked
 from .store import atomic
 
@@ -88,8 +89,8 @@ def export(ds: xr.Dataset, directory: Path) -> list[Path]:
     _check(ds)
     ds = _on_mechanics_time(ds)
     directory = Path(directory)
-    if directory.exists() and not directory.is_dir():
-        raise ValueError(f"{directory} is a file, not a directory for the snapshots")
+    if no_directory(directory):
+        raise ValueError(f"{directory} {no_directory(directory)}: the snapshots need a directory")
     foreign([directory / SNAPSHOT.format(t) for t in range(ds.sizes["time"])] + [directory / COLLECTION],
             "a ParaView file")  # before anything is written
     created = not directory.exists()

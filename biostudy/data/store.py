@@ -48,6 +48,7 @@ if TYPE_CHECKING:
     import xarray as xr  # imported where a dataset is read or made: `show` of a run's file needs none
 
 from ..errors import BadInput, Failed, first_line
+from ..inputs.files import LOOP, link_loop
 from ..inputs.resources import size
 from . import netcdf
 
@@ -247,6 +248,8 @@ def writable(path: str | Path) -> None:
     """`BadInput` unless a dataset can be written to `path` (checked before anything is computed): not a
     directory, under a directory (or where one can be made), whose file system takes the file's temporary."""
     path = Path(path)
+    if link_loop(path):
+        raise BadInput(LOOP, path)
     try:
         if path.is_dir():
             raise BadInput("is a directory; give a file name for the dataset", path)
@@ -322,7 +325,8 @@ def open_dataset(path: str | Path) -> xr.Dataset:
     a file that is not netCDF, or one that cannot be read whole (damaged), is `BadInput` in one line."""
     path = Path(path)
     if not path.is_file():
-        raise BadInput("no such file" if not path.exists() else "is not a regular file", path)
+        raise BadInput(LOOP if link_loop(path) else "no such file" if not path.exists() else "is not a regular file",
+                       path)
     from . import netcdf_io  # lazily, as in `write_atomic`
 
     try:

@@ -21,6 +21,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import BadInput
+from ..inputs.files import no_directory
 from .store import atomic
 
 FIELDS = ("phi", "c")
@@ -50,8 +51,8 @@ def export_tiff(ds: xr.Dataset, directory: str | Path, source: str = "") -> list
     if "phi" not in ds or "time" not in ds["phi"].dims or "x" not in ds.dims:
         raise ValueError("export needs a run's dataset with cell fields (phi on time, [z,] y, x)")
     directory = Path(directory)
-    if directory.exists() and not directory.is_dir():
-        raise ValueError(f"{directory} is a file, not a directory for the TIFF files")
+    if no_directory(directory):
+        raise ValueError(f"{directory} {no_directory(directory)}: the TIFF files need a directory")
     cells = [d for d in ("z", "y", "x") if d in ds.dims]
     h = float(ds.attrs.get("grid_spacing", ds["x"].values[1] - ds["x"].values[0]))
     times = ds["time"].values.astype(float)

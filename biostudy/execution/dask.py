@@ -11,8 +11,9 @@ starts its workers with one thread per library.  A `tls://` scheduler needs
 Dask's TLS configuration (certificates), checked before anything runs.
 
 What a user is told, in one line each, instead of Dask's tracebacks: an
-address where nothing answers as a Dask scheduler (even one that accepts the
-connection and then says nothing) within `CONNECT_TIMEOUT`; a scheduler with
+address where nothing listens (at once, not after Dask's retries); one where
+nothing answers as a Dask scheduler (even one that accepts the connection and
+then says nothing) within `CONNECT_TIMEOUT`; a scheduler with
 no workers ("waiting for workers on ADDR", again every `NOTICE_EVERY`
 seconds while there are none); a scheduler lost while the sweep runs
 (`SchedulerLost`: the caller says what was kept and how to resume).
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import socket
 import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
@@ -96,6 +98,27 @@ def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str
                            "Dask cluster')", "--scheduler")
 
 
+def _refused(address: str, timeout: float) -> bool:
+    """Whether a TCP address (tcp://, tls://) refuses connections: nothing listens there.  Dask's connect
+    retries a refused connection until its deadline and then says it timed out, as for a silent peer."""
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address)
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:  # a port that is no number: Dask says so
+        return False
+    if parts.scheme not in ("tcp", "tls") or not host or port is None:
+        return False
+    try:
+        socket.create_connection((host, port), timeout).close()
+    except ConnectionRefusedError:
+        return True
+    except OSError:  # unreachable, unknown host, silent: Dask's connect tells
+        return False
+    return False
+
+
 def _identity(address: str, timeout: float) -> dict:
     """What the scheduler at `address` says it is, asked directly with a deadline over connecting, the
     handshake and the answer (Dask's own connect waits forever for a peer that accepts and then says nothing)."""
@@ -144,6 +167,9 @@ class DaskCluster:
         if address is None:
             address, option = scheduler_address(scheduler_file), "--scheduler-file"
         self.address, self.note = address, note
+        if _refused(address, CONNECT_TIMEOUT):
+            raise BadInput(f"nothing listens at {address} (connection refused): is a Dask scheduler running there?",
+                           option)
         try:
             found = _identity(address, CONNECT_TIMEOUT)
         except TimeoutError:

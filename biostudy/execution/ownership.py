@@ -44,6 +44,7 @@ from typing import Callable, Iterator
 
 from ..data import store
 from ..errors import BadInput
+from ..inputs.files import no_directory
 from ..inputs.tomltext import dumps as toml_dumps
 
 LOCK = ".biostudy.lock"
@@ -153,7 +154,7 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False,
         cases = _names(directory / "cases")
         fd = _lock(directory, shared)
     except FileExistsError:
-        raise BadInput("is a file, not a directory", directory) from None
+        raise BadInput(no_directory(directory) or "is a file, not a directory", directory) from None
     except OSError as error:
         raise BadInput(f"cannot write here ({error.strerror or error})", directory) from None
     except BadInput:

@@ -7,10 +7,17 @@ imports per worker), fresh interpreters (spawn) where there is no fork server; t
 
 Each worker has a pipe of its own for problems and outcomes, so a worker that dies (SIGKILL, the kernel's
 out-of-memory killer, a crash in a library) takes only its own case with it: that case is recorded as
-failed ("worker died: signal 9 ..."), a new worker takes its place and the others compute on.  Every worker
+failed ("worker died: signal 9 ..."), a new worker takes its place and the others compute on.  Ctrl-C and
+SIGTERM are this process's to handle: a worker ignores both (a batch system's SIGTERM to every process of a
+job would otherwise fail the cases in flight) and is ended by this process, with SIGKILL.  Every worker
 also holds the reading end of a "lifeline" pipe whose only writer is this process: when this process ends,
 however it ends, the workers end too (`worker.serve`), and the fork server and the resource tracker after
 them.
+
+The fork server is a process of its own, killed from outside as easily as a worker (`kill -9` of every child
+of a sweep): a worker it was starting is started afresh, spawned (the fork server's answer, its pid, is lost:
+``EOFError``, which click would have reported as an interruption); a worker it had started computes on (its
+end is then seen on its task pipe alone: the fork server's report of it, the sentinel, is gone).
 
 This module imports nothing heavy (no solver, no xarray): `warm_up` can start the fork server before the
 command line has imported the rest, so the two import at once.
@@ -102,6 +109,7 @@ class _Worker:
     tasks: multiprocessing.connection.Connection  # problems out, outcomes back
     case_id: str | None = None  # the case it is solving
     began: float = 0.0
+    orphaned: bool = False  # its fork server is gone: its sentinel says nothing, its end shows on `tasks` alone
 
 
 def _death(exitcode: int | None) -> str:
@@ -136,12 +144,27 @@ class LocalPool:
         return sum(w.case_id is not None for w in self.workers)
 
     def _start(self) -> _Worker:
+        """A new worker; spawned if the fork server died while it started one (module docstring)."""
+        try:
+            return self._started()
+        except (EOFError, OSError):
+            if self.context.get_start_method() != "forkserver":
+                raise
+            self.context = multiprocessing.get_context("spawn")
+            return self._started()
+
+    def _started(self) -> _Worker:
         ours, theirs = self.context.Pipe()
         process = self.context.Process(target=worker.serve, args=(theirs, self.lifeline), daemon=True,
                                        name=f"biostudy-worker-{len(self.workers)}")
-        with _environment(WORKER_ENV), _interruptions_deferred():
-            process.start()
-        theirs.close()  # only the worker holds its end: a worker that dies closes the pipe
+        try:
+            with _environment(WORKER_ENV), _interruptions_deferred():
+                process.start()
+        except BaseException:
+            ours.close()
+            raise
+        finally:
+            theirs.close()  # only the worker holds its end: a worker that dies closes the pipe
         self.workers.append(_Worker(process, ours))
         return self.workers[-1]
 
@@ -162,11 +185,23 @@ class LocalPool:
 
     def finished(self) -> list[tuple[str, Outcome]]:
         """Wait until at least one busy worker has answered or died; (case id, Outcome) of each."""
+        while True:
+            done = self._over()
+            if done:
+                return done
+
+    def _over(self) -> list[tuple[str, Outcome]]:
+        """(case id, Outcome) of the busy workers that have answered or died once one of them is heard from:
+        none if that was only the news that a worker's fork server is gone."""
         busy = [w for w in self.workers if w.case_id is not None]
-        ready = set(multiprocessing.connection.wait([w.tasks for w in busy] + [w.process.sentinel for w in busy]))
+        ready = set(multiprocessing.connection.wait([w.tasks for w in busy] +
+                                                    [w.process.sentinel for w in busy if not w.orphaned]))
         done = []
         for w in busy:
-            if w.tasks not in ready and w.process.sentinel not in ready:
+            if w.tasks not in ready and (w.orphaned or w.process.sentinel not in ready):
+                continue
+            if w.tasks not in ready and not w.tasks.poll():  # its fork server ended, not it: a worker that
+                w.orphaned = True                             # ends has closed its task pipe by then
                 continue
             case_id, w.case_id = w.case_id, None
             try:
@@ -176,16 +211,20 @@ class LocalPool:
             except (EOFError, OSError):
                 pass
             self._drop(w)
-            done.append((case_id, Outcome("failed", None, _death(w.process.exitcode),
-                                          time.perf_counter() - w.began, "WorkerDied")))
+            death = _death(w.process.exitcode) if not w.orphaned else \
+                "worker died (how is unknown: the fork server that started it had been killed)"
+            done.append((case_id, Outcome("failed", None, death, time.perf_counter() - w.began, "WorkerDied")))
         return done
 
     def close(self, completed: bool) -> None:
         """Done: workers end when their task pipe closes.  Interrupted: running simulations cannot be
-        cancelled, only ended."""
+        cancelled, only ended (SIGKILL: a worker ignores SIGTERM, `worker.start`; it holds no file)."""
         for w in self.workers:
-            if not completed:
-                w.process.terminate()
+            if not completed and w.orphaned:  # its Process says it ended (the fork server's report is gone)
+                if not w.tasks.poll():
+                    os.kill(w.process.pid, signal.SIGKILL)
+            elif not completed:
+                w.process.kill()
             w.tasks.close()
         for w in self.workers:
             w.process.join(10)

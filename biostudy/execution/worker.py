@@ -47,9 +47,12 @@ class Outcome:
 
 
 def start() -> None:
-    """The start of a local worker process (`serve`): the parent handles Ctrl-C and ends the workers, so a
-    worker must not die mid-task on its own; the solver is imported while the parent prepares."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """The start of a local worker process (`serve`): the parent handles Ctrl-C and SIGTERM and ends the workers,
+    so a worker must not die mid-task on its own (a batch system's SIGTERM reaches every process of the job, the
+    workers maybe first: their cases would be recorded as failed); the solver is imported while the parent
+    prepares."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, signal.SIG_IGN)
     import solver.output  # noqa: F401  (FiPy, xarray: a second of imports before the first case arrives)
 
 

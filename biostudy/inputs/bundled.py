@@ -77,8 +77,8 @@ def resolve(name: str | Path) -> Path:
     """A path as given if it exists; else a bundled file of that name ('directional' or 'directional.toml').
     A bare name that is neither is bad input, with the closest bundled name if one is close."""
     path = Path(name)
-    if path.exists() or path.is_absolute() or len(path.parts) > 1:
-        return path
+    if path.exists() or path.is_absolute() or len(path.parts) > 1 or path.is_symlink():
+        return path  # a link that leads nowhere is told as such when it is read (`files.checked`)
     for candidate in (studies_dir() / path, studies_dir() / f"{path}.toml"):
         if candidate.is_file():
             return candidate

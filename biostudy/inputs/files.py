@@ -13,6 +13,7 @@ they are read (`measurements.TABLE_BYTES`, `dask.SCHEDULER_FILE_BYTES`).
 from __future__ import annotations
 
 import codecs
+import errno
 import os
 import stat
 import tomllib
@@ -22,6 +23,26 @@ from ..errors import BadInput, from_toml_error
 
 TOML_BYTES = 16 << 20  # 16 MiB: a study listing a hundred thousand values is ~2 MB
 MASK_BYTES = 1 << 30  # 1 GiB
+
+
+LOOP = "is a symbolic link loop (it leads back to itself)"
+
+
+def link_loop(path: str | Path) -> bool:
+    """Whether `path` (or a directory on the way to it) is a symbolic link leading back to itself: `Path.exists`
+    says False for it, as for a missing file, so it would be told as one."""
+    try:
+        os.stat(path)
+    except OSError as error:
+        return error.errno == errno.ELOOP
+    return False
+
+
+def no_directory(path: str | Path) -> str:
+    """Why `path` cannot be an output directory ('' if it can): a link loop, or a file that is there."""
+    if link_loop(path):
+        return LOOP
+    return "is a file, not a directory" if os.path.lexists(path) and not os.path.isdir(path) else ""
 
 
 def _kind(mode: int) -> str:
@@ -50,7 +71,8 @@ def checked(path: str | Path, limit: int, what: str) -> os.stat_result:
     except FileNotFoundError:
         raise BadInput("no such file", path) from None
     except OSError as error:
-        raise BadInput(f"cannot read: {error.strerror or error}", path) from None
+        raise BadInput(LOOP if error.errno == errno.ELOOP else f"cannot read: {error.strerror or error}",
+                       path) from None
     if not stat.S_ISREG(found.st_mode):
         raise BadInput(f"is {_kind(found.st_mode)}, not {what}", path)
     if found.st_size > limit:

@@ -14,7 +14,7 @@ POSTERIOR_KEYS = ("design", "held_out", "walkers", "steps", "box")  # [method] k
 class MethodSpec(BaseModel):
     """How the parameters are estimated."""
 
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
     name: Literal[METHODS] = Field("least-squares", description="least-squares: weighted least squares, "
                                    "multi-start, profile likelihoods; posterior: least squares, then samples of "
                                    "the posterior on a Gaussian-process surrogate")
