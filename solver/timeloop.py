@@ -166,7 +166,8 @@ class Simulation:
 
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
-        state = transport.initial()
+        with threadpool_limits(limits=1, user_api="blas"):  # the first hierarchy's coarse pseudo-inverse too
+            state = transport.initial()
         last = len(problem.output_times) - 1
         # a continuation's outputs up to its start belong to the run it continues (indices stay the scene's:
         # the mechanics is solved at the same outputs as in a run straight to t_end)
