@@ -7,7 +7,9 @@ prints, after the run, the CPU seconds (user + system) of each test's setup, cal
 and its children's (the subprocesses and worker pools a test started and waited for), the slowest first, and
 their sum per file.  CPU time counts what a test makes the machine do, which other load barely changes (wall
 time under a load average of 10 doubles or triples); a file's sum is what it adds to the `--dist loadfile`
-worker that runs it.  `-n 0`: xdist's workers would keep the figures to themselves.
+worker that runs it.  `-n 0`: xdist's workers would keep the figures to themselves.  Not counted: processes
+that are not this one's children, such as the local pool's workers, which multiprocessing's fork server starts
+(compare such tests by wall time on a quiet machine).
 """
 from __future__ import annotations
 

@@ -32,8 +32,8 @@ HOW = """\
 How it is measured: `python scripts/suite_time.py` on the idle 2-core machine (the wall time above, which the
 README quotes: `scripts/docs_sync.py`).  The seconds below are pytest's `--durations` (wall time of each setup,
 call and teardown); a file's are summed, and `--dist loadfile` runs a file on one worker, so a file near half the
-wall time sets it.  On a busy machine wall times are not comparable (under a load average of 10 they double or
-triple): compare the CPU seconds of the same tests before and after a change instead,
+wall time sets it.  On a busy machine wall times are not comparable (at a load average of 10, several times the idle
+ones): compare the CPU seconds of the same tests before and after a change instead,
 `PYTHONPATH=$PWD:$PWD/scripts python -m pytest -n 0 -p suite_cost tests/test_x.py` (`scripts/suite_cost.py`:
 each test's and its children's user + system time, summed per file).
 """
