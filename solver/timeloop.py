@@ -173,7 +173,7 @@ class Simulation:
 
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
-        with threadpool_limits(limits=1, user_api="blas"):
+        with threadpool_limits(limits=1, user_api="blas"):  # the first hierarchy's coarse pseudo-inverse too
             state = transport.initial()
         last = len(problem.output_times) - 1
         # a continuation's outputs up to its start belong to the run it continues (indices stay the scene's:

@@ -12,10 +12,18 @@ os.environ["MPLBACKEND"] = "Agg"
 os.environ["BIOSTUDY_MEMORY"] = "16 GB"
 
 import textwrap
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
+
+# One BLAS thread in each test process: the suite's two processes fill the two cores (pyproject's -n 2), and
+# OpenBLAS threads spinning on busy cores cost tens of times their work.  Set here, not by OMP_NUM_THREADS
+# (numpy is loaded before this file, by plugins), and not in the environment, which the processes tests start
+# inherit: the tests of a sweep's workers check that the sweep sets it for them.
+ONE_BLAS_THREAD = threadpool_limits(limits=1, user_api="blas")
 
 # A 2-D 16 x 16 scene of 20 steps: ~0.1 s to simulate, yet every part of a scene is there.
 TINY_SCENE = """\
@@ -187,7 +195,12 @@ def drawn(monkeypatch):
 
 
 def pytest_collection_modifyitems(items):
-    """Files that hold `slow` tests first: xdist (`--dist loadfile`) hands files out in collection order, so the
-    long ones start at once and the quick ones fill the end instead of one long file running alone at the end."""
-    slow = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow)  # stable: the order within and among the others is kept
+    """Files that hold `slow` tests first, then the others by their number of tests, largest first: xdist
+    (`--dist loadfile --no-loadscope-reorder`, pyproject) hands files out in collection order, so the long ones
+    start at once and the quick ones fill the end instead of one long file running alone at the end.  (Without
+    --no-loadscope-reorder xdist would reorder the files by their number of tests alone.)"""
+    slow, count = set(), Counter(item.path for item in items)
+    for item in items:
+        if item.get_closest_marker("slow"):
+            slow.add(item.path)
+    items.sort(key=lambda item: (item.path not in slow, -count[item.path]))  # stable: a file's order is kept

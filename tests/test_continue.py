@@ -127,7 +127,7 @@ def test_continue_refuses_what_it_cannot_go_on_from(runs, tmp_path, write_toml):
 
 
 def test_the_fingerprint_counts_a_start_state_and_not_its_absence(runs):
-    from biostudy.execution.jobs import ADDED_LATER, fingerprint
+    from biostudy.execution.identity import ADDED_LATER, fingerprint
 
     path, first, _ = runs
     fresh = load_scene(path, LATER).problem()

@@ -139,3 +139,20 @@ def test_the_nutrient_guess_is_exact_for_a_parabola_in_time():
     assert np.allclose(state.c_guess(times[3] - times[2]), c(times[3]), rtol=0, atol=1e-14)
     state = state.after(times[3] - times[2], None, None, c(times[3]))
     assert np.allclose(state.c_guess(0.5), c(times[3] + 0.5), rtol=0, atol=1e-13)
+
+
+def test_the_transport_solves_on_one_blas_thread_from_its_first_step(monkeypatch):
+    """OpenBLAS threads on busy cores made the coarsest multigrid level's pseudo-inverse (the whole operator of a
+    small grid) 60 times slower; the first step's hierarchy is built under the one-thread limit too."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    pinv, threads = np.linalg.pinv, []
+
+    def counted(matrix, *args, **kwargs):
+        threads.append(max(pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"))
+        return pinv(matrix, *args, **kwargs)
+
+    monkeypatch.setattr(np.linalg, "pinv", counted)
+    with threadpool_limits(limits=2, user_api="blas"):  # what a 2-core machine gives by default
+        simulate(sphere_problem(n=8, steps=4, t_end=0.04, outputs=(0.0, 0.04)))
+    assert threads and set(threads) == {1}, threads

@@ -3,7 +3,7 @@
 A job is one simulation of a sweep, a convergence level, a stability case or
 a calibration's evaluation: a validated scene and where it came from.
 `run_jobs` runs those not recorded yet and records each one (its dataset or
-its failure); what is recorded is reused by its fingerprint.
+its failure); what is recorded is reused by its fingerprint (`identity`).
 
 Workers only simulate: they receive a compiled `solver.Problem` (plain
 arrays, no files) and send back the dataset or the reason it failed.  This
@@ -25,12 +25,9 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import hashlib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
-
-import numpy as np
 
 from solver.output import versions
 
@@ -43,6 +40,7 @@ from ..quantities import alerts
 from . import ownership, pool
 from .backends import Backend, Here, windowed
 from .dask import DaskCluster, SchedulerLost
+from .identity import fingerprint, legacy_fingerprint, matches
 from .pool import LocalPool
 from .worker import Outcome
 
@@ -123,26 +121,6 @@ class Job:
     layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
 
 
-# Fields `solver.Problem` gained after sweeps had been recorded, with their defaults: at those they are left out
-# of the fingerprint, so that the cases those sweeps finished stay finished.
-ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None}
-
-
-def fingerprint(problem: "solver.Problem") -> str:
-    """sha256 of everything that determines a run's result (not its name).  The software's versions are not
-    in it: a new version does not discard finished work by itself; `SweepReport.outdated` tells about it."""
-    digest = hashlib.sha256()
-    for part in fields(problem):  # every field, so that a new one cannot be forgotten
-        if part.name == "name":
-            continue
-        value = getattr(problem, part.name)
-        if part.name in ADDED_LATER and not isinstance(value, np.ndarray) and value == ADDED_LATER[part.name]:
-            continue
-        digest.update(part.name.encode())
-        digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
-    return digest.hexdigest()
-
-
 NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a result's numbers depend on
 
 
@@ -188,14 +166,16 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
 
     ids, prints, events, foreign = [], {}, [], []
     for job in jobs:
-        prints[job.id] = fingerprint(job.scene.problem())
+        problem = job.scene.problem()
+        prints[job.id] = fingerprint(problem)
         path = store.case_file(out_dir, job.id)
         record = store.recorded(path)
         if record is not None and "biostudy_version" not in record:
             foreign.append(BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it, --force "
                                     "or not (move it away, or give another -o)", path))
             continue
-        reusable = record is not None and not execution.rerun_all and record.get("fingerprint") == prints[job.id] \
+        same = record is not None and matches(record.get("fingerprint"), prints[job.id], legacy_fingerprint(problem))
+        reusable = same and not execution.rerun_all \
             and (record.get("status") == "done" or (record.get("status") == "failed" and not execution.retry_failed))
         if path.exists() and (record is None or reusable and not store.intact(path)):
             report.damaged.append(job.id)  # a file that cannot be read whole: its header, attributes or data
