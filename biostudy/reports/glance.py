@@ -21,12 +21,11 @@ from .show import summary_of
 
 def glance(path: str | Path) -> Group | None:
     """The summary of a run, a case or a failed case's record, or None when the full reader must do it."""
-    import netCDF4
-
+    from ..data.netcdf_io import opened
     from ..data.store import intact  # lazily: only to tell a damaged file
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with opened(path) as nc:
             nc.set_auto_mask(False)
             attrs = {name: nc.getncattr(name) for name in nc.ncattrs()}
             if "biostudy_version" not in attrs or "sweep_mode" in attrs:
