@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-from ..data import store
+from ..data import claims, store
 from ..errors import Failed
 from ..execution.backends import Kept
 from ..execution.jobs import Execution, Job, run_jobs
@@ -45,6 +45,7 @@ from .finished import Finished
 # colony (docs/calibration.md).  The finite-difference steps are chosen against it (`fitting.least_squares`).
 MODEL_NOISE = 1e-3
 DESIGN_MARGIN = 0.05  # the starts' Latin hypercube fills [0.05, 0.95] of every range
+REPORTS = ("calibration.md", "calibration_fit.png", "calibration_profiles.png", "calibration_corner.png")
 
 
 @dataclass
@@ -183,7 +184,7 @@ class Calibrate:
         """Fit, write DIR/calibration.nc, calibration.md and the pictures; the table is the result's summary."""
         began = time.perf_counter()
         method = self.plan.spec.method
-        with owned(self.directory, self.owner(), "calibration.nc", execution.force):
+        with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=REPORTS):
             backend = _backend(execution)
             simulations = Simulations(self.plan, self.directory, execution, backend)
             try:
@@ -204,7 +205,7 @@ class Calibrate:
                          list(simulations.vanished), sampled)
             table = table_text(ds)
             store.write_atomic(ds, self.directory / "calibration.nc")
-            store.write_text(self.directory / "calibration.md", table)
+            claims.write_report(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
             if method.profiles:
                 save(profiles_figure(ds), self.directory / "calibration_profiles.png")

@@ -5,9 +5,15 @@ its result is written: its temporary (`store.temporary_name`) is made at
 once and tells other biostudy runs that the output is being computed; the
 result is renamed over the output only if the output is still the file it
 was when claimed, so a result is never silently replaced by another written
-meanwhile.  Every picture and ParaView file biostudy writes carries a `mark`
-(in its metadata or a comment); `foreign` refuses to replace a file of the
-same name without it.
+meanwhile.  Every report, picture and ParaView file biostudy writes carries a
+`mark` (in its metadata or a comment); `foreign` refuses to replace a file of
+the same name without it.
+
+The mark travels inside the file (a PNG's Software text chunk, an HTML
+comment closing a Markdown report, an XML comment in a VTU), not in a record
+beside it: it survives copying and moving a folder, needs no bookkeeping
+that a crash or a user's edit could leave out of step, and holds for a
+picture written anywhere (`plot -o`), not only in a directory a run owns.
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import BadInput, Failed
-from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic
+from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic, write_text
 
 
 def mark() -> str:
@@ -39,14 +45,26 @@ def marked(path: str | Path, most: int = 1 << 25) -> bool:
         return False
 
 
+def unproven(paths: Iterable[str | Path], what: str) -> list[BadInput]:
+    """A `BadInput` for each of `paths` that exists and does not carry biostudy's `mark`, --force or not."""
+    return [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it, --force or not (choose "
+                     "another output, or remove the file first)", path) for path in paths
+            if Path(path).exists() and not marked(path)]
+
+
 def foreign(paths: Iterable[str | Path], what: str) -> None:
     """`BadInput` (every one at once) for those of `paths` that exist and do not carry biostudy's `mark`: a
     file biostudy cannot prove it wrote is never replaced."""
-    found = [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
-                      "output, or remove the file first)", path) for path in paths
-             if Path(path).exists() and not marked(path)]
+    found = unproven(paths, what)
     if found:
         raise BadInput.every(found)
+
+
+def write_report(path: str | Path, text: str) -> Path:
+    """A Markdown report, written atomically and closed by biostudy's `mark` in an HTML comment (not shown where
+    Markdown is rendered); refused (`foreign`) where a file biostudy cannot prove it wrote is."""
+    foreign([path], "a report")
+    return write_text(path, f"{text.rstrip()}\n\n<!-- {mark()} -->\n")
 
 
 def _identity(path: Path) -> tuple | None:
