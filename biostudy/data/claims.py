@@ -20,12 +20,16 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import threading
 import weakref
 from pathlib import Path
 from typing import Iterable
 
 from ..errors import BadInput, Failed
 from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic, write_text
+
+HELD: set[Path] = set()  # outputs claimed in this process: its threads share its pid, which the temporary names
+HOLDING = threading.Lock()
 
 
 def mark() -> str:
@@ -96,10 +100,10 @@ class Claim:
     computed; the result is written into it and renamed over the output only if the output is still what it
     was when claimed (`replace`), so a result is never silently replaced by another written meanwhile."""
 
-    def __init__(self, target: Path, temporary: Path, removed: list[Path], made: list[Path]):
+    def __init__(self, target: Path, temporary: Path, removed: list[Path], made: list[Path], held: Path):
         self.target, self.temporary, self.removed = target, temporary, removed
         self.seen = _identity(target)
-        self._release = weakref.finalize(self, _give_up, temporary, made)
+        self._release = weakref.finalize(self, _give_up, temporary, made, held)
 
     def write_dataset(self, ds) -> Path:
         """The result, written into the claimed output (`store.write_atomic`, renamed by `replace`)."""
@@ -127,19 +131,22 @@ class Claim:
                      f"is, and this run's result is kept in {kept}")
 
 
-def _give_up(temporary: Path | None, made: list[Path]) -> None:
+def _give_up(temporary: Path | None, made: list[Path], held: Path | None = None) -> None:
     """Remove a claim's temporary and the directories made for it (deepest first; one that holds anything
-    stays)."""
+    stays), and let this process claim its output again."""
     if temporary is not None:
         temporary.unlink(missing_ok=True)
+    with HOLDING:
+        HELD.discard(held)  # type: ignore[arg-type]
     for directory in made:
         with contextlib.suppress(OSError):
             directory.rmdir()
 
 
 def claim(path: str | Path) -> Claim:
-    """Reserve `path` for this process's result: `BadInput` if another running process claimed it (its
-    temporary is there); the temporaries of writers that are gone (killed, even with SIGKILL) are removed."""
+    """Reserve `path` for this process's result: `BadInput` if another running process, or another thread of
+    this one, claimed it (its temporary is there, or `HELD` has it); the temporaries of writers that are gone
+    (killed, even with SIGKILL) are removed."""
     path = Path(path)
     made = []
     ancestor = path.parent
@@ -151,13 +158,20 @@ def claim(path: str | Path) -> Claim:
         with _directory_locked(path.parent):
             removed = remove_temporaries(path.parent, of=path.name)
             running = sorted(pid for _, pid in temporaries(path.parent, path.name) if pid != os.getpid())
+            held = path.parent.resolve() / path.name
+            with HOLDING:
+                if held in HELD:
+                    running = [os.getpid()]
+                elif not running:
+                    HELD.add(held)
             if running:
                 _give_up(None, made)
-                raise BadInput(f"another biostudy run (pid {running[0]}) is computing this output; wait for it to "
-                               "end, or choose another output", path)
-            temporary = temporary_name(path)
-            os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                who = f"pid {running[0]}" + (", another thread of this process" if running[0] == os.getpid() else "")
+                raise BadInput(f"another biostudy run ({who}) is computing this output; wait for it to end, or "
+                               "choose another output", path)
+            claim = Claim(path, temporary_name(path), removed, made, held)
+            os.close(os.open(claim.temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
     except OSError as error:
         _give_up(None, made)
         raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
-    return Claim(path, temporary, removed, made)
+    return claim
