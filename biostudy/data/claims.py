@@ -170,7 +170,7 @@ def claim(path: str | Path) -> Claim:
                 raise BadInput(f"another biostudy run ({who}) is computing this output; wait for it to end, or "
                                "choose another output", path)
             claim = Claim(path, temporary_name(path), removed, made, held)
-            os.close(os.open(claim.temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+            os.close(os.open(claim.temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # the umask decides
     except OSError as error:
         _give_up(None, made)
         raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
