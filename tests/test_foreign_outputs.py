@@ -16,23 +16,8 @@ from biostudy.plots.style import save
 
 cli = CliRunner()
 
-AGAR = """\
-name = "agar"
-[grid]
-shape = [8, 10]
-[time]
-t_end = 0.1
-steps = 10
-[[nutrient]]
-shape = "face"
-face = "y-"
-[[biofilm]]
-shape = "box"
-lower = [2.0, 0.0]
-upper = [6.0, 3.0]
-"""
 CALIBRATION = """\
-scene = "agar.toml"
+scene = "tiny.toml"
 [data]
 measurements = "table.tsv"
 [estimate]
@@ -61,9 +46,9 @@ def refused_one_line(result, name: str) -> str:
     return lines[0]
 
 
-@pytest.mark.parametrize("name, content", [("calibration.md", USERS), ("calibration_fit.png", PNG)])
-def test_calibrate_keeps_a_users_report_or_picture_force_or_not(write_toml, tmp_path, name, content):
-    write_toml("agar.toml", AGAR)
+@pytest.mark.parametrize("name, content", [("calibration.md", USERS), ("calibration_fit.png", PNG)],
+                         ids=["report", "picture"])
+def test_calibrate_keeps_a_users_report_or_picture_force_or_not(tiny_scene, write_toml, tmp_path, name, content):
     (tmp_path / "table.tsv").write_text(TABLE)
     calibration = write_toml("cal.toml", CALIBRATION)
     out = tmp_path / "out"
