@@ -45,7 +45,6 @@ from .finished import Finished
 # colony (docs/calibration.md).  The finite-difference steps are chosen against it (`fitting.least_squares`).
 MODEL_NOISE = 1e-3
 DESIGN_MARGIN = 0.05  # the starts' Latin hypercube fills [0.05, 0.95] of every range
-REPORTS = ("calibration.md", "calibration_fit.png", "calibration_profiles.png", "calibration_corner.png")
 
 
 @dataclass
@@ -180,11 +179,17 @@ class Calibrate:
         return Owner("calibration", self.plan.spec.name, str(self.plan.plan.scene_file.resolve()),
                      tuple(p.name for p in self.plan.parameters))
 
+    def reports(self) -> tuple[str, ...]:
+        """The report and the pictures this calibration writes beside calibration.nc."""
+        method = self.plan.spec.method
+        return ("calibration.md", "calibration_fit.png", *(["calibration_profiles.png"] if method.profiles else []),
+                *(["calibration_corner.png"] if method.name == "posterior" else []))
+
     def run(self, execution: Execution = Execution()) -> Finished:
         """Fit, write DIR/calibration.nc, calibration.md and the pictures; the table is the result's summary."""
         began = time.perf_counter()
         method = self.plan.spec.method
-        with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=REPORTS):
+        with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports()):
             backend = _backend(execution)
             simulations = Simulations(self.plan, self.directory, execution, backend)
             try:
@@ -222,10 +227,8 @@ class Calibrate:
         if simulations.failed:
             warnings.append(f"{len(simulations.failed)} simulations failed and counted as penalties: "
                             + "; ".join(f"{k}: {v}" for k, v in list(simulations.failed.items())[:2]))
-        pictures = ", ".join(["calibration_fit.png"] + (["calibration_profiles.png"] if method.profiles else [])
-                             + (["calibration_corner.png"] if sampled is not None else []))
         summary = (f"{len(simulations.ran)} simulations run, {len(simulations.reused)} reused (finished before); "
-                   f"wrote {self.directory / 'calibration.nc'}, calibration.md, {pictures}")
+                   f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}")
         return Finished(summary, {}, len(simulations.ran) + len(simulations.reused), table, self.noun, warnings,
                         result=ds)
 
