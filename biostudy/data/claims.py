@@ -136,8 +136,9 @@ def _give_up(temporary: Path | None, made: list[Path], held: Path | None = None)
     stays), and let this process claim its output again."""
     if temporary is not None:
         temporary.unlink(missing_ok=True)
-    with HOLDING:
-        HELD.discard(held)  # type: ignore[arg-type]
+    if held is not None:
+        with HOLDING:
+            HELD.discard(held)
     for directory in made:
         with contextlib.suppress(OSError):
             directory.rmdir()
