@@ -51,8 +51,8 @@ def marked(path: str | Path, most: int = 1 << 25) -> bool:
 
 def unproven(paths: Iterable[str | Path], what: str) -> list[BadInput]:
     """A `BadInput` for each of `paths` that exists and does not carry biostudy's `mark`, --force or not."""
-    return [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it, --force or not (choose "
-                     "another output, or remove the file first)", path) for path in paths
+    return [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
+                     "output, or remove the file first)", path) for path in paths
             if Path(path).exists() and not marked(path)]
 
 
