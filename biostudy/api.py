@@ -10,6 +10,7 @@ not the notebook kernel's command line.
 from __future__ import annotations
 
 import logging
+import numbers
 import warnings
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -17,6 +18,7 @@ from typing import Any, Mapping, Sequence
 import xarray as xr
 
 from .data import netcdf, store
+from .errors import BadInput
 from .execution import worker
 from .inputs.tomltext import literal
 
@@ -25,14 +27,25 @@ log = logging.getLogger("biostudy")  # what a call did, at INFO; silent unless l
 
 
 def _overrides(given: Overrides) -> list[str]:
-    """{'g': 1e9} or ['g=1e9'] -> ['g=1e9'] (values of a mapping written as TOML)."""
+    """{'g': 1e9} or ['g=1e9'] -> ['g=1e9'] (values of a mapping written as TOML); anything else is `BadInput`."""
     if given is None:
         return []
     if isinstance(given, str):
         return [given]
     if isinstance(given, Mapping):
         return [f"{key}={literal(value)}" for key, value in given.items()]
+    if not isinstance(given, Sequence):
+        raise BadInput(f"give a dict {{'g': 1e9}} or a list ['g=1e9'] of overrides (got {given!r})", key="set")
     return [str(item) for item in given]
+
+
+def _workers(workers: Any) -> int | None:
+    """The number of local processes a call asked for: None or a whole number, 1 or more (`BadInput` else)."""
+    if workers is None:
+        return None
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1:
+        raise BadInput(f"give a whole number of processes, 1 or more, or None (got {workers!r})", key="workers")
+    return int(workers)
 
 
 def _call(name: str, *args, **kwargs) -> str:
@@ -61,8 +74,11 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
     """
     from .commands import run as command  # lazily: `import biostudy` stays cheap (module docstring)
 
-    worker.pin_solvers()
     overrides = _overrides(set)
+    if progress is not None and not callable(progress):
+        raise BadInput(f"give a function, called with each step's progress, or None (got {progress!r})",
+                       key="progress")
+    worker.pin_solvers()
     with netcdf.called(_call("run", scene if not isinstance(scene, Mapping) else dict(scene), set=set,
                              output=output, continue_from=continue_from)):
         loaded = command.load(dict(scene) if isinstance(scene, Mapping) else scene, overrides=overrides,
@@ -90,11 +106,12 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     from .execution.dask import check_choice, runs_here
     from .execution.jobs import Execution
 
+    workers, overrides = _workers(workers), _overrides(set)
     worker.pin_solvers()
     check_choice(workers, scheduler, scheduler_file)
     with netcdf.called(_call("sweep", study, directory, workers=workers, scheduler=scheduler,
                              scheduler_file=scheduler_file, set=set)):
-        job = command.load(study, output=Path(directory), overrides=_overrides(set),
+        job = command.load(study, output=Path(directory), overrides=overrides,
                            runs_here=runs_here(scheduler, scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      retry_failed=retry_failed, rerun_all=rerun_all, force=force))
@@ -117,12 +134,13 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
     from .execution.dask import check_choice, runs_here
     from .execution.jobs import Execution
 
+    workers, overrides = _workers(workers), _overrides(set)
     worker.pin_solvers()
     check_choice(workers, scheduler, scheduler_file)
     with netcdf.called(_call("calibrate", calibration, directory, workers=workers, scheduler=scheduler,
                              scheduler_file=scheduler_file, set=set)):
         job = command.load(calibration, output=None if directory is None else Path(directory),
-                           overrides=_overrides(set), runs_here=runs_here(scheduler, scheduler_file))
+                           overrides=overrides, runs_here=runs_here(scheduler, scheduler_file))
         finished = job.run(Execution(workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                                      rerun_all=rerun_all, force=force))
     log.info(finished.summary)

@@ -85,3 +85,18 @@ def test_the_notebook_runs_and_records_the_api_call(tmp_path, monkeypatch):
     assert any("image/png" in o.get("data", {}) for o in outputs)  # the plot was drawn
     ds = xr.open_dataset(tmp_path / "directional2d-g1e8.nc")
     assert "biostudy.run(" in ds.attrs["history"] and ds.sizes["time"] == 3
+
+
+@pytest.mark.parametrize("call, said", [
+    (lambda: biostudy.sweep("s.toml", "out", workers=-1), "workers: give a whole number of processes"),
+    (lambda: biostudy.sweep("s.toml", "out", workers="2"), "workers: give a whole number .* \\(got '2'\\)"),
+    (lambda: biostudy.calibrate("c.toml", "out", workers=True), "workers: give a whole number"),
+    (lambda: biostudy.sweep("s.toml", "out", set=5), "set: give a dict .* \\(got 5\\)"),
+    (lambda: biostudy.run("tiny.toml", set=5), "set: give a dict"),
+    (lambda: biostudy.run("tiny.toml", progress=5), "progress: give a function"),
+])
+def test_arguments_of_the_wrong_kind_are_one_line_before_anything_is_read(call, said, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no such files: the arguments are refused before any is looked for
+    with pytest.raises(biostudy.BadInput, match=said) as refused:
+        call()
+    assert len(refused.value.lines()) == 1 and not list(tmp_path.iterdir())

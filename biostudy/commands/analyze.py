@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..data import combine, store
+from ..data import claims, combine, store
 from ..errors import BadInput
 from ..inputs.keys import key_parts
 from ..inputs.tomltext import literal
@@ -26,6 +26,8 @@ from ..plots.style import save
 from ..reports.cases import cases_of
 from ..reports.sensitivity import analyze as indices
 from ..reports.sensitivity import table_text, time_indices, variable
+
+REPORTS = ("analysis.md", "analysis_indices.png", "analysis_scatter.png")
 
 
 def current(source: Path) -> xr.Dataset:
@@ -72,15 +74,16 @@ def analyze(source: str | Path, *, outputs: list[str] | None = None,
     beside it; returns the files written and the table.  Anything wrong with the request is `BadInput`."""
     source = Path(source)
     source = source / "study.nc" if source.is_dir() else source
-    ds = current(source)
     directory = source.parent
+    _replaceable(directory)  # before anything is read or computed
+    ds = current(source)
     try:
         result = indices(ds, outputs or None, times or None)
     except ValueError as error:
         raise BadInput(str(error), source, "--output" if "output" in str(error) else None) from None
     text = table_text(result)
-    written = [store.write_atomic(result, directory / "analysis.nc"), store.write_text(directory / "analysis.md", text),
-               save(indices_figure(result), directory / "analysis_indices.png")]
+    written = [store.write_atomic(result, directory / "analysis.nc"), claims.write_report(directory / REPORTS[0], text),
+               save(indices_figure(result), directory / REPORTS[1])]
     names = list(result.output.values)
     index = time_indices(ds, times or None)[-1]
     if "sample_method" in ds.attrs and all(n in ds for n in names):
@@ -94,5 +97,16 @@ def analyze(source: str | Path, *, outputs: list[str] | None = None,
         units = {n: str(u) for n, u in zip(names, result["output_units"].values)}
         figure = scatter_figure(values, units, flat.parameters, flat.log, flat.status == "done",
                                 "outputs against each parameter")
-    written.append(save(figure, directory / "analysis_scatter.png"))
+    written.append(save(figure, directory / REPORTS[2]))
     return written, text
+
+
+def _replaceable(directory: Path) -> None:
+    """`BadInput` (every one at once) unless analysis.nc and the reports may be replaced: absent, or biostudy's."""
+    problems = claims.unproven([directory / name for name in REPORTS], "a report or picture")
+    try:
+        store.replaceable(directory / "analysis.nc")
+    except BadInput as error:
+        problems.insert(0, error)
+    if problems:
+        raise BadInput.every(problems)

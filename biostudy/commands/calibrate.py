@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-from ..data import store
+from ..data import claims, store
 from ..errors import BadInput, Failed
 from ..execution.backends import Kept
 from ..execution.jobs import Execution, Job, run_jobs
@@ -188,6 +188,12 @@ class Calibrate:
         return Owner("calibration", self.plan.spec.name, str(self.plan.plan.scene_file.resolve()),
                      tuple(p.name for p in self.plan.parameters))
 
+    def reports(self) -> tuple[str, ...]:
+        """The report and the pictures this calibration writes beside calibration.nc."""
+        method = self.plan.spec.method
+        return ("calibration.md", "calibration_fit.png", *(["calibration_profiles.png"] if method.profiles else []),
+                *(["calibration_corner.png"] if method.name == "posterior" else []))
+
     def run(self, execution: Execution = Execution()) -> Finished:
         """Fit, write DIR/calibration.nc, calibration.md and the pictures; the table is the result's summary."""
         began = time.perf_counter()
@@ -195,7 +201,7 @@ class Calibrate:
         said = calibration_cost.note(self.plan)
         if said and execution.notify is not None:
             execution.notify("note", "", said)
-        with owned(self.directory, self.owner(), "calibration.nc", execution.force):
+        with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports()):
             backend = _backend(execution)
             simulations = Simulations(self.plan, self.directory, execution, backend)
             try:
@@ -216,7 +222,7 @@ class Calibrate:
                          simulations.raised, sampled)
             table = table_text(ds)
             store.write_atomic(ds, self.directory / "calibration.nc")
-            store.write_text(self.directory / "calibration.md", table)
+            claims.write_report(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
             if method.profiles:
                 save(profiles_figure(ds), self.directory / "calibration_profiles.png")
@@ -229,10 +235,8 @@ class Calibrate:
         if simulations.failed:
             warnings.append(f"{len(simulations.failed)} simulations failed and counted as penalties: "
                             + "; ".join(f"{k}: {v}" for k, v in list(simulations.failed.items())[:2]))
-        pictures = ", ".join(["calibration_fit.png"] + (["calibration_profiles.png"] if method.profiles else [])
-                             + (["calibration_corner.png"] if sampled is not None else []))
         summary = (f"{len(simulations.ran)} simulations run, {len(simulations.reused)} reused (finished before); "
-                   f"wrote {self.directory / 'calibration.nc'}, calibration.md, {pictures}")
+                   f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}")
         return Finished(summary, {}, len(simulations.ran) + len(simulations.reused), table, self.noun, warnings,
                         result=ds)
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..data import store
+from ..data import claims, store
 from ..errors import BadInput
 from ..execution.jobs import Execution, Job, SweepReport, run_jobs
 from ..execution.ownership import Owner
@@ -25,6 +25,8 @@ from ..plans.refinement import FIRST_TOLERANCE, SERIES, check_refinable, chosen_
 from ..plots.accuracy import work_precision
 from ..reports.convergence import load_reference, measure, table_text
 from .finished import Finished
+
+REPORTS = ("convergence.md", "work_precision.png")
 
 
 @dataclass
@@ -51,8 +53,8 @@ class Convergence:
     def run(self, execution: Execution) -> Finished:
         ds, report = self.measure(execution)
         table = table_text(ds)
-        store.write_text(self.directory / "convergence.md", table)
-        work_precision(ds, self.directory / "work_precision.png")
+        claims.write_report(self.directory / REPORTS[0], table)
+        work_precision(ds, self.directory / REPORTS[1])
         return Finished(f"wrote {self.directory / 'convergence.nc'}, convergence.md, work_precision.png "
                         f"({len(report.ran)} runs, {len(report.skipped)} finished before)", report.failed,
                         len(report.ran) + len(report.skipped), table, "runs", report.warnings(), result=ds)
@@ -66,7 +68,7 @@ class Convergence:
         text = overrides_text(self.common)
         jobs = [Job(job_id, scene, self.path, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
         owner = Owner("convergence", self.path.stem, str(self.path.resolve()))
-        with owned(self.directory, owner, "convergence.nc", execution.force):
+        with owned(self.directory, owner, "convergence.nc", execution.force, reports=REPORTS):
             report = run_jobs(jobs, self.directory, execution)
             ds = measure(wanted, self.directory, self.levels, self.series, self.base, given, self.time)
             if self.reference is not None and given is not None:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..data import store
+from ..data import claims, store
 from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
@@ -19,11 +19,13 @@ from ..plans.cases import Plan
 from ..reports.stability import table_text, verdicts
 from .finished import Finished
 
+REPORT = "stability.md"
+
 
 def run_catalogue(plan: Plan, directory: Path, execution: Execution = Execution()) -> tuple[xr.Dataset, SweepReport]:
     """Run a loaded catalogue, judge every case, write DIR/stability.nc (DIR: `targets.owned`)."""
     jobs = plan_jobs(plan, catalogue_file=str(plan.file.resolve()))
-    with owned(directory, plan_owner(plan, "catalogue"), "stability.nc", execution.force):
+    with owned(directory, plan_owner(plan, "catalogue"), "stability.nc", execution.force, reports=(REPORT,)):
         report = run_jobs(jobs, directory, execution)
         ds = verdicts(jobs, directory)
         ds.attrs = store.with_provenance({
@@ -48,7 +50,7 @@ class Stability:
     def run(self, execution: Execution) -> Finished:
         ds, report = run_catalogue(self.plan, self.directory, execution)
         table = table_text(ds)
-        store.write_text(self.directory / "stability.md", table)
+        claims.write_report(self.directory / REPORT, table)
         failed = {str(c): str(m) for c, m, ok in zip(ds.case.values, ds.message.values, ds.ok.values) if not ok}
         return Finished(f"wrote {self.directory / 'stability.nc'} and stability.md: {int(ds.ok.sum())} of "
                         f"{ds.sizes['case']} cases completed within bounds or stopped with a diagnosis",

@@ -156,9 +156,9 @@ def not_done(plan: Plan, study: Path) -> list[int]:
 
 
 def _statuses(study: Path) -> str:
-    import netCDF4
+    from ..data.netcdf_io import opened
 
-    with netCDF4.Dataset(study) as nc:
+    with opened(study) as nc:
         return ", ".join(f"{nc.getncattr(f'cases_{s}')} {s}" for s in ("done", "failed", "missing"))
 
 

@@ -5,21 +5,31 @@ its result is written: its temporary (`store.temporary_name`) is made at
 once and tells other biostudy runs that the output is being computed; the
 result is renamed over the output only if the output is still the file it
 was when claimed, so a result is never silently replaced by another written
-meanwhile.  Every picture and ParaView file biostudy writes carries a `mark`
-(in its metadata or a comment); `foreign` refuses to replace a file of the
-same name without it.
+meanwhile.  Every report, picture and ParaView file biostudy writes carries a
+`mark` (in its metadata or a comment); `foreign` refuses to replace a file of
+the same name without it.
+
+The mark travels inside the file (a PNG's Software text chunk, an HTML
+comment closing a Markdown report, an XML comment in a VTU), not in a record
+beside it: it survives copying and moving a folder, needs no bookkeeping
+that a crash or a user's edit could leave out of step, and holds for a
+picture written anywhere (`plot -o`), not only in a directory a run owns.
 """
 from __future__ import annotations
 
 import contextlib
 import fcntl
 import os
+import threading
 import weakref
 from pathlib import Path
 from typing import Iterable
 
 from ..errors import BadInput, Failed
-from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic
+from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic, write_text
+
+HELD: set[Path] = set()  # outputs claimed in this process: its threads share its pid, which the temporary names
+HOLDING = threading.Lock()
 
 
 def mark() -> str:
@@ -39,14 +49,26 @@ def marked(path: str | Path, most: int = 1 << 25) -> bool:
         return False
 
 
+def unproven(paths: Iterable[str | Path], what: str) -> list[BadInput]:
+    """A `BadInput` for each of `paths` that exists and does not carry biostudy's `mark`, --force or not."""
+    return [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
+                     "output, or remove the file first)", path) for path in paths
+            if Path(path).exists() and not marked(path)]
+
+
 def foreign(paths: Iterable[str | Path], what: str) -> None:
     """`BadInput` (every one at once) for those of `paths` that exist and do not carry biostudy's `mark`: a
     file biostudy cannot prove it wrote is never replaced."""
-    found = [BadInput(f"exists and is not {what} biostudy wrote; refusing to overwrite it (choose another "
-                      "output, or remove the file first)", path) for path in paths
-             if Path(path).exists() and not marked(path)]
+    found = unproven(paths, what)
     if found:
         raise BadInput.every(found)
+
+
+def write_report(path: str | Path, text: str) -> Path:
+    """A Markdown report, written atomically and closed by biostudy's `mark` in an HTML comment (not shown where
+    Markdown is rendered); refused (`foreign`) where a file biostudy cannot prove it wrote is."""
+    foreign([path], "a report")
+    return write_text(path, f"{text.rstrip()}\n\n<!-- {mark()} -->\n")
 
 
 def _identity(path: Path) -> tuple | None:
@@ -78,10 +100,10 @@ class Claim:
     computed; the result is written into it and renamed over the output only if the output is still what it
     was when claimed (`replace`), so a result is never silently replaced by another written meanwhile."""
 
-    def __init__(self, target: Path, temporary: Path, removed: list[Path], made: list[Path]):
+    def __init__(self, target: Path, temporary: Path, removed: list[Path], made: list[Path], held: Path):
         self.target, self.temporary, self.removed = target, temporary, removed
         self.seen = _identity(target)
-        self._release = weakref.finalize(self, _give_up, temporary, made)
+        self._release = weakref.finalize(self, _give_up, temporary, made, held)
 
     def write_dataset(self, ds) -> Path:
         """The result, written into the claimed output (`store.write_atomic`, renamed by `replace`)."""
@@ -109,19 +131,23 @@ class Claim:
                      f"is, and this run's result is kept in {kept}")
 
 
-def _give_up(temporary: Path | None, made: list[Path]) -> None:
+def _give_up(temporary: Path | None, made: list[Path], held: Path | None = None) -> None:
     """Remove a claim's temporary and the directories made for it (deepest first; one that holds anything
-    stays)."""
+    stays), and let this process claim its output again."""
     if temporary is not None:
         temporary.unlink(missing_ok=True)
+    if held is not None:
+        with HOLDING:
+            HELD.discard(held)
     for directory in made:
         with contextlib.suppress(OSError):
             directory.rmdir()
 
 
 def claim(path: str | Path) -> Claim:
-    """Reserve `path` for this process's result: `BadInput` if another running process claimed it (its
-    temporary is there); the temporaries of writers that are gone (killed, even with SIGKILL) are removed."""
+    """Reserve `path` for this process's result: `BadInput` if another running process, or another thread of
+    this one, claimed it (its temporary is there, or `HELD` has it); the temporaries of writers that are gone
+    (killed, even with SIGKILL) are removed."""
     path = Path(path)
     made = []
     ancestor = path.parent
@@ -133,13 +159,20 @@ def claim(path: str | Path) -> Claim:
         with _directory_locked(path.parent):
             removed = remove_temporaries(path.parent, of=path.name)
             running = sorted(pid for _, pid in temporaries(path.parent, path.name) if pid != os.getpid())
+            held = path.parent.resolve() / path.name
+            with HOLDING:
+                if held in HELD:
+                    running = [os.getpid()]
+                elif not running:
+                    HELD.add(held)
             if running:
                 _give_up(None, made)
-                raise BadInput(f"another biostudy run (pid {running[0]}) is computing this output; wait for it to "
-                               "end, or choose another output", path)
-            temporary = temporary_name(path)
-            os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+                who = f"pid {running[0]}" + (", another thread of this process" if running[0] == os.getpid() else "")
+                raise BadInput(f"another biostudy run ({who}) is computing this output; wait for it to end, or "
+                               "choose another output", path)
+            claim = Claim(path, temporary_name(path), removed, made, held)
+            os.close(os.open(claim.temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # the umask decides
     except OSError as error:
         _give_up(None, made)
         raise BadInput(f"cannot write here ({error.strerror or error})", path) from None
-    return Claim(path, temporary, removed, made)
+    return claim

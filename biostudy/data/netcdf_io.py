@@ -11,56 +11,92 @@ opened with `netCDF4.Dataset` and handed to xarray as an open file
 (`HDF5`: held or not, never half), and lazy (dask) data are computed in
 this thread while they are written.  Interrupted at any point, the file is
 closed on the way out (`atomic` removes the temporary) and nothing waits.
+
+HDF5 is not thread-safe either: two threads of a notebook opening files at
+once crashed the interpreter (SIGSEGV, issue 25).  So every call into
+netCDF4 (opening, reading metadata, writing, closing, and the lazy reads
+xarray makes later) is made under `HDF5`: `opened` holds it for a block,
+`write` for the whole file, a lazy dataset's reads and close take it.
 """
 from __future__ import annotations
 
 import contextlib
+import functools
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING, Iterator
 
-import xarray as xr
-from xarray.backends import DummyFileManager, NetCDF4DataStore
+if TYPE_CHECKING:  # imported where a dataset is made: `show` of a run's file reads it with netCDF4 alone
+    import netCDF4
+    import xarray as xr
+    from xarray.backends import NetCDF4DataStore
 
-HDF5 = threading.RLock()  # the HDF5 library is not thread-safe: threads reading lazily take turns under it
+HDF5 = threading.RLock()  # the HDF5 library is not thread-safe: every call into it is made under this lock
+
+
+@contextlib.contextmanager
+def opened(path: str | Path) -> Iterator[netCDF4.Dataset]:
+    """A netCDF file open with netCDF4 for the block, which holds `HDF5` (no other thread touches HDF5)."""
+    import netCDF4
+
+    with HDF5, netCDF4.Dataset(path) as nc:
+        yield nc
+
+
+@functools.cache
+def _manager() -> type:
+    """xarray's manager of a file opened elsewhere, closing it under `HDF5` (made once, when first needed)."""
+    from xarray.backends import DummyFileManager
+
+    class Locked(DummyFileManager):
+        def close(self, needs_lock: bool = True) -> None:
+            with HDF5:
+                super().close(needs_lock)
+
+    return Locked
 
 
 def _store(nc) -> NetCDF4DataStore:
-    return NetCDF4DataStore(DummyFileManager(nc, lock=HDF5), lock=HDF5)
+    """xarray's store of an open file; its reads and its close are made under `HDF5`."""
+    from xarray.backends import NetCDF4DataStore
+
+    return NetCDF4DataStore(_manager()(nc, lock=HDF5), lock=HDF5)
 
 
 def open_dataset(path: str | Path, chunks: dict | None = None) -> xr.Dataset:
     """A netCDF file as a lazy xarray Dataset (`chunks` as for `xr.open_dataset`); its close() closes the file.
     Errors are netCDF4's (OSError for a file it cannot open, RuntimeError or AttributeError for damage)."""
     import netCDF4
+    import xarray as xr
 
-    with HDF5:
+    with HDF5:  # xarray reads the metadata here, outside its store's lock
         nc = netCDF4.Dataset(path)
-    try:
-        return xr.open_dataset(_store(nc), chunks=chunks)
-    except BaseException:
-        with contextlib.suppress(Exception):
-            nc.close()
-        raise
+        try:
+            return xr.open_dataset(_store(nc), chunks=chunks)
+        except BaseException:
+            with contextlib.suppress(Exception):
+                nc.close()
+            raise
 
 
 def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
     """`ds` to a new netCDF4 file at `path` with the per-variable `encoding` (as `to_netcdf` takes it)."""
+    import dask
     import netCDF4
     from xarray.backends.common import ArrayWriter
 
-    with HDF5:
+    # the whole file under HDF5 (xarray writes metadata outside its store's lock); lazy data (a study's case
+    # files) are computed chunk by chunk in this thread, as a thread pool's reads would wait for the lock forever
+    with HDF5, dask.config.set(scheduler="synchronous"):
         nc = netCDF4.Dataset(path, "w", format="NETCDF4")
-    store = _store(nc)
-    try:
-        writer = ArrayWriter(lock=HDF5)
-        ds.dump_to_store(store, writer=writer, encoding=encoding)  # numpy data are written here
-        if writer.sources:  # lazy data (a study's case files): computed chunk by chunk in this thread
-            import dask
-
-            with dask.config.set(scheduler="synchronous"):
+        store = _store(nc)
+        try:
+            writer = ArrayWriter(lock=HDF5)
+            ds.dump_to_store(store, writer=writer, encoding=encoding)  # numpy data are written here
+            if writer.sources:
                 writer.sync()
-    except BaseException:
-        with contextlib.suppress(Exception):  # the reason it stopped is what is told, not a failed close
-            store.close()
-        raise
-    store.close()  # flushes: a disk that fills up here is an error too
+        except BaseException:
+            with contextlib.suppress(Exception):  # the reason it stopped is what is told, not a failed close
+                store.close()
+            raise
+        store.close()  # flushes: a disk that fills up here is an error too

@@ -268,10 +268,10 @@ def writable(path: str | Path) -> None:
 def attributes(path: Path) -> dict | None:
     """The global attributes of a netCDF file, or None if it is not one or cannot be read whole (a damaged
     header: HDF5 raises AttributeError, KeyError, ... as well as OSError)."""
-    import netCDF4
+    from .netcdf_io import opened  # lazily, as in `write_atomic`
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with opened(path) as nc:
             return {name: nc.getncattr(name) for name in nc.ncattrs()}
     except Exception:
         return None
@@ -330,11 +330,12 @@ def open_dataset(path: str | Path) -> xr.Dataset:
     from . import netcdf_io  # lazily, as in `write_atomic`
 
     try:
-        ds = netcdf_io.open_dataset(path)
-        try:
-            return netcdf.as_run(ds.load())
-        finally:
-            ds.close()
+        with netcdf_io.HDF5:  # read whole and closed before another thread calls HDF5
+            ds = netcdf_io.open_dataset(path)
+            try:
+                return netcdf.as_run(ds.load())
+            finally:
+                ds.close()
     except Exception as error:  # netCDF4/HDF5: OSError, RuntimeError (a checksum), AttributeError (a header), ...
         if not _looks_like_netcdf(path):
             raise BadInput(f"not a netCDF dataset ({first_line(error)})", path) from None
@@ -388,10 +389,10 @@ def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
     Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
     checksum and are not read: read through a second handle of a file that is open elsewhere in this
     process, they leave HDF5 in a state that crashes a later open (HDFGroup/hdf5#5359)."""
-    import netCDF4
+    from .netcdf_io import opened  # lazily, as in `write_atomic`
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with opened(path) as nc:
             nc.set_auto_mask(False)
             for name in nc.ncattrs():
                 nc.getncattr(name)

@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
-from ..data.claims import mark
+from ..data.claims import foreign, mark
 from ..data.store import atomic
 from ..formatting import number, shown_units
 
@@ -135,10 +135,12 @@ METADATA_KEY = {"png": "Software", "pdf": "Creator", "svg": "Creator", "ps": "Cr
 def save(fig, path: Path) -> Path:
     """Write the figure to `path` atomically (a temporary beside it, renamed): complete or absent.  PNG, PDF,
     SVG and PostScript files carry biostudy's mark in their metadata (`claims.mark`), so that a later plot may
-    replace them."""
+    replace them; a file without it is never replaced (`claims.foreign`, checked by the commands before they
+    compute, and here again)."""
     kind = path.suffix.lstrip(".").lower() or "png"
     metadata = {METADATA_KEY[kind]: mark()} if kind in METADATA_KEY else None
     try:
+        foreign([path], "a picture")
         return atomic(path, lambda temporary: fig.savefig(temporary, dpi=DPI, format=kind, metadata=metadata))
     finally:
         plt.close(fig)

@@ -30,12 +30,11 @@ def glance(path: str | Path) -> Group | None:
 def read(path: str | Path) -> tuple[dict, np.ndarray | None, Series] | None:
     """A run's attributes, output times and observables, read with netCDF4 alone; None when the full reader
     must do it (not a run's file, observables not stored, damaged)."""
-    import netCDF4
-
+    from ..data.netcdf_io import opened
     from ..data.store import intact  # lazily: only to tell a damaged file
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with opened(path) as nc:
             nc.set_auto_mask(False)
             attrs = {name: nc.getncattr(name) for name in nc.ncattrs()}
             if "biostudy_version" not in attrs or "sweep_mode" in attrs:

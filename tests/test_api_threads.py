@@ -1,0 +1,60 @@
+"""The Python API called from several threads of one process, as a notebook's may: HDF5 is not thread-safe, so
+every netCDF call is serialised (`data.netcdf_io.HDF5`); one output is claimed by one writer, thread or process."""
+import subprocess
+import sys
+import textwrap
+import threading
+
+import pytest
+from conftest import TINY_SCENE
+
+import biostudy
+
+# Three threads opening a run's file: SIGSEGV or SIGBUS in 5 of 6 tries before every netCDF call, xarray's
+# metadata reads included, was made under one lock (issue 25); about 4 s with it.
+CRASH = textwrap.dedent("""\
+    import threading
+    import biostudy
+
+    biostudy.run("tiny.toml", set={"time.steps": 4}, output="a.nc")
+    def opens():
+        for _ in range(150):
+            biostudy.open("a.nc").close()
+    threads = [threading.Thread(target=opens) for _ in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    print("survived")
+    """)
+
+
+def test_threads_opening_files_do_not_crash_the_interpreter(tmp_path):
+    (tmp_path / "tiny.toml").write_text(TINY_SCENE)
+    done = subprocess.run([sys.executable, "-c", CRASH], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and "survived" in done.stdout, (done.returncode, done.stderr[-2000:])
+
+
+def test_a_second_thread_writing_the_same_output_is_refused_at_once_and_the_first_completes(tiny_scene, tmp_path):
+    out = tmp_path / "run.nc"
+    stepping, go_on = threading.Event(), threading.Event()
+    ended = []
+
+    def held(progress):  # the first run waits in its first step until the second has been answered
+        stepping.set()
+        go_on.wait(60)
+
+    def first():
+        ended.append(biostudy.run(tiny_scene, set={"time.steps": 4}, output=out, progress=held))
+
+    thread = threading.Thread(target=first)
+    thread.start()
+    try:
+        assert stepping.wait(60)
+        with pytest.raises(biostudy.BadInput, match="another biostudy run .* is computing this output") as refused:
+            biostudy.run(tiny_scene, set={"time.steps": 4}, output=out)
+        assert len(refused.value.lines()) == 1
+    finally:
+        go_on.set()
+        thread.join(120)
+    assert ended and biostudy.open(out).attrs["steps_taken"] == 4
