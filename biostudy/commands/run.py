@@ -111,7 +111,7 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
     ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-                     **loaded.scene.substratum_attrs(), **alerts.attrs(ds))
+                     **loaded.scene.substratum_attrs(), **loaded.scene.real_time_attrs(), **alerts.attrs(ds))
     ds = store.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")

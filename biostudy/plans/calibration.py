@@ -36,8 +36,6 @@ from __future__ import annotations
 
 import copy
 import difflib
-import functools
-import math
 import typing
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +48,7 @@ from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
 from ..inputs.keys import dimension, field_of, flatten, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements
+from ..inputs.real_time import in_t_star
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
 from .cases import Case, ManyCases, Plan, base_scene, case_scene, load_plan
@@ -82,33 +81,11 @@ class DataSpec(BaseModel):
         return self
 
     def time_factor(self) -> float:
-        """T* per unit of the table's time: t / t_ref with pint; `InvalidAt` for a unit that is not a time."""
-        if self.time_unit is None:
+        """T* per unit of the table's time: t / t_ref with pint (`inputs.real_time`); `InvalidAt` for a unit
+        that is not a time."""
+        if self.time_unit is None or self.t_ref is None:
             return 1.0
-        import pint  # lazily: a second of start-up, only for calibrations with real times
-
-        units = _registry()
-        try:
-            unit = units.Quantity(1.0, self.time_unit)
-        except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
-            raise InvalidAt("time_unit", f"{self.time_unit!r} is not a unit pint reads ({error})") from None
-        try:
-            reference = units.Quantity(self.t_ref)
-        except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
-            raise InvalidAt("t_ref", f"{self.t_ref!r} is not a time pint reads ({error})") from None
-        for key, quantity, text in (("time_unit", unit, self.time_unit), ("t_ref", reference, self.t_ref)):
-            if quantity.dimensionality != units.second.dimensionality:
-                raise InvalidAt(key, f"{text!r} is not a time (its dimension is {quantity.dimensionality})")
-        if not reference.magnitude > 0 or not math.isfinite(reference.magnitude):
-            raise InvalidAt("t_ref", f"must be a positive time (got {self.t_ref!r})")
-        return float((unit / reference).to("dimensionless").magnitude)
-
-
-@functools.lru_cache(maxsize=1)
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
+        return in_t_star(self.time_unit, self.t_ref)
 
 
 class Condition(BaseModel):

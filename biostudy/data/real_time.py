@@ -1,0 +1,47 @@
+"""The real-time coordinates of a dataset whose scene gives ``[time] t_ref`` (docs/time.md).
+
+`time` stays T*; ``time_real`` is a non-dimension coordinate along it (and
+``time_mechanics_real`` along ``time_mechanics``) in the unit t_ref was written
+in, with CF's units of time ("hours") and ``standard_name = "time"``: pint
+(pint-xarray, cf_xarray) reads it as a time.  A dataset without a ``t_ref``
+attribute is returned as it is.  `shown` gives what tables, plots and exports
+print: the real time with its unit when there is one, else T*.
+"""
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from ..inputs.real_time import RealTime, real_time
+
+REAL = {"time": "time_real", "time_mechanics": "time_mechanics_real"}
+T_REF = "t_ref"
+
+
+def clock(ds: xr.Dataset | dict) -> RealTime | None:
+    """The dataset's t_ref, parsed; None for a dataset in T* alone."""
+    attrs = ds.attrs if isinstance(ds, xr.Dataset) else ds
+    text = attrs.get(T_REF)
+    return real_time(str(text)) if text else None
+
+
+def with_real_time(ds: xr.Dataset) -> xr.Dataset:
+    """`ds` with time_real (and time_mechanics_real) from its ``t_ref`` attribute; unchanged without one."""
+    found = clock(ds)
+    if found is None:
+        return ds
+    coords = {}
+    for dim, name in REAL.items():
+        if dim in ds.dims:
+            coords[name] = (dim, found.real(np.asarray(ds[dim].values, float)),
+                            {"units": found.cf, "standard_name": "time",
+                             "long_name": f"real time t = T* t_ref (t_ref = {found.text})"})
+    return ds.assign_coords(coords)
+
+
+def shown(ds: xr.Dataset | dict, t_star: float, digits: str = ".4g") -> str:
+    """A time as a table or title shows it: '12 h (T* = 0.25)' with t_ref, 'T* = 0.25' without."""
+    found = clock(ds)
+    if found is None:
+        return f"T* = {t_star:{digits}}"
+    return f"{found.real(t_star):{digits}} {found.unit} (T* = {t_star:{digits}})"

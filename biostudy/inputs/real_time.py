@@ -1,0 +1,80 @@
+"""Real time: what T* = 1 is in the lab's clock (a scene's ``[time] t_ref``, a calibration's ``[data] t_ref``).
+
+T* = t / t_ref.  `parse_time` reads any time pint reads ("48 h", "30 min",
+"2 d"), one place for scenes and calibration tables, each problem one line
+(`InvalidAt`).  `RealTime` is a parsed t_ref: real times are shown in the unit
+t_ref was written in (48 h -> hours, 30 min -> minutes), because that is the
+unit the lab chose for its experiment; its CF spelling ("hours", "minutes")
+is a unit of time udunits, cf-units and cf_xarray's pint registry read.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+from ..errors import InvalidAt
+
+
+@functools.lru_cache(maxsize=1)
+def registry():
+    """pint's registry, made once and only when a real time is read (a second of start-up)."""
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def parse_time(text: str, key: str, positive: bool = False, unit: bool = False):
+    """`text` as a pint quantity of time (`unit`: one of that unit); `InvalidAt(key)` if pint cannot read it
+    or it is not a time (`positive`: nor a finite time > 0)."""
+    import pint
+
+    try:
+        quantity = registry().Quantity(1.0, text) if unit else registry().Quantity(text)
+    except (pint.errors.PintError, AttributeError, TypeError, ValueError, SyntaxError) as error:
+        what = "unit" if unit else "time"
+        raise InvalidAt(key, f"{text!r} is not a {what} pint reads ({error})") from None
+    if quantity.dimensionality != registry().second.dimensionality:
+        raise InvalidAt(key, f"{text!r} is not a time (its dimension is {quantity.dimensionality})")
+    if positive and not (math.isfinite(quantity.magnitude) and quantity.magnitude > 0):
+        raise InvalidAt(key, f"must be a positive time (got {text!r})")
+    return quantity
+
+
+@dataclass(frozen=True)
+class RealTime:
+    """A t_ref: T* = 1 lasts `t_ref` `unit`s (unit: pint's symbol, "h", "min"; cf: "hours", "minutes")."""
+
+    text: str
+    t_ref: float
+    unit: str
+    cf: str
+
+    def real(self, t_star):
+        """T* -> real time in `unit`."""
+        return t_star * self.t_ref
+
+    def star(self, real):
+        """Real time in `unit` -> T*."""
+        return real / self.t_ref
+
+    def rate_unit(self, units: str) -> str:
+        """A model unit per T* in this clock's unit ('um/T*' -> 'um/h'); other units unchanged."""
+        return units.replace("/T*", f"/{self.unit}")
+
+
+def real_time(text: str, key: str = "t_ref") -> RealTime:
+    """Parse a t_ref; the unit shown is the one it was written in, if it is one unit of time, else hours."""
+    quantity = parse_time(text, key, positive=True)
+    items = dict(quantity.unit_items())
+    if len(items) == 1 and next(iter(items.values())) == 1:
+        name = next(iter(items))
+        return RealTime(text, float(quantity.magnitude), f"{quantity.units:~}", f"{name}s")
+    return RealTime(text, float(quantity.to("hour").magnitude), "h", "hours")
+
+
+def in_t_star(unit: str, t_ref: str) -> float:
+    """T* per `unit` of time (a calibration table's `time_unit`): (1 unit) / t_ref."""
+    one = parse_time(unit, "time_unit", unit=True)
+    reference = parse_time(t_ref, "t_ref", positive=True)
+    return float((one / reference).to("dimensionless").magnitude)

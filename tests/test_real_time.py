@@ -1,0 +1,73 @@
+"""Real time (issue 26.1): a scene's ``[time] t_ref`` gives datasets a real-time coordinate that pint reads as a
+time, and exports, tables and calibrations speak it.  Tiny 16² scene, 10 steps."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+from conftest import TINY_SCENE
+from typer.testing import CliRunner
+
+from biostudy.cli import app
+
+REAL = TINY_SCENE.replace("t_end = 0.2\nsteps = 20\n", 't_end = 0.5\nsteps = 10\nt_ref = "48 h"\n')
+
+
+@pytest.fixture(scope="module")
+def real_run(tmp_path_factory):
+    """A run of the tiny scene with t_ref = 48 h and outputs at T* = 0, 0.25, 0.5."""
+    root = tmp_path_factory.mktemp("real")
+    (root / "real.toml").write_text(REAL)
+    result = CliRunner().invoke(app, ["run", str(root / "real.toml"), "-o", str(root / "real.nc"), "-q"])
+    assert result.exit_code == 0, result.output
+    return root
+
+
+def test_a_run_with_t_ref_has_a_real_time_coordinate_pint_reads_as_hours(real_run):
+    import cf_xarray.units
+    import pint_xarray  # noqa: F401  (the .pint accessor)
+
+    with xr.open_dataset(real_run / "real.nc") as ds:
+        ds = ds.load()
+    np.testing.assert_allclose(ds["time"].values, [0.0, 0.25, 0.5])
+    assert ds["time_real"].dims == ("time",)
+    np.testing.assert_allclose(ds["time_real"].values, [0.0, 12.0, 24.0])
+    assert ds["time_real"].attrs["standard_name"] == "time"
+    registry = cf_xarray.units.units
+    quantified = ds.pint.quantify(unit_registry=registry)
+    hours = quantified["time_real"].pint.units
+    assert hours.dimensionality == registry.second.dimensionality
+    np.testing.assert_allclose(quantified["time_real"].pint.to("s").pint.magnitude, [0.0, 12 * 3600, 24 * 3600])
+    assert str(quantified["time"].pint.units) == "dimensionless"  # T* stays
+
+
+def test_a_scene_without_t_ref_has_no_real_time(tiny_scene, tmp_path):
+    result = CliRunner().invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "t.nc"), "-q",
+                                      "--set", "time.steps=4"])
+    assert result.exit_code == 0, result.output
+    with xr.open_dataset(tmp_path / "t.nc") as ds:
+        assert "time_real" not in ds.coords and "t_ref" not in ds.attrs
+
+
+@pytest.mark.parametrize("given, said", [
+    ('"48 m"', "time.t_ref: '48 m' is not a time"),
+    ('"-2 h"', "time.t_ref: must be a positive time"),
+    ('"soon"', "time.t_ref: 'soon' is not a time pint reads"),
+])
+def test_a_t_ref_that_is_not_a_positive_time_is_one_line(write_toml, given, said):
+    path = write_toml("bad.toml", REAL.replace('"48 h"', given))
+    result = CliRunner().invoke(app, ["run", str(path), "-q"])
+    assert result.exit_code == 2 and said in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
+
+
+def test_the_tiff_export_steps_frames_in_hours(real_run, tmp_path):
+    import tifffile
+
+    result = CliRunner().invoke(app, ["export", str(real_run / "real.nc"), str(tmp_path / "tif"),
+                                      "--format", "tiff"])
+    assert result.exit_code == 0, result.output
+    with tifffile.TiffFile(tmp_path / "tif" / "phi.tif") as tif:
+        meta = tif.imagej_metadata
+    assert meta["finterval"] == pytest.approx(12.0) and meta["tunit"] == "hour"
+    assert meta["Labels"][1] == "12 h (T* = 0.25)"
