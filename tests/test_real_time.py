@@ -71,3 +71,30 @@ def test_the_tiff_export_steps_frames_in_hours(real_run, tmp_path):
         meta = tif.imagej_metadata
     assert meta["finterval"] == pytest.approx(12.0) and meta["tunit"] == "hour"
     assert meta["Labels"][1] == "12 h (T* = 0.25)"
+
+
+def calibration_folder(root, scene_t_ref: str, data_t_ref: str = "20 h"):
+    """The tiny agar scene of test_calibration with `scene_t_ref`, its two-row table, and a calibration of r
+    alone with `data_t_ref`."""
+    from test_calibration import SCENE, TABLE
+
+    (root / "agar.toml").write_text(SCENE.replace("steps = 40\n", f'steps = 40\nt_ref = "{scene_t_ref}"\n'))
+    (root / "t.tsv").write_text(TABLE)
+    (root / "c.toml").write_text(f'scene = "agar.toml"\n[set]\n"params.g" = 1e9\n[data]\nmeasurements = '
+                                 f'"t.tsv"\ntime_unit = "h"\nt_ref = "{data_t_ref}"\n[estimate]\n'
+                                 'r = [80.0, 120.0]\n[method]\nstarts = 1\nprofiles = false\n')
+    return root / "c.toml"
+
+
+def test_a_calibration_whose_t_ref_is_not_the_scenes_is_one_line(tmp_path):
+    from biostudy.plans.calibration import load_calibration
+
+    path = calibration_folder(tmp_path, scene_t_ref="48 h")
+    result = CliRunner().invoke(app, ["calibrate", str(path), "-o", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.output, result.stderr
+    assert "c.toml: data.t_ref: '20 h' is not the scene's time.t_ref = '48 h'" in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()
+    calibration_folder(tmp_path, scene_t_ref="1200 min")  # the same time in other units agrees
+    assert load_calibration(path).spec.data.t_ref == "20 h"

@@ -78,3 +78,14 @@ def in_t_star(unit: str, t_ref: str) -> float:
     one = parse_time(unit, "time_unit", unit=True)
     reference = parse_time(t_ref, "t_ref", positive=True)
     return float((one / reference).to("dimensionless").magnitude)
+
+
+def check_agree(given: str | None, scenes: str | None, where: str) -> None:
+    """A calibration's ``[data] t_ref`` and its scene's ``[time] t_ref`` are one clock: the same time (48 h and
+    2 d agree), or `InvalidAt("t_ref")` saying both."""
+    if given is None or scenes is None:
+        return
+    mine, theirs = parse_time(given, "t_ref", positive=True), parse_time(scenes, "t_ref", positive=True)
+    if not math.isclose(mine.to("s").magnitude, theirs.to("s").magnitude, rel_tol=1e-12):
+        raise InvalidAt("t_ref", f"{given!r} is not the scene's time.t_ref = {scenes!r} ({where}): T* = 1 is one "
+                                 "time; give the same in both")

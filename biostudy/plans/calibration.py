@@ -48,7 +48,7 @@ from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
 from ..inputs.keys import dimension, field_of, flatten, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements
-from ..inputs.real_time import in_t_star
+from ..inputs.real_time import check_agree, in_t_star
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
 from .cases import Case, ManyCases, Plan, base_scene, case_scene, load_plan
@@ -329,6 +329,8 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
     data_file = path.parent / spec.data.measurements
     try:
         factor = spec.data.time_factor()
+        for scene in plan.scenes.values():  # one clock: the table's t_ref is the scene's
+            check_agree(spec.data.t_ref, scene.time.t_ref, plan.scene_file.name)
     except InvalidAt as error:
         raise BadInput(error.problem, path, f"data.{error.key}") from None
     rows = read_measurements(data_file)
