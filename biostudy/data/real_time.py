@@ -2,8 +2,11 @@
 
 `time` stays T*; ``time_real`` is a non-dimension coordinate along it (and
 ``time_mechanics_real`` along ``time_mechanics``) in the unit t_ref was written
-in, with CF's units of time ("hours") and ``standard_name = "time"``: pint
-(pint-xarray, cf_xarray) reads it as a time.  A dataset without a ``t_ref``
+in, with a udunits unit of time ("hours"): pint (pint-xarray, cf_xarray)
+reads it as a time.  It has no ``standard_name = "time"``: CF's checker then
+demands "hours since <epoch>" (§3.1, §4.4), and an epoch would make xarray
+decode the coordinate into calendar dates a simulation does not have; an
+elapsed time is a duration, which a plain unit of time says.  A dataset without a ``t_ref``
 attribute is returned as it is.  `shown` gives what tables, plots and exports
 print: the real time with its unit when there is one, else T*.
 """
@@ -34,8 +37,8 @@ def with_real_time(ds: xr.Dataset) -> xr.Dataset:
     for dim, name in REAL.items():
         if dim in ds.dims:
             coords[name] = (dim, found.real(np.asarray(ds[dim].values, float)),
-                            {"units": found.cf, "standard_name": "time",
-                             "long_name": f"real time t = T* t_ref (t_ref = {found.text})"})
+                            {"units": found.cf, "long_name": f"real time t = T* t_ref (t_ref = {found.text}), "
+                                                             "since the start of the run"})
     return ds.assign_coords(coords)
 
 
