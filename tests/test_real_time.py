@@ -121,3 +121,44 @@ def test_paraview_times_are_real_times_with_t_star_beside(real_run, tmp_path):
     text = (tmp_path / "vtu" / "snapshot_0001.vtu").read_text(errors="replace")
     assert 'Name="TimeValue" NumberOfTuples="1" format="ascii">12<' in text
     assert 'Name="T_star" NumberOfTuples="1" format="ascii">0.25<' in text
+
+
+def test_show_heads_its_columns_with_real_time(real_run):
+    result = CliRunner().invoke(app, ["show", str(real_run / "real.nc")])
+    assert result.exit_code == 0, result.output
+    assert "0 h (T* = 0)" in result.stdout and "24 h (T* = 0.5)" in result.stdout
+
+
+def test_plots_draw_time_in_hours_and_take_a_real_time(real_run, tmp_path):
+    from biostudy.plots.style import time_axis, time_title
+
+    with xr.open_dataset(real_run / "real.nc") as ds:
+        values, label, on_axis = time_axis(ds)
+        np.testing.assert_allclose(values, [0.0, 12.0, 24.0])
+        assert label == "time (h; T* = t / 48 h)" and on_axis(0.5) == 24.0
+        assert time_title(ds, 1) == "12 h (T* = 0.25)"
+    result = CliRunner().invoke(app, ["plot", str(real_run / "real.nc"), "--time", "12 h", "-o",
+                                      str(tmp_path / "p.png")])
+    assert result.exit_code == 0, result.output
+
+
+def test_a_real_time_asked_of_a_run_in_t_star_alone_is_one_line(tiny_scene, tmp_path):
+    cli = CliRunner()
+    assert cli.invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "t.nc"), "-q",
+                            "--set", "time.steps=4"]).exit_code == 0
+    result = cli.invoke(app, ["plot", str(tmp_path / "t.nc"), "--time", "12 h"])
+    assert result.exit_code == 2 and "--time '12 h': the dataset is in T* alone" in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_analyze_takes_a_real_time(real_run, tmp_path):
+    (tmp_path / "real.toml").write_text(REAL)
+    (tmp_path / "g.toml").write_text('scene = "real.toml"\n[set]\n"time.steps" = 4\n[sweep]\ng = [1e8, 1e9]\n')
+    cli = CliRunner()
+    result = cli.invoke(app, ["sweep", str(tmp_path / "g.toml"), "-o", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 0, result.output
+    study = xr.load_dataset(tmp_path / "out" / "study.nc")
+    np.testing.assert_allclose(study["time_real"].values, [0.0, 12.0, 24.0])  # study.nc keeps it
+    result = cli.invoke(app, ["analyze", str(tmp_path / "out"), "--time", "12 h", "--output", "biofilm_volume"])
+    assert result.exit_code == 0, result.output
+    assert float(xr.load_dataset(tmp_path / "out" / "analysis.nc")["time"]) == 0.25

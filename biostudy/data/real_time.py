@@ -12,10 +12,16 @@ print: the real time with its unit when there is one, else T*.
 """
 from __future__ import annotations
 
-import numpy as np
-import xarray as xr
+from typing import TYPE_CHECKING
 
-from ..inputs.real_time import RealTime, real_time
+import numpy as np
+
+from ..errors import InvalidAt
+from ..formatting import number
+from ..inputs.real_time import RealTime, parse_time, real_time
+
+if TYPE_CHECKING:
+    import xarray as xr  # a dataset's attributes suffice for `clock` and `shown` (`show` at a glance)
 
 REAL = {"time": "time_real", "time_mechanics": "time_mechanics_real"}
 T_REF = "t_ref"
@@ -23,7 +29,7 @@ T_REF = "t_ref"
 
 def clock(ds: xr.Dataset | dict) -> RealTime | None:
     """The dataset's t_ref, parsed; None for a dataset in T* alone."""
-    attrs = ds.attrs if isinstance(ds, xr.Dataset) else ds
+    attrs = ds if isinstance(ds, dict) else ds.attrs
     text = attrs.get(T_REF)
     return real_time(str(text)) if text else None
 
@@ -42,9 +48,30 @@ def with_real_time(ds: xr.Dataset) -> xr.Dataset:
     return ds.assign_coords(coords)
 
 
-def shown(ds: xr.Dataset | dict, t_star: float, digits: str = ".4g") -> str:
+def shown(ds: xr.Dataset | dict, t_star: float, digits: int = 4) -> str:
     """A time as a table or title shows it: '12 h (T* = 0.25)' with t_ref, 'T* = 0.25' without."""
     found = clock(ds)
     if found is None:
-        return f"T* = {t_star:{digits}}"
-    return f"{found.real(t_star):{digits}} {found.unit} (T* = {t_star:{digits}})"
+        return f"T* = {number(t_star, digits)}"
+    return f"{number(found.real(t_star), digits)} {found.unit} (T* = {number(t_star, digits)})"
+
+
+def t_star(ds: xr.Dataset | dict, given: str | float, option: str = "--time") -> float:
+    """A time a user asked for, as T*: a plain number is T*; a time with a unit ("12 h") is read with the
+    dataset's t_ref.  ValueError (one line) for a real time the dataset has no t_ref for, or not a time."""
+    if isinstance(given, (int, float)):
+        return float(given)
+    try:
+        return float(given)
+    except ValueError:
+        pass
+    found = clock(ds)
+    if found is None:
+        raise ValueError(f"{option} {given!r}: the dataset is in T* alone (its scene has no [time] t_ref); give T*, "
+                         "e.g. 0.25")
+    try:
+        asked = parse_time(given, option)
+    except InvalidAt as error:
+        raise ValueError(f"{option}: {error.problem}; give T* (0.25) or a real time (12 h)") from None
+    reference = parse_time(found.text, "t_ref")
+    return float((asked / reference).to("dimensionless").magnitude)

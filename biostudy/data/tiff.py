@@ -59,7 +59,8 @@ def export_tiff(ds: xr.Dataset, directory: str | Path, source: str = "") -> list
     times = ds["time"].values.astype(float)
     found = clock(ds)
     frame_times, tunit = (found.real(times), found.cf[:-1]) if found else (times, "T*")
-    frames = ", ".join(shown(ds, t, ".6g") for t in times) if found else "T* = " + ", ".join(f"{t:.6g}" for t in times)
+    labels = [shown(ds, t, 6) if found else f"T* = {t:.6g}" for t in times]
+    frames = ", ".join(labels) if found else "T* = " + ", ".join(f"{t:.6g}" for t in times)
     targets = [directory / f"{name}.tif" for name in FIELDS if name in ds]
     for target in targets:
         if target.exists() and not _mine(target):
@@ -71,8 +72,7 @@ def export_tiff(ds: xr.Dataset, directory: str | Path, source: str = "") -> list
         if len(cells) == 3:
             values = values[:, :, None]  # TZCYX with one channel: ImageJ's hyperstack order
         meta = {"axes": "TZCYX" if len(cells) == 3 else "TYX", "unit": "um", "tunit": tunit,
-                "Labels": [shown(ds, t, ".6g") for t in times
-                           for _ in range(values.shape[1] if len(cells) == 3 else 1)],
+                "Labels": [label for label in labels for _ in range(values.shape[1] if len(cells) == 3 else 1)],
                 "Info": f"{SIGNATURE} of {source or 'a run'}: {name} ({ds[name].attrs.get('long_name', name)}), "
                         f"units {ds[name].attrs.get('units', '1')}; frames at {frames}"}
         if len(cells) == 3:

@@ -15,7 +15,7 @@ import xarray as xr
 
 from ..formatting import number, units_text
 from ..reports.cases import cases_of
-from .style import axis_label, suptitle
+from .style import axis_label, suptitle, time_axis
 from .sweep import panels, solved_points
 
 COLUMNS = 3  # panels per row of the indices figure
@@ -110,12 +110,12 @@ def sample_series_figure(ds: xr.Dataset, names: list[str]):
     """Every case's time series of each output, thin lines (cases that did not finish: none drawn)."""
     flat = cases_of(ds)
     fig, axes = panels(len(names))
-    time = ds["time"].values
+    time, time_label, _ = time_axis(ds)
     for ax, name in zip(axes, names):
         for row in flat.values(ds[name])[flat.status == "done"]:
             drawn, marker = solved_points(time, row)
             ax.plot(*drawn, color="C0", lw=0.6, alpha=0.5, marker=marker, ms=2)
-        ax.set_xlabel("normalised time T*")
+        ax.set_xlabel(time_label)
         ax.set_ylabel(axis_label(ds[name]))
         ax.set_title(ds[name].attrs.get("long_name", name), fontsize=8)
         ax.grid(alpha=0.3)
