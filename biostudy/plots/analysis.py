@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
+from ..data import real_time
 from ..formatting import number, units_text
 from ..reports.cases import cases_of
 from .style import axis_label, suptitle, time_axis
@@ -100,9 +101,9 @@ def sample_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     flat = cases_of(ds)
     outputs = {n: np.asarray(flat.values(ds[n].isel(time=index)), dtype=float) for n in names}
     units = {n: str(ds[n].attrs.get("units", "1")) for n in names}
-    when = number(float(ds["time"].values[index]))
+    when = real_time.shown(ds, float(ds["time"].values[index]))
     return scatter_figure(outputs, units, flat.parameters, flat.log, flat.status == "done",
-                          f"{ds.attrs.get('sample_method')} sample: outputs at T* = {when} against each parameter "
+                          f"{ds.attrs.get('sample_method')} sample: outputs at {when} against each parameter "
                           f"({int((flat.status == 'done').sum())} of {len(flat.ids)} cases finished)")
 
 
