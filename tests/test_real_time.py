@@ -162,3 +162,9 @@ def test_analyze_takes_a_real_time(real_run, tmp_path):
     result = cli.invoke(app, ["analyze", str(tmp_path / "out"), "--time", "12 h", "--output", "biofilm_volume"])
     assert result.exit_code == 0, result.output
     assert float(xr.load_dataset(tmp_path / "out" / "analysis.nc")["time"]) == 0.25
+
+
+def test_show_of_a_scene_says_where_its_run_ends_in_real_time(write_toml):
+    result = CliRunner().invoke(app, ["show", str(write_toml("real.toml", REAL))])
+    assert result.exit_code == 0, result.output
+    assert "3 outputs, mechanics off, to 24 h (T* = 0.5)" in result.stdout
