@@ -405,3 +405,8 @@ def test_calibrated_rates_carry_their_units_per_t_star_and_per_hour(folder, fit_
     table = (folder / "fit-once" / "calibration.md").read_text()
     assert f"| r | {r:.4g} µm/T*" in table.replace("e+0", "e").replace("e-0", "e-")
     assert "Rates in real time (t_ref = 20 h)" in table and f"| r | {r / 20:.4g} µm/h | - |" in table
+    from biostudy.plots.calibration import profiles_figure
+
+    figure = profiles_figure(ds)
+    assert figure.axes[0].get_xlabel() == "r (µm/T*)"  # was "r (µm)"
+    figure.clear()
