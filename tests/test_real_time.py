@@ -168,3 +168,13 @@ def test_show_of_a_scene_says_where_its_run_ends_in_real_time(write_toml):
     result = CliRunner().invoke(app, ["show", str(write_toml("real.toml", REAL))])
     assert result.exit_code == 0, result.output
     assert "3 outputs, mechanics off, to 24 h (T* = 0.5)" in result.stdout
+
+
+def test_a_sweep_over_t_ref_is_one_line(write_toml, tmp_path):
+    """Every case would be the same simulation, and study.nc would stack 24 h and 2 d under one unit."""
+    write_toml("real.toml", REAL)
+    path = write_toml("tr.toml", 'scene = "real.toml"\n[sweep]\n"time.t_ref" = ["24 h", "2 d"]\n')
+    result = CliRunner().invoke(app, ["sweep", str(path), "-o", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 2 and "tr.toml: sweep.time.t_ref: is the real time of T* = 1" in result.stderr, \
+        result.stderr
+    assert not (tmp_path / "out").exists()
