@@ -178,3 +178,15 @@ def test_a_sweep_over_t_ref_is_one_line(write_toml, tmp_path):
     assert result.exit_code == 2 and "tr.toml: sweep.time.t_ref: is the real time of T* = 1" in result.stderr, \
         result.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_the_mechanics_outputs_get_their_real_time_in_t_refs_own_unit(tiny_run, with_mechanics):
+    from biostudy.data.real_time import with_real_time
+
+    ds = with_mechanics(tiny_run((6, 5)), unsolved=1)  # outputs at T* = 0, 0.01, 0.02; mechanics at 0, 0.02
+    assert with_real_time(ds) is ds  # no t_ref: unchanged
+    ds.attrs["t_ref"] = "30 min"
+    real = with_real_time(ds)
+    np.testing.assert_allclose(real["time_real"].values, [0.0, 0.3, 0.6])
+    np.testing.assert_allclose(real["time_mechanics_real"].values, [0.0, 0.6])
+    assert real["time_real"].attrs["units"] == real["time_mechanics_real"].attrs["units"] == "minutes"
