@@ -28,10 +28,13 @@ T_REF = "t_ref"
 
 
 def clock(ds: xr.Dataset | dict) -> RealTime | None:
-    """The dataset's t_ref, parsed; None for a dataset in T* alone."""
+    """The dataset's t_ref, parsed; None for a dataset in T* alone (calibration.nc's "1 T*" among them)."""
     attrs = ds if isinstance(ds, dict) else ds.attrs
     text = attrs.get(T_REF)
-    return real_time(str(text)) if text else None
+    try:
+        return real_time(str(text)) if text else None
+    except InvalidAt:
+        return None
 
 
 def with_real_time(ds: xr.Dataset) -> xr.Dataset:
