@@ -191,3 +191,12 @@ def test_the_mechanics_outputs_get_their_real_time_in_t_refs_own_unit(tiny_run, 
     np.testing.assert_allclose(real["time_real"].values, [0.0, 0.3, 0.6])
     np.testing.assert_allclose(real["time_mechanics_real"].values, [0.0, 0.6])
     assert real["time_real"].attrs["units"] == real["time_mechanics_real"].attrs["units"] == "minutes"
+
+
+def test_a_warning_gives_its_times_in_real_time_too(real_run):
+    """The tiny scene's biofilm is dissolved by T* = 0.5 (quantities/retreat.py): said in hours as well."""
+    from biostudy.quantities import alerts
+
+    with xr.open_dataset(real_run / "real.nc") as ds:
+        said = alerts.said(ds.attrs)
+    assert any("vanished by 24 h (T* = 0.5)" in sentence for sentence in said), said

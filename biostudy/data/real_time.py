@@ -7,8 +7,9 @@ reads it as a time.  It has no ``standard_name = "time"``: CF's checker then
 demands "hours since <epoch>" (§3.1, §4.4), and an epoch would make xarray
 decode the coordinate into calendar dates a simulation does not have; an
 elapsed time is a duration, which a plain unit of time says.  A dataset without a ``t_ref``
-attribute is returned as it is.  `shown` gives what tables, plots and exports
-print: the real time with its unit when there is one, else T*.
+attribute is returned as it is.  `shown` (`inputs.real_time`) gives what
+tables, plots and exports print: the real time with its unit when there is
+one, else T*.
 """
 from __future__ import annotations
 
@@ -17,24 +18,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InvalidAt
-from ..formatting import number
-from ..inputs.real_time import RealTime, parse_time, real_time
+from ..inputs.real_time import clock, parse_time, shown
+
+__all__ = ["clock", "shown", "t_star", "with_real_time"]
 
 if TYPE_CHECKING:
-    import xarray as xr  # a dataset's attributes suffice for `clock` and `shown` (`show` at a glance)
+    import xarray as xr
 
 REAL = {"time": "time_real", "time_mechanics": "time_mechanics_real"}
-T_REF = "t_ref"
-
-
-def clock(ds: xr.Dataset | dict) -> RealTime | None:
-    """The dataset's t_ref, parsed; None for a dataset in T* alone (calibration.nc's "1 T*" among them)."""
-    attrs = ds if isinstance(ds, dict) else ds.attrs
-    text = attrs.get(T_REF)
-    try:
-        return real_time(str(text)) if text else None
-    except InvalidAt:
-        return None
 
 
 def with_real_time(ds: xr.Dataset) -> xr.Dataset:
@@ -49,14 +40,6 @@ def with_real_time(ds: xr.Dataset) -> xr.Dataset:
                             {"units": found.cf, "long_name": f"real time t = T* t_ref (t_ref = {found.text}), "
                                                              "since the start of the run"})
     return ds.assign_coords(coords)
-
-
-def shown(ds: xr.Dataset | dict, t_star: float, digits: int = 4) -> str:
-    """A time as a table or title shows it: '12 h (T* = 0.25)' with t_ref, 'T* = 0.25' without."""
-    found = clock(ds)
-    if found is None:
-        return f"T* = {number(t_star, digits)}"
-    return f"{number(found.real(t_star), digits)} {found.unit} (T* = {number(t_star, digits)})"
 
 
 def t_star(ds: xr.Dataset | dict, given: str | float, option: str = "--time") -> float:

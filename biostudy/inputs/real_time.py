@@ -12,8 +12,12 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import Any, Mapping
 
 from ..errors import InvalidAt
+from ..formatting import number
+
+T_REF = "t_ref"  # the attribute a dataset records its scene's t_ref in
 
 
 @functools.lru_cache(maxsize=1)
@@ -87,3 +91,27 @@ def check_agree(given: str | None, scenes: str | None, where: str) -> None:
     if not math.isclose(mine.to("s").magnitude, theirs.to("s").magnitude, rel_tol=1e-12):
         raise InvalidAt("t_ref", f"{given!r} is not the scene's time.t_ref = {scenes!r} ({where}): T* = 1 is one "
                                  "time; give the same in both")
+
+
+def clock(ds: Any) -> RealTime | None:
+    """A dataset's t_ref (its attributes, or a mapping of them), parsed; None for a dataset in T* alone
+    (calibration.nc's "1 T*" among them)."""
+    attrs: Mapping = ds.attrs if hasattr(ds, "attrs") else ds  # a Dataset is a Mapping too: of its variables
+    text = attrs.get(T_REF)
+    try:
+        return real_time(str(text)) if text else None
+    except InvalidAt:
+        return None
+
+
+def shown(ds: Any, t_star: float, digits: int = 4) -> str:
+    """A time as a table, title or warning shows it: '12 h (T* = 0.25)' with t_ref, 'T* = 0.25' without."""
+    found = clock(ds)
+    if found is None:
+        return f"T* = {number(t_star, digits)}"
+    return f"{number(found.real(t_star), digits)} {found.unit} (T* = {number(t_star, digits)})"
+
+
+def stated(ds: Any, t_star: float) -> str:
+    """A time in a warning: 'T* = 0.25' as before without t_ref (3 digits), '12 h (T* = 0.25)' with it."""
+    return shown(ds, t_star, 3) if clock(ds) is not None else f"T* = {t_star:.3g}"
