@@ -57,8 +57,12 @@ def value_text(value) -> str:
 
 
 def units_text(units: str) -> str:
-    """'um2/T*' -> 'µm²/T*', '1' -> '' (dimensionless)."""
-    return SHOWN_UNITS.get(str(units), str(units))
+    """'um2/T*' -> 'µm²/T*', 'um/h' -> 'µm/h', '1' -> '' (dimensionless)."""
+    units = str(units)
+    head, per, tail = units.partition("/")
+    if units in SHOWN_UNITS or not per:
+        return SHOWN_UNITS.get(units, units)
+    return f"{SHOWN_UNITS.get(head, head) or '1'}/{SHOWN_UNITS.get(tail, tail)}"
 
 
 def shown_units(name: str, units: str) -> str:

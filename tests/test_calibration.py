@@ -384,3 +384,30 @@ def test_conditions_share_parameters_unless_they_estimate_their_own(write_toml):
     result = invoke("calibrate", path, "-q", "-o", path.parent / "out")
     assert result.exit_code == 2 and "c.toml: conditions.third: no row of the measurement table names it" in \
         result.stderr, result.stderr
+
+
+@pytest.mark.slow  # with the fixture the kill-and-rerun test makes anyway
+def test_calibrated_rates_carry_their_units_per_t_star_and_per_hour(folder, fit_only):
+    """Issue 26.1: r is µm/T* (pint reads µm: T* is dimensionless), and µm/h with t_ref = 20 h."""
+    import cf_xarray.units
+    import pint_xarray  # noqa: F401  (the .pint accessor)
+
+    ds = fit_only
+    registry = cf_xarray.units.units
+    quantified = ds.pint.quantify(unit_registry=registry)
+    r = float(ds.estimate.sel(parameter="r"))
+    assert quantified["estimate_r"].pint.units == registry.micrometer  # µm/T*, T* dimensionless
+    assert "um/T*" in ds["estimate_r"].attrs["long_name"] and str(ds.units_model.sel(parameter="r").values) == "um/T*"
+    per_hour = quantified["estimate_r_real"]
+    assert per_hour.pint.units == registry.micrometer / registry.hour
+    assert float(per_hour.pint.magnitude) == pytest.approx(r / 20)
+    assert "lower_r_real" in ds  # NaN: no profiles
+    assert "units" not in ds.estimate.attrs  # mixed units: none, rather than a wrong "1"
+    table = (folder / "fit-once" / "calibration.md").read_text()
+    assert f"| r | {r:.4g} µm/T*" in table.replace("e+0", "e").replace("e-0", "e-")
+    assert "Rates in real time (t_ref = 20 h)" in table and f"| r | {r / 20:.4g} µm/h | - |" in table
+    from biostudy.plots.calibration import profiles_figure
+
+    figure = profiles_figure(ds)
+    assert figure.axes[0].get_xlabel() == "r (µm/T*)"  # was "r (µm)"
+    figure.clear()

@@ -155,7 +155,7 @@ def test_a_time_pint_cannot_read_is_one_line_naming_the_key(unit, t_ref, key, ca
 
 
 def test_a_time_pint_would_compute_forever_is_refused_at_once():
-    code = ("from biostudy.inputs.real_times import factor\nfrom biostudy.errors import InvalidAt\n"
+    code = ("from biostudy.inputs.real_time import in_t_star as factor\nfrom biostudy.errors import InvalidAt\n"
             "try:\n    factor('h', '10**10**10 h')\n"
             "except InvalidAt as error:\n    print(error.key, error.problem)\n")
     try:

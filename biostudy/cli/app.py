@@ -335,8 +335,9 @@ def plot(
     variable: Annotated[Optional[str], typer.Option("--variable", metavar="V",
                                                     help="one field (phi, c, alpha, p) or, for a sweep, one output "
                                                          "(phi_mean, c_mean, biofilm_volume)")] = None,
-    time: Annotated[Optional[float], typer.Option("--time", metavar="T",
-                                                  help="draw the output nearest to this T*")] = None,
+    time: Annotated[Optional[str], typer.Option("--time", metavar="T",
+                                                help="draw the output nearest to this T* (or real time: "
+                                                     "'12 h', with the scene's t_ref)")] = None,
     cut: Annotated[Optional[str], typer.Option("--cut", metavar="C",
                                                help="3-D: 'diagonal' (toward the nutrient, default), 'xy-diagonal', "
                                                     "or a plane such as 'x=10' or 'z=5.5' (µm)")] = None,
@@ -346,13 +347,15 @@ def plot(
 ):
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with _guarded():
-        from ..data.store import open_result  # lazily (module docstring)
-        from ..plots import plot as draw  # lazily
+        from ..data.real_time import t_star  # lazily (module docstring)
+        from ..data.store import open_result
+        from ..plots import plot as draw
 
         source = path / "study.nc" if path.is_dir() else path
         ds = open_result(source, ("run", "study"), "nothing to plot")
         try:
-            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=time, cut=cut, warp=warp)
+            at = None if time is None else t_star(ds, time)
+            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=at, cut=cut, warp=warp)
         except ValueError as error:
             raise BadInput(str(error), source) from None
         for picture in written:
@@ -366,9 +369,10 @@ def analyze(
     outputs: Annotated[List[str], typer.Option("--output", metavar="NAME",
                                                help="observable or study.nc variable to analyse; repeatable "
                                                     "(default: every observable the study has)")] = [],
-    times: Annotated[List[float], typer.Option("--time", metavar="T",
-                                               help="analyse at the output nearest this T*; repeatable (default: "
-                                                    "the last output)")] = [],
+    times: Annotated[List[str], typer.Option("--time", metavar="T",
+                                             help="analyse at the output nearest this T* (or real time: '12 h', "
+                                                  "with the scene's t_ref); repeatable (default: the last "
+                                                  "output)")] = [],
     as_json: Json = False,
 ):
     """Which parameter matters: Sobol' or Morris indices of a sampled study, rank correlations of any study."""

@@ -12,11 +12,12 @@ import contextlib
 import os
 import tomllib
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import xarray as xr
 
-from ..data import claims, combine, store
+from ..data import claims, combine, real_time, store
 from ..errors import BadInput
 from ..inputs.keys import key_parts
 from ..inputs.tomltext import literal
@@ -69,7 +70,7 @@ def _common(attrs: dict, study: bool, study_file: str) -> list[str]:
 
 
 def analyze(source: str | Path, *, outputs: list[str] | None = None,
-            times: list[float] | None = None) -> tuple[list[Path], str]:
+            times: Sequence[float | str] | None = None) -> tuple[list[Path], str]:
     """Analyse a study (its study.nc, or its directory) and write analysis.nc, analysis.md and the pictures
     beside it; returns the files written and the table.  Anything wrong with the request is `BadInput`."""
     source = Path(source)
@@ -78,14 +79,15 @@ def analyze(source: str | Path, *, outputs: list[str] | None = None,
     _replaceable(directory)  # before anything is read or computed
     ds = current(source)
     try:
-        result = indices(ds, outputs or None, times or None)
+        asked = [real_time.t_star(ds, t) for t in times or ()]
+        result = indices(ds, outputs or None, asked or None)
     except ValueError as error:
         raise BadInput(str(error), source, "--output" if "output" in str(error) else None) from None
     text = table_text(result)
     written = [store.write_atomic(result, directory / "analysis.nc"), claims.write_report(directory / REPORTS[0], text),
                save(indices_figure(result), directory / REPORTS[1])]
     names = list(result.output.values)
-    index = time_indices(ds, times or None)[-1]
+    index = time_indices(ds, asked or None)[-1]
     if "sample_method" in ds.attrs and all(n in ds for n in names):
         figure = sample_figure(ds, names, index)
     else:

@@ -127,8 +127,9 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
     if loaded.previous is not None and loaded.previous_path is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
+    clock = loaded.scene.real_time_attrs()  # the warnings say their times in real time too
     ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-                     **loaded.scene.substratum_attrs(), **alerts.attrs(ds))
+                     **loaded.scene.substratum_attrs(), **clock, **alerts.attrs(ds.assign_attrs(clock)))
     ds = store.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")

@@ -9,12 +9,15 @@ with
   active vector, so ParaView's "Warp By Vector" shows the deformed body;
 - field data `TimeValue` (the snapshot's T*, VTK's name for a file's time) and,
   with the mechanics, `mechanics_time` (the T* at which the p and u shown were
-  solved).
+  solved).  A run whose scene gave ``t_ref``: both in real time, in t_ref's
+  unit (48 h: hours, so ParaView's time slider reads hours), and `T_star`
+  the snapshot's T*.
 Every file has the same arrays.  The mechanics is solved at some outputs only
 (`[mechanics] every`); at the others a file shows p and u of the latest output
 where it was solved (`mechanics_time` < `TimeValue`), so a warped animation
 holds the last deformed state instead of jumping back to the undeformed body.
-`series.pvd` lists the snapshots with their times (T*): opening it in ParaView
+`series.pvd` lists the snapshots with their times (T*, or real time as
+`TimeValue`): opening it in ParaView
 loads the whole series with a working time slider.  Every file carries
 biostudy's mark in a comment: a file of these names that does not is never
 replaced, and the extra snapshots of an earlier, longer export into the same
@@ -39,6 +42,7 @@ from solver.problem import AXES
 
 from ..inputs.files import no_directory
 from .claims import foreign, mark, marked
+from .real_time import clock
 from .store import atomic
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
@@ -129,7 +133,9 @@ def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[
         static["nutrient_source"] = source.ravel()[open_cells]
     fields = {n: ds[n].transpose("time", *cell_dims).values.reshape(ds.sizes["time"], -1)[:, open_cells]
               for n in CELL_FIELDS if n in ds and n != "p"}
-    times = ds["time"].values
+    found = clock(ds)
+    real = found.real if found is not None else (lambda t: t)  # what TimeValue and the PVD's timesteps are in
+    times = real(ds["time"].values.astype(float))
     shown = _mechanics_shown(ds)  # output index -> index into the mechanics' outputs (-1: none yet)
     p = u = None
     if "p" in ds:
@@ -143,13 +149,15 @@ def _write_series(ds: xr.Dataset, directory: Path, written: list[Path]) -> list[
         for name, values in fields.items():
             cell_data[name] = [values[t].astype(float)]
         point_data, field_data = {}, {"TimeValue": float(times[t])}
+        if found is not None:
+            field_data["T_star"] = float(ds["time"].values[t])
         if shown is not None:
             m = shown[t]
             if p is not None:
                 cell_data["p"] = [p[m].astype(float) if m >= 0 else np.full(len(cells), np.nan)]
             if u is not None:
                 point_data["u"] = u[m].astype(float) if m >= 0 else np.zeros((len(points), 3))
-            field_data["mechanics_time"] = float(ds[MECHANICS_TIME].values[m]) if m >= 0 else float("nan")
+            field_data["mechanics_time"] = float(real(ds[MECHANICS_TIME].values[m])) if m >= 0 else float("nan")
         mesh = meshio.Mesh(points, [(kind, cells)], point_data=point_data, cell_data=cell_data)
         vectors = "u" if point_data else None
         written.append(atomic(directory / SNAPSHOT.format(t),

@@ -98,12 +98,15 @@ def legal_attrs(attrs: dict) -> dict:
 
 
 def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
-    """The run's dataset with what produced it: the scene as TOML text, its file, the overrides."""
+    """The run's dataset with what produced it: the scene as TOML text, its file, the overrides (a ``t_ref``
+    among `extra`: the real-time coordinates, `real_time`)."""
+    from . import real_time  # lazily, as xarray
+
     ds = ds.copy()
     ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve())
                                 if scene_file else "",
                                 "overrides": overrides, **extra})
-    return ds
+    return real_time.with_real_time(ds)  # a scene's t_ref: the real-time coordinates
 
 
 def with_observables(ds: xr.Dataset) -> xr.Dataset:

@@ -5,8 +5,9 @@ TYX), every output time a frame.  The calibration is ImageJ's: x and y
 resolution in pixels per µm (1 / cell size), ``spacing`` the cell size along
 z, ``unit`` um, so Fiji (Image > Properties, the scale bar, 3D Viewer) and
 BiofilmQ or COMSTAT read lengths and volumes in µm.  Frames: ``finterval``
-is the step between outputs in T* (``tunit`` T*) when they are evenly spaced;
-each frame's label and the ``Info`` text give every output's T*.  Axes as
+is the step between outputs in T* (``tunit`` T*) when they are evenly spaced,
+in real time when the scene gave ``t_ref`` (``tunit`` its unit: "hour" for
+48 h); each frame's label and the ``Info`` text give every output's time.  Axes as
 biostudy reads images (`inputs.images`): slice 0 at the bottom (z lowest),
 row 0 at y = 0 (ImageJ draws it at the top).  Obstacle cells are NaN.
 
@@ -22,6 +23,7 @@ import xarray as xr
 
 from ..errors import BadInput
 from ..inputs.files import no_directory
+from .real_time import clock, shown
 from .store import atomic
 
 FIELDS = ("phi", "c")
@@ -56,6 +58,10 @@ def export_tiff(ds: xr.Dataset, directory: str | Path, source: str = "") -> list
     cells = [d for d in ("z", "y", "x") if d in ds.dims]
     h = float(ds.attrs.get("grid_spacing", ds["x"].values[1] - ds["x"].values[0]))
     times = ds["time"].values.astype(float)
+    found = clock(ds)
+    frame_times, tunit = (found.real(times), found.cf[:-1]) if found else (times, "T*")
+    labels = [shown(ds, t, 6) if found else f"T* = {t:.6g}" for t in times]
+    frames = ", ".join(labels) if found else "T* = " + ", ".join(f"{t:.6g}" for t in times)
     targets = [directory / f"{name}.tif" for name in FIELDS if name in ds]
     for target in targets:
         if target.exists() and not _mine(target):
@@ -66,14 +72,13 @@ def export_tiff(ds: xr.Dataset, directory: str | Path, source: str = "") -> list
         values = ds[name].transpose("time", *cells).values.astype(np.float32)
         if len(cells) == 3:
             values = values[:, :, None]  # TZCYX with one channel: ImageJ's hyperstack order
-        meta = {"axes": "TZCYX" if len(cells) == 3 else "TYX", "unit": "um", "tunit": "T*",
-                "Labels": [f"T* = {t:.6g}" for t in times for _ in range(values.shape[1] if len(cells) == 3 else 1)],
+        meta = {"axes": "TZCYX" if len(cells) == 3 else "TYX", "unit": "um", "tunit": tunit,
+                "Labels": [label for label in labels for _ in range(values.shape[1] if len(cells) == 3 else 1)],
                 "Info": f"{SIGNATURE} of {source or 'a run'}: {name} ({ds[name].attrs.get('long_name', name)}), "
-                        f"units {ds[name].attrs.get('units', '1')}; frames at T* = "
-                        + ", ".join(f"{t:.6g}" for t in times)}
+                        f"units {ds[name].attrs.get('units', '1')}; frames at {frames}"}
         if len(cells) == 3:
             meta["spacing"] = h
-        interval = _even(times)
+        interval = _even(frame_times)
         if interval:
             meta["finterval"] = interval
         written.append(atomic(target, lambda path, values=values, meta=meta: tifffile.imwrite(

@@ -34,6 +34,7 @@ from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
+from .real_time import real_time
 from .resources import DEFAULT_OUTPUTS, estimate, run_problem, validation_problem
 from .substratum_face import resting_face
 from .tomltext import dumps as toml_dumps
@@ -94,9 +95,13 @@ class Time(BaseModel):
     output_times: list[float] | None = _field(None, "explicit snapshot times within [0, t_end], increasing "
                                                     "(t_end is added if missing); instead of outputs", "1",
                                               min_length=1)
+    t_ref: str | None = Field(None, description="the real time of T* = 1, any time pint reads (\"48 h\"): "
+                                                "datasets then carry time_real in that unit (absent: T* only)")
 
     @model_validator(mode="after")
     def _clock(self):
+        if self.t_ref is not None:
+            real_time(self.t_ref)
         if self.outputs is not None and self.output_times is not None:
             raise InvalidAt("output_times", "give either outputs or output_times, not both")
         for i, t in enumerate(self.output_times or ()):
@@ -357,6 +362,10 @@ class Scene(BaseModel):
         return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold,
                 "substratum_connected": int(self.substratum.connected),
                 "substratum_estimator": self.substratum.estimator}
+
+    def real_time_attrs(self) -> dict:
+        """{"t_ref": ...} when the scene says what T* = 1 is in real time (`data.real_time` adds time_real)."""
+        return {"t_ref": self.time.t_ref} if self.time.t_ref is not None else {}
 
     def to_toml(self) -> str:
         """The scene as TOML text (every key, defaults filled in): what the dataset records."""

@@ -47,9 +47,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
-from ..inputs import real_times
 from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements, refusal
+from ..inputs.real_time import apart, check_agree, exact
 from ..inputs.scene import SCENE_KEYS, Scene
 from ..quantities import observables
 from .calibration_method import MethodSpec
@@ -306,6 +306,8 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
     data_file = path.parent / spec.data.measurements
     try:
         factor = spec.data.time_factor()
+        for scene in plan.scenes.values():  # one clock: the table's t_ref is the scene's
+            check_agree(spec.data.t_ref, scene.time.t_ref, plan.scene_file.name)
     except InvalidAt as error:
         raise BadInput(error.problem, path, f"data.{error.key}") from None
     rows = read_measurements(data_file)
@@ -339,8 +341,8 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         if not 0 <= t <= t_end * (1 + 1e-12):
             when = "before the start" if t < 0 else "after the run's end"
             reference = f" (t_ref = {spec.data.t_ref})" if spec.data.t_ref else ""
-            told = f"{real_times.exact(m.time)}{unit} is T* = {real_times.apart(t, t_end)}{reference}"
-            problems.append(BadInput(f"{told}, {when}: the scene runs over T* = 0 to {real_times.exact(t_end)} "
+            told = f"{exact(m.time)}{unit} is T* = {apart(t, t_end)}{reference}"
+            problems.append(BadInput(f"{told}, {when}: the scene runs over T* = 0 to {exact(t_end)} "
                                      "(time.t_end)", data_file, f"line {m.line}: time"))
     problems += _runs_too_short(spec, rows, times, data_file, path)
     named = {m.condition for m in rows}

@@ -6,8 +6,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import InvalidAt
 from ..formatting import value_text
-from ..inputs import real_times
 from ..inputs.measurements import Measurement
+from ..inputs.real_time import in_t_star
 
 EXTREME = 1e100  # the largest |measurement|, σ and |measurement| / σ (and 1 / it the smallest σ) a fit takes
 
@@ -29,8 +29,9 @@ class DataSpec(BaseModel):
         return self
 
     def time_factor(self) -> float:
-        """T* per unit of the table's time (`inputs.real_times.factor`); `InvalidAt` for a unit that is not a time."""
-        return 1.0 if self.time_unit is None else real_times.factor(self.time_unit, str(self.t_ref))
+        """T* per unit of the table's time: t / t_ref (`inputs.real_time`); `InvalidAt` for a unit that is not a
+        time."""
+        return 1.0 if self.time_unit is None or self.t_ref is None else in_t_star(self.time_unit, self.t_ref)
 
 
 def extreme_numbers(m: Measurement) -> tuple[str, str] | None:

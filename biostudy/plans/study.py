@@ -79,6 +79,9 @@ class Sweep(BaseModel):
                 raise InvalidAt(key, error.problem) from None
             if name in seen:
                 raise InvalidAt(key, f"is the same key as {seen[name]}")
+            if name == "time_t_ref":  # cases in different units would stack time_real under one unit
+                raise InvalidAt(key, "is the real time of T* = 1, not a parameter: every case would be the same "
+                                     "simulation; give it once in [set] (docs/time.md)")
             seen[name] = key
         return self
 

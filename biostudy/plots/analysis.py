@@ -13,9 +13,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
+from ..data import real_time
 from ..formatting import number, units_text
 from ..reports.cases import cases_of
-from .style import axis_label, suptitle
+from .style import axis_label, suptitle, time_axis
 from .sweep import panels, solved_points
 
 COLUMNS = 3  # panels per row of the indices figure
@@ -100,9 +101,9 @@ def sample_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     flat = cases_of(ds)
     outputs = {n: np.asarray(flat.values(ds[n].isel(time=index)), dtype=float) for n in names}
     units = {n: str(ds[n].attrs.get("units", "1")) for n in names}
-    when = number(float(ds["time"].values[index]))
+    when = real_time.shown(ds, float(ds["time"].values[index]))
     return scatter_figure(outputs, units, flat.parameters, flat.log, flat.status == "done",
-                          f"{ds.attrs.get('sample_method')} sample: outputs at T* = {when} against each parameter "
+                          f"{ds.attrs.get('sample_method')} sample: outputs at {when} against each parameter "
                           f"({int((flat.status == 'done').sum())} of {len(flat.ids)} cases finished)")
 
 
@@ -110,12 +111,12 @@ def sample_series_figure(ds: xr.Dataset, names: list[str]):
     """Every case's time series of each output, thin lines (cases that did not finish: none drawn)."""
     flat = cases_of(ds)
     fig, axes = panels(len(names))
-    time = ds["time"].values
+    time, time_label, _ = time_axis(ds)
     for ax, name in zip(axes, names):
         for row in flat.values(ds[name])[flat.status == "done"]:
             drawn, marker = solved_points(time, row)
             ax.plot(*drawn, color="C0", lw=0.6, alpha=0.5, marker=marker, ms=2)
-        ax.set_xlabel("normalised time T*")
+        ax.set_xlabel(time_label)
         ax.set_ylabel(axis_label(ds[name]))
         ax.set_title(ds[name].attrs.get("long_name", name), fontsize=8)
         ax.grid(alpha=0.3)

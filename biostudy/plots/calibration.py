@@ -23,6 +23,7 @@ from matplotlib.ticker import NullFormatter
 
 from ..fitting.profiles import THRESHOLD
 from ..formatting import number, units_text
+from ..reports import parameter_units
 
 
 def _grid(count: int) -> tuple[int, int]:
@@ -79,7 +80,7 @@ def profiles_figure(ds: xr.Dataset):
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_ylim(bottom=-0.2)
-        shown = units_text(str(ds.units.values[j]))
+        shown = parameter_units.shown(ds, j)
         ax.set_xlabel(f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else ""))
         ax.set_ylabel("chi² - minimum")
         verdict = "" if bool(ds.identifiable[j]) else " (not determined)"
@@ -106,7 +107,7 @@ def corner_figure(ds: xr.Dataset):
     columns = [_axis_values(ds, j) for j in range(k)]
     labels = []
     for j in range(k):
-        shown = units_text(str(ds.units.values[j]))
+        shown = parameter_units.shown(ds, j)
         name = f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else "")
         labels.append(f"log10 {name}" if columns[j][1] else name)
 

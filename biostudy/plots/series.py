@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import xarray as xr
 
 from ..quantities import observables
-from .style import axis_label, run_title, suptitle
+from .style import axis_label, run_title, suptitle, time_axis
 
 ON_SUBSTRATUM = ("biomass", "mean_thickness", "max_thickness")
 
@@ -19,13 +19,13 @@ PHI_RED, C_BLUE = "#d62728", "#1f77b4"
 
 
 def figure(ds: xr.Dataset, marks: list[float] = ()):
-    """Two panels over T*: phi_mean and c_mean; biofilm_volume (and a third: the substratum's biomass and
-    thicknesses, where the run records its substratum).  `marks`: times to flag (dotted)."""
+    """Two panels over time (T*, or real time with t_ref): phi_mean and c_mean; biofilm_volume (and a third: the
+    substratum's biomass and thicknesses, where the run records its substratum).  `marks`: times to flag (dotted)."""
     substratum = all(observables.available(ds, observables.get(n)) for n in ON_SUBSTRATUM)
     fig, axes = plt.subplots(3 if substratum else 2, 1, sharex=True, figsize=(6.4, 7.2 if substratum else 5.2),
                              layout="constrained", height_ratios=(3, 2, 2) if substratum else (3, 2))
     top, bottom = axes[0], axes[1]
-    time = ds["time"].values
+    time, time_label, on_axis = time_axis(ds)
     for name, colour in (("c_mean", C_BLUE), ("phi_mean", PHI_RED)):
         if name in ds:
             top.plot(time, ds[name].values, "o-", ms=3, color=colour,
@@ -49,9 +49,9 @@ def figure(ds: xr.Dataset, marks: list[float] = ()):
         axes[2].set_ylim(bottom=0)
         axes[2].legend(fontsize=8)
         axes[2].grid(alpha=0.3)
-    axes[-1].set_xlabel("normalised time T*")
+    axes[-1].set_xlabel(time_label)
     for when in marks:
         for ax in (top, bottom):
-            ax.axvline(when, color="0.5", ls=":", lw=1)
+            ax.axvline(on_axis(when), color="0.5", ls=":", lw=1)
     suptitle(fig, run_title(ds))
     return fig

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import textwrap
 from pathlib import Path
+from typing import Callable
 
 import matplotlib.colors as mcolors
 import matplotlib.pyplot as plt
 import numpy as np
 import xarray as xr
 
+from ..data import real_time
 from ..data.claims import foreign, mark
 from ..data.store import atomic
 from ..formatting import number, shown_units
@@ -100,7 +102,18 @@ def snapshot_indices(ds: xr.Dataset, time: float | None, count: int = 4) -> list
 
 
 def time_title(ds: xr.Dataset, index: int) -> str:
-    return f"T* = {float(ds['time'].values[index]):.3g}"
+    """'T* = 0.25', or with t_ref '12 h (T* = 0.25)'."""
+    t = float(ds["time"].values[index])
+    return real_time.shown(ds, t, 3) if real_time.clock(ds) else f"T* = {t:.3g}"
+
+
+def time_axis(ds: xr.Dataset) -> tuple[np.ndarray, str, Callable[[float], float]]:
+    """The x axis of a time series: real time in t_ref's unit when the run has one, else T*; its label, and
+    what turns a T* into a position on it."""
+    found = real_time.clock(ds)
+    if found is None:
+        return ds["time"].values, "normalised time T*", lambda t: t
+    return found.real(ds["time"].values), f"time ({found.unit}; T* = t / {found.text})", found.real
 
 
 def run_title(ds: xr.Dataset) -> str:

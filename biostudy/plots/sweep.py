@@ -20,7 +20,7 @@ import xarray as xr
 
 from ..formatting import number, shown_units
 from ..quantities.saturation import SATURATION, saturated
-from .style import SERIES_NAMES, axis_label, suptitle
+from .style import SERIES_NAMES, axis_label, suptitle, time_axis, time_title
 
 OK_STATUS = {"ok", "done", "complete", "completed", "success", "succeeded", "finished", "0"}
 NOT_PARAMETERS = {"status", "message", "error", "time"}
@@ -144,7 +144,6 @@ def _axis(ax, key: str, values: list):
 def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
     """Outputs at one time (default the last) against the first varying parameter, a line per other combination."""
     found, x_key, others, follow, groups = _layout(ds, names)
-    when = float(ds["time"].values[index])
     fig, axes = panels(len(names))
     for ax, name in zip(axes, names):
         where = _axis(ax, x_key, [c.params[x_key] for c in found])
@@ -171,7 +170,7 @@ def final_figure(ds: xr.Dataset, names: list[str], index: int = -1):
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=7)
-    suptitle(fig, f"sweep: outputs at T* = {when:.3g} against {x_key}")
+    suptitle(fig, f"sweep: outputs at {time_title(ds, index)} against {x_key}")
     return fig
 
 
@@ -189,7 +188,7 @@ def series_figure(ds: xr.Dataset, names: list[str]):
     found, x_key, others, follow, groups = _layout(ds, names)
     x_values = sorted({c.params[x_key] for c in found}, key=_order)
     colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(x_values)))
-    time = ds["time"].values
+    time, time_label, _ = time_axis(ds)
     fig, axes = panels(len(names))
     for ax, name in zip(axes, names):
         for c in found:
@@ -197,7 +196,7 @@ def series_figure(ds: xr.Dataset, names: list[str]):
             style = LINESTYLES[groups.index(tuple(c.params[k] for k in others)) % len(LINESTYLES)]
             drawn, marker = solved_points(time, c.series[name])
             ax.plot(*drawn, color=colour, ls=style, lw=1.2 if c.ok else 0.6, marker=marker, ms=3)
-        ax.set_xlabel("normalised time T*")
+        ax.set_xlabel(time_label)
         ax.set_ylabel(axis_label(ds[name]))
         ax.grid(alpha=0.3)
 

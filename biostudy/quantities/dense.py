@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from ..inputs.real_time import stated
 from . import measures
 
 ATTRIBUTE = "dense_biofilm_vanished"
@@ -35,9 +36,9 @@ def vanished(ds: xr.Dataset) -> str:
         if biofilm[grown] <= biofilm[peak]:
             continue
         units = "µm³" if "z" in ds.dims else "µm²"
-        return (f"dense biofilm (phi >= 0.8) vanished by T* = {times[j]:.3g} (it was {dense[peak]:.3g} {units} at "
-                f"T* = {times[peak]:.3g}) while the biofilm (phi >= 0.5) grew from {biofilm[peak]:.3g} to "
-                f"{biofilm[grown]:.3g} {units} (T* = {times[grown]:.3g}): on cells this coarse that is likely the "
+        return (f"dense biofilm (phi >= 0.8) vanished by {stated(ds, times[j])} (it was {dense[peak]:.3g} {units} "
+                f"at {stated(ds, times[peak])}) while the biofilm (phi >= 0.5) grew from {biofilm[peak]:.3g} to "
+                f"{biofilm[grown]:.3g} {units} ({stated(ds, times[grown])}): on cells this coarse that is likely the "
                 f"grid's, not the model's (docs/paper.md); check with the same scene at h/2: {half_spacing(ds)}")
     return ""
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from ..inputs.real_time import stated
 from . import measures
 
 ATTRIBUTE = "biofilm_lost"
@@ -38,11 +39,11 @@ def lost(ds: xr.Dataset) -> str:
     before = int(np.argmax(volume[:j + 1]))
     units = "µm³" if "z" in ds.dims else "µm²"
     gone = np.flatnonzero(volume[j:] <= 0)
-    end = (f" and vanished by T* = {times[j + gone[0]]:.3g}" if gone.size
-           else f" ({volume[-1]:.3g} {units} at T* = {times[-1]:.3g}, the last output)")
+    end = (f" and vanished by {stated(ds, times[j + gone[0]])}" if gone.size
+           else f" ({volume[-1]:.3g} {units} at {stated(ds, times[-1])}, the last output)")
     return (f"the biofilm (phi >= 0.5) shrank by {100 * (1 - volume[j] / volume[before]):.0f} % from "
-            f"{volume[before]:.3g} {units} at T* = {times[before]:.3g} to {volume[j]:.3g} {units} by "
-            f"T* = {times[j]:.3g}{end}: the model moves every interface toward the nutrient (Eq. 34), so a "
+            f"{volume[before]:.3g} {units} at {stated(ds, times[before])} to {volume[j]:.3g} {units} by "
+            f"{stated(ds, times[j])}{end}: the model moves every interface toward the nutrient (Eq. 34), so a "
             f"biofilm retreats on its sides that face away from it; growth away from the nutrient, as of a "
             f"colony on agar fed from below, is outside what the model describes (docs/model.md)"
             + (GRID if ds.attrs.get("growth_velocity") == "pointwise" else ""))

@@ -24,9 +24,11 @@ calibration.nc (README, "Calibration"):
   sigma), `sigma_likelihood`, `posterior_band_lower`, `posterior_band_upper`;
   the sampler's and the surrogate's counts and `posterior_statements` as attributes.
 
-Values of different parameters (or observables) have different units: each
-such variable's `units` is "1" and the `units` (`measurement_units`)
-coordinate says each one's, as udunits spellings.
+Values of different observables have different units: each such variable's
+`units` is "1" and `measurement_units` says each one's.  Parameters: see
+`parameter_units` (no units on the mixed variables; `units`, `units_model`
+coordinates; ``estimate_r`` etc. per parameter, ``estimate_r_real`` per hour
+with a t_ref).
 """
 from __future__ import annotations
 
@@ -45,9 +47,10 @@ from ..fitting.least_squares import PENALTY
 from ..fitting.profiles import THRESHOLD
 from ..fitting.sampling import quantiles
 from ..fitting.uncertainty import band, natural
-from ..formatting import number, units_text
+from ..formatting import number
 from ..inputs.scene import key_info
 from ..quantities import alerts, observables
+from .parameter_units import MIXED, clock_of, model_units, real_rows, scalar_variables, shown
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
@@ -145,7 +148,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         profile_chi2[j, :len(prof.u)] = prof.chi2
     half = band(best.jacobian, found.local.covariance, sigma)
     rows = plan.measurements
-    each = {"units": "1", "comment": "each in its own units: see the units coordinate"}
+    each = MIXED
     mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
     data = {
         "estimate": ("parameter", estimate, {**each, "long_name": "estimated value (least squares)"}),
@@ -205,6 +208,8 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         "parameter": ("parameter", _text(names), {**TEXT, "long_name": "estimated parameter"}),
         "parameter_other": ("parameter_other", _text(names), {**TEXT, "long_name": "estimated parameter"}),
         "units": ("parameter", _text(units), {**TEXT, "long_name": "units of each parameter (udunits)"}),
+        "units_model": ("parameter", _text(model_units(p.key) for p in params),
+                        {**TEXT, "long_name": "units of each parameter in the model's terms (per T*)"}),
         "measurement": ("measurement", np.arange(n), {"units": "1", "long_name": "row of the measurement table"}),
         "time": ("measurement", plan.times, {"units": "1", "long_name": "normalised time T* of the measurement"}),
         "measurement_units": ("measurement", _text(observables.get(m.observable).units for m in rows),
@@ -212,6 +217,10 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         "start": ("start", np.arange(len(design)), {"units": "1", "long_name": "start of the optimiser"}),
         "profile_point": ("profile_point", np.arange(length), {"units": "1", "long_name": "point of a profile"}),
     }
+    clock = clock_of(plan)
+    data.update(scalar_variables(names, [p.key for p in params], {
+        "estimate": (estimate, "estimated value"), "lower": (lower, "lower end of the 95 % profile interval"),
+        "upper": (upper, "upper end of the 95 % profile interval")}, clock))
     dof = n - k
     said = (statements(plan, found) if profiled else []) + _too_few(n, k)
     attrs = {
@@ -234,7 +243,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         "scene": plan.plan.base.to_toml(),
         "scene_file": str(plan.plan.scene_file.resolve()),
         "time_unit": plan.spec.data.time_unit or "T*",
-        "t_ref": plan.spec.data.t_ref or "1 T*",
+        "t_ref": clock.text if clock else "1 T*",
     }
     if sampled is not None:
         extra, extra_coords, extra_attrs = posterior_variables(plan, sampled, measured, sigma, units)
@@ -255,7 +264,7 @@ def posterior_variables(plan: CalibrationPlan, sampled: Posterior, measured: np.
     chains = sampled.chains
     values = np.stack([p.range.values(chains.samples[:, j]) for j, p in enumerate(params)], axis=1)
     median, low, high = quantiles(values)
-    each = {"units": "1", "comment": "each in its own units: see the units coordinate"}
+    each = MIXED
     mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
     data = {f"posterior_{p.name}": ("sample", values[:, j], {"units": units[j], "long_name": f"posterior sample "
                                                               f"of {p.name} ({p.key})"}) for j, p in enumerate(params)}
@@ -283,6 +292,9 @@ def posterior_variables(plan: CalibrationPlan, sampled: Posterior, measured: np.
                                  {**mapped, "long_name": "97.5 % quantile of the model over the posterior samples "
                                                          "(surrogate)"}),
     })
+    data.update(scalar_variables([p.name for p in params], [p.key for p in params], {
+        "median": (median, "posterior median"), "credible_lower": (low, "posterior 2.5 % quantile"),
+        "credible_upper": (high, "posterior 97.5 % quantile")}, clock_of(plan)))
     coords = {"sample": ("sample", np.arange(len(values)), {"units": "1", "long_name": "posterior sample"})}
     attrs = {
         "posterior_samples": len(values), "posterior_walkers": chains.walkers, "posterior_steps": chains.steps,
@@ -323,7 +335,7 @@ def table_text(ds: xr.Dataset) -> str:
     lines = ["| parameter | estimate | standard error | 95 % profile interval | identifiable | bounds |",
              "|---|---|---|---|---|---|"]
     for j, name in enumerate(ds.parameter.values):
-        unit = units_text(str(ds.units.values[j]))
+        unit = shown(ds, j)
         scaled = ""
         if str(ds.scale.values[j]) == "log":
             scaled = f" (log10 {number(ds.estimate_scaled[j], 4)} ± {number(ds.standard_error_scaled[j], 2)})"
@@ -331,12 +343,13 @@ def table_text(ds: xr.Dataset) -> str:
                      f"{_interval(ds, j)} | {'yes' if bool(ds.identifiable[j]) else 'no'} | "
                      f"[{number(ds.low[j])}, {number(ds.high[j])}]{' log' if str(ds.scale.values[j]) == 'log' else ''}"
                      " |")
+    lines += real_rows(ds)
     attrs = ds.attrs
     if "posterior_median" in ds:
         lines += ["", "| parameter | posterior median | 95 % credible interval (2.5-97.5 %) | autocorrelation "
                       "time (steps) | effective samples |", "|---|---|---|---|---|"]
         for j, name in enumerate(ds.parameter.values):
-            unit = units_text(str(ds.units.values[j]))
+            unit = shown(ds, j)
             lines.append(f"| {name} | {number(ds.posterior_median[j])} {unit} | [{number(ds.posterior_lower[j])}, "
                          f"{number(ds.posterior_upper[j])}] | {number(ds.autocorrelation_time[j], 3)} | "
                          f"{number(ds.effective_samples[j], 3)} |")
@@ -348,6 +361,8 @@ def table_text(ds: xr.Dataset) -> str:
                       f"{attrs['surrogate_box_widened']} times), its error on "
                       f"{attrs['surrogate_held_out_runs']} held-out ones up to "
                       f"{number(attrs['surrogate_error_max'], 2)} sigma (added to sigma² in the likelihood)"]
+        lines += real_rows(ds, ("median", "credible_lower", "credible_upper"), "posterior median",
+                           "95 % credible interval")
         for said in filter(None, str(attrs.get("posterior_statements", "")).split("; ")):
             lines += ["", f"**{said[0].upper() + said[1:]}.**"]
     fit = (f"for {attrs['dof']} degrees of freedom (p = {number(attrs['chi2_p_value'], 2)})" if attrs["dof"] > 0

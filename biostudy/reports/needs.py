@@ -6,6 +6,7 @@ machine has.
 """
 from __future__ import annotations
 
+from ..data import real_time
 from ..inputs import bundled, resources
 from ..inputs.files import read_toml
 from ..inputs.scene import load_scene
@@ -57,6 +58,12 @@ def needs(path) -> str:
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
     return "\n".join([
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
-        f"{found.outputs} outputs, mechanics {mechanics}",
+        f"{found.outputs} outputs, mechanics {mechanics}" + _real_end(scene),
         f"memory  {resources.size(found.memory)} ({found.parts()}); here {available}",
         f"on disk {resources.size(found.disk)} for the dataset"] + _refused(found, "a run needs"))
+
+
+def _real_end(scene) -> str:
+    """', to 24 h (T* = 0.5)' for a scene with t_ref (docs/time.md); '' without."""
+    attrs = scene.real_time_attrs()
+    return f", to {real_time.shown(attrs, scene.time.t_end)}" if attrs else ""

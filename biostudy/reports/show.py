@@ -15,6 +15,7 @@ from rich.text import Text
 
 from solver.problem import parameter_infos
 
+from ..data import real_time
 from ..formatting import number, units_text
 from ..quantities.saturation import SATURATION, saturated
 
@@ -122,8 +123,8 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
     if times is not None:
         table = Table(title=None, show_edge=False)
         table.add_column("observable")
-        table.add_column(f"T* = {number(times[0])}", justify="right")
-        table.add_column(f"T* = {number(times[-1])}", justify="right")
+        table.add_column(real_time.shown(attrs, float(times[0])), justify="right")
+        table.add_column(real_time.shown(attrs, float(times[-1])), justify="right")
         table.add_column("units")
         table.add_column("meaning")
         for name, values, shown in series:
