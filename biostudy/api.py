@@ -67,7 +67,9 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
                               output=None if output is None else Path(output), force=force,
                               continue_from=continue_from, write=output is not None)
         result = command.compute(loaded, progress=progress)
-    return netcdf.as_run(result.dataset)
+    ds = result.dataset.load()  # a written run comes back from its file, read whole and closed as before
+    ds.close()
+    return netcdf.as_run(ds)
 
 
 def sweep(study: str | Path, directory: str | Path, *, workers: int | None = None, scheduler: str | None = None,

@@ -14,7 +14,8 @@ and OpenBLAS's threads, when the cores are busy with anything else, turned a
 25 600-entry norm from 6 µs into 6.7 ms (docs/transport.md).
 
 `evolve` is a generator of `Snapshot`s (one per output time) that tests can
-step with ``next()``; `simulate` runs it to the end and returns the dataset.
+step with ``next()``; `simulate` runs it to the end and returns the dataset,
+each output's fields handed to an output sink as they are made (`sink`).
 Mechanics (if the problem asks for it) is solved only at output times:
 nothing feeds back from it into phi or c.
 """
@@ -30,6 +31,7 @@ from threadpoolctl import threadpool_limits
 from .counters import Counters, declared
 from .errors import SimulationError, StepFailure
 from .problem import Problem
+from .sink import Held, OutputSink
 from .transport import State, Transport
 
 
@@ -207,10 +209,15 @@ def evolve(problem: Problem, progress: Callable[[Progress], None] | None = None)
     return iter(Simulation(problem, progress))
 
 
-def simulate(problem: Problem, progress: Callable[[Progress], None] | None = None):
-    """Run `problem` to t_end and return its dataset (see `output.to_dataset`)."""
-    from .output import to_dataset  # lazily: xarray only where a dataset is made (tests step `evolve`)
+def simulate(problem: Problem, progress: Callable[[Progress], None] | None = None, sink: OutputSink | None = None):
+    """Run `problem` to t_end and return its dataset (see `output.assemble`).  Each output's fields go to `sink`
+    as they are made (default: held in memory, `sink.Held`); the loop itself keeps only their `output.Record`."""
+    from .output import assemble, record  # lazily: xarray only where a dataset is made (tests step `evolve`)
 
+    sink = Held() if sink is None else sink
     simulation = Simulation(problem, progress)
-    snapshots = list(simulation)
-    return to_dataset(problem, snapshots, simulation.report())
+    records = []
+    for snapshot in simulation:
+        records.append(record(problem, snapshot))
+        sink.add(snapshot)
+    return assemble(problem, records, sink.fields(), simulation.report())

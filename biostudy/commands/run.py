@@ -25,13 +25,14 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import claims, combine, continuation, store
+from ..data import claims, combine, continuation, netcdf_io, store
+from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
-from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
+from ..inputs.scene import STREAMED, Scene, load_scene, overrides_text, scene_from_data
 from ..quantities import alerts
 
 
@@ -80,13 +81,14 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
     it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
     NAME.nc); bad input is `BadInput`."""
+    runs_here = STREAMED if write or output is not None else True  # a run that writes streams its outputs
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}
         path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"),
-                                             runs_here=True)
+                                             runs_here=runs_here)
     else:
         path = bundled.resolve(scene)
-        loaded = load_scene(path, overrides, runs_here=True)
+        loaded = load_scene(path, overrides, runs_here=runs_here)
     previous = None
     if continue_from is not None:
         continue_from = Path(continue_from)
@@ -98,13 +100,14 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
 
 
-def _simulated(loaded: Loaded, progress) -> xr.Dataset:
-    """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped."""
+def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Dataset:
+    """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
+    fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     problem = loaded.scene.problem()
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:
-        ds = solver.simulate(problem, progress=progress)
+        ds = solver.simulate(problem, progress=progress, sink=sink)
     except solver.SimulationError as error:
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
     if loaded.previous is not None and loaded.previous_path is not None:
@@ -122,9 +125,12 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
 
 def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
     """Simulate and write the dataset (stamped with the scene, its file, the overrides and the software);
-    a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here."""
+    a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here.
+    A run that writes a file streams its fields to a spool beside it (`data.spool`) and returns the file
+    written, opened lazily: its memory does not grow with its outputs."""
+    spool = Spool(loaded.target) if loaded.target is not None else None
     try:
-        ds = _simulated(loaded, progress)
+        ds = _simulated(loaded, progress, spool)
         if loaded.target is not None:
             try:
                 if loaded.claim is not None:
@@ -134,7 +140,10 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
             except OSError as error:  # e.g. the disk filled up while it ran (`store.NotWritten`)
                 kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
+            ds = netcdf_io.open_dataset(loaded.target)
     finally:
+        if spool is not None:
+            spool.close()
         if loaded.claim is not None:
             loaded.claim.release()
     return Result(ds, loaded.target, loaded.replacing)

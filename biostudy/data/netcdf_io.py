@@ -64,3 +64,33 @@ def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
             store.close()
         raise
     store.close()  # flushes: a disk that fills up here is an error too
+
+
+class Growing:
+    """A new netCDF4 file whose variables grow by one slab (one output) at a time along an unlimited first
+    dimension of their own, every netCDF call under `HDF5`: a writer that keeps nothing of what it wrote."""
+
+    def __init__(self, path: str | Path, compression: dict):
+        import netCDF4
+
+        self.compression = compression
+        with HDF5:
+            self.nc = netCDF4.Dataset(path, "w", format="NETCDF4")
+
+    def append(self, name: str, values) -> None:
+        """`values` (one output of the variable `name`) after those appended before."""
+        with HDF5:
+            if name not in self.nc.variables:
+                dims = [f"{name}_output", *(f"{name}_{axis}" for axis in range(values.ndim))]
+                self.nc.createDimension(dims[0], None)
+                for dim, length in zip(dims[1:], values.shape):
+                    self.nc.createDimension(dim, length)
+                self.nc.createVariable(name, values.dtype, dims, fill_value=False, chunksizes=(1, *values.shape),
+                                       **self.compression)
+            variable = self.nc.variables[name]
+            variable[variable.shape[0]] = values
+
+    def close(self) -> None:
+        with HDF5:
+            if self.nc.isopen():
+                self.nc.close()

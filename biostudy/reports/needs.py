@@ -39,7 +39,7 @@ def needs(path) -> str:
             f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/)",
             f"here          {available}; N local workers need about N times one simulation"])
     scene = load_scene(path)
-    found = resources.estimate(scene)
+    found = resources.estimate(scene, streamed=True)  # `biostudy run` writes its file as it goes
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
     return "\n".join([
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
