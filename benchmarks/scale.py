@@ -3,6 +3,7 @@
     python benchmarks/scale.py --quick                        # 32^3 with and without mechanics (~1 min)
     python benchmarks/scale.py                                # 32^3 ... 128^3 with mechanics, ... 200^3 without
     python benchmarks/scale.py --sizes 64 --outputs 5 81 --steps 80 --no-mechanics   # streamed outputs (29.1)
+    python benchmarks/scale.py --sizes 32 --outputs 5 81 --steps 80 --no-mechanics --baseline /tmp/old
 
 The scene: `studies/directional.toml` (paper 4.1, a 20 µm cube) at n^3 cells of 20/n µm, the time step of the
 scene (dt = 1e-3), `--steps` steps, `--outputs` outputs, mechanics as the scene has it (every 4th output and the
@@ -44,10 +45,14 @@ result = command.compute(loaded)
 attrs = result.dataset.attrs
 peak = int(re.search(r"VmHWM:\\s+(\\d+) kB", open("/proc/self/status").read()).group(1)) * 1024
 solves = int(result.dataset.sizes.get("time_mechanics", 0))
+try:
+    estimate = resources.estimate(loaded.scene, streamed=True).memory
+except TypeError:  # a version before outputs streamed (--baseline)
+    estimate = resources.estimate(loaded.scene).memory
 loop = sum(float(v) for k, v in attrs.items() if k.startswith("wall_time_"))  # the time loop's own parts
 print(json.dumps({"wall": time.perf_counter() - began, "run": loop,
                   "mechanics": float(attrs.get("wall_time_mechanics", 0.0)), "steps": int(attrs["steps_taken"]),
-                  "solves": solves, "peak": peak, "estimate": resources.estimate(loaded.scene, streamed=True).memory}))
+                  "solves": solves, "peak": peak, "estimate": estimate}))
 """
 
 
@@ -62,7 +67,8 @@ def case(n: int, steps: int, outputs: int, mechanics: bool) -> dict:
         child = CHILD.replace("SCENE", repr(str(SCENE)))
         done = subprocess.run([sys.executable, "-c", child, str(Path(directory) / "run.nc"),
                                *overrides(n, steps, outputs, mechanics)],
-                              capture_output=True, text=True, env={"BIOSTUDY_MEMORY": "1 TB", **_env()})
+                              capture_output=True, text=True, env={"BIOSTUDY_MEMORY": "1 TB", **_env()},
+                              cwd=directory)  # not this tree: `python -c` puts the working directory first
     if done.returncode:
         raise SystemExit(f"{n}^3 failed:\n{done.stderr[-2000:]}")
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -71,7 +77,10 @@ def case(n: int, steps: int, outputs: int, mechanics: bool) -> dict:
 def _env() -> dict:
     import os
 
-    return {**os.environ, "PYTHONPATH": str(ROOT)}
+    return {**os.environ, "PYTHONPATH": BASELINE or str(ROOT)}
+
+
+BASELINE = ""  # --baseline DIR: another version's tree, run instead of this one
 
 
 def largest_fitting(memory: float, mechanics: bool, outputs: int) -> int:
@@ -101,8 +110,13 @@ def main() -> None:
     parser.add_argument("--outputs", type=int, nargs="*", default=[5])
     parser.add_argument("--no-mechanics", action="store_true", help="only runs without mechanics")
     parser.add_argument("--memory", type=float, default=24e9, help="bytes of memory for the largest fitting n")
+    parser.add_argument("--baseline", default="", help="run another version's tree instead (e.g. before streaming: "
+                                                       "git archive 55c9f28 | tar -x -C /tmp/old)")
     args = parser.parse_args()
     import os
+
+    global BASELINE
+    BASELINE = args.baseline
 
     os.environ.setdefault("BIOSTUDY_MEMORY", "1 TB")  # the estimate is reported, not enforced
     sys.path.insert(0, str(ROOT))

@@ -14,7 +14,7 @@ from biostudy.commands import run as command
 from biostudy.data import store
 from biostudy.quantities import observables
 
-VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds"}  # what differs between two runs
+VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds", "cpu_time_loop", "cpu_time_first"}  # timings
 
 
 def _layout(path) -> dict:

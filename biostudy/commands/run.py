@@ -128,8 +128,9 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here.
     A run that writes a file streams its fields to a spool beside it (`data.spool`) and returns the file
     written, opened lazily: its memory does not grow with its outputs."""
-    spool = Spool(loaded.target) if loaded.target is not None else None
+    spool = None
     try:
+        spool = Spool(loaded.target) if loaded.target is not None else None  # no file until the first output
         ds = _simulated(loaded, progress, spool)
         if loaded.target is not None:
             try:

@@ -18,6 +18,7 @@ import contextlib
 import threading
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 from xarray.backends import DummyFileManager, NetCDF4DataStore
 
@@ -28,13 +29,18 @@ def _store(nc) -> NetCDF4DataStore:
     return NetCDF4DataStore(DummyFileManager(nc, lock=HDF5), lock=HDF5)
 
 
-def open_dataset(path: str | Path, chunks: dict | None = None) -> xr.Dataset:
+def open_dataset(path: str | Path, chunks: dict | None = None, one_chunk_cached: bool = False) -> xr.Dataset:
     """A netCDF file as a lazy xarray Dataset (`chunks` as for `xr.open_dataset`); its close() closes the file.
+    `one_chunk_cached`: HDF5 keeps one chunk of each variable read, not as many as its cache takes (a file
+    read once through, whose reading must not hold more memory the longer it is).
     Errors are netCDF4's (OSError for a file it cannot open, RuntimeError or AttributeError for damage)."""
     import netCDF4
 
     with HDF5:
         nc = netCDF4.Dataset(path)
+        if one_chunk_cached:
+            for variable in nc.variables.values():
+                _cache_one_chunk(variable)
     try:
         return xr.open_dataset(_store(nc), chunks=chunks)
     except BaseException:
@@ -54,8 +60,12 @@ def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
     try:
         writer = ArrayWriter(lock=HDF5)
         ds.dump_to_store(store, writer=writer, encoding=encoding)  # numpy data are written here
-        if writer.sources:  # lazy data (a study's case files): computed chunk by chunk in this thread
+        if writer.sources:  # lazy data (a streamed run, a study's case files): computed chunk by chunk in this thread
             import dask
+
+            with HDF5:
+                for variable in nc.variables.values():
+                    _cache_one_chunk(variable)
 
             with dask.config.set(scheduler="synchronous"):
                 writer.sync()
@@ -64,6 +74,15 @@ def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
             store.close()
         raise
     store.close()  # flushes: a disk that fills up here is an error too
+
+
+def _cache_one_chunk(variable) -> None:
+    """HDF5 caches a variable's chunks as they are written (up to its cache size): keep one, so that writing
+    many outputs holds no more memory than writing one."""
+    chunks = variable.chunking()
+    if chunks != "contiguous" and variable.dtype != str:
+        size = int(np.prod(chunks)) * np.dtype(variable.dtype).itemsize
+        variable.set_var_chunk_cache(size=max(size, 1))
 
 
 class Growing:
@@ -85,8 +104,9 @@ class Growing:
                 self.nc.createDimension(dims[0], None)
                 for dim, length in zip(dims[1:], values.shape):
                     self.nc.createDimension(dim, length)
-                self.nc.createVariable(name, values.dtype, dims, fill_value=False, chunksizes=(1, *values.shape),
-                                       **self.compression)
+                variable = self.nc.createVariable(name, values.dtype, dims, fill_value=False,
+                                                  chunksizes=(1, *values.shape), **self.compression)
+                _cache_one_chunk(variable)
             variable = self.nc.variables[name]
             variable[variable.shape[0]] = values
 

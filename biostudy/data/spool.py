@@ -2,8 +2,8 @@
 
 `solver.simulate` hands every output's fields to its sink at once
 (`solver.sink`); `Spool` appends them to a hidden netCDF file beside the
-target (`store.temporary_name` of NAME.spool: a killed run's spool is a
-temporary like any other, removed as they are) and gives them back at the
+target (`store.temporary_name`: a killed run's spool is a temporary like
+any other, removed by the next run into that output or sweep there) and gives them back at the
 end as lazy arrays, read one output at a time.  The dataset is then made,
 measured (`quantities.observables` in blocks of outputs) and written to the
 target's own temporary chunk by chunk (`netcdf_io.write`), so a run's
@@ -26,15 +26,19 @@ SPOOL_COMPRESSION = {"zlib": True, "complevel": 1, "shuffle": True}
 
 
 class Spool:
-    """An `solver.sink.OutputSink` on a file beside `target`; `close` removes it (after the dataset is written)."""
+    """An `solver.sink.OutputSink` on a file beside `target`, made at the first output; `close` removes it (after
+    the dataset is written, or whatever stopped the run: an interruption included)."""
 
     def __init__(self, target: Path):
-        self.path = temporary_name(target.parent / f"{target.name}.spool")
-        self.file: netcdf_io.Growing | None = netcdf_io.Growing(self.path, SPOOL_COMPRESSION)
+        self.path = temporary_name(target)
+        self.file: netcdf_io.Growing | None = None
         self.opened: Any = None
+        self.read = False
 
     def add(self, snapshot) -> None:
-        assert self.file is not None, "a spool takes no outputs after its fields were read"
+        assert not self.read, "a spool takes no outputs after its fields were read"
+        if self.file is None:
+            self.file = netcdf_io.Growing(self.path, SPOOL_COMPRESSION)
         for name in (*CELL_FIELDS, *MECHANICS_FIELDS):
             value = getattr(snapshot, name)
             if value is not None:
@@ -42,18 +46,20 @@ class Spool:
 
     def fields(self) -> dict[str, Any]:
         """Every field kept, as a dask array of one chunk per output."""
-        assert self.file is not None
+        assert self.file is not None, "a spool gives fields only after outputs were added"
         self.file.close()
-        self.file = None
+        self.read = True
         names = (*CELL_FIELDS, *MECHANICS_FIELDS)
-        self.opened = netcdf_io.open_dataset(self.path, chunks={f"{name}_output": 1 for name in names})
+        self.opened = netcdf_io.open_dataset(self.path, {f"{name}_output": 1 for name in names}, one_chunk_cached=True)
         return {name: self.opened[name].data for name in names if name in self.opened}
 
     def close(self) -> None:
         """Close and remove the spool (whatever was written of it)."""
-        with contextlib.suppress(Exception):
-            if self.file is not None:
-                self.file.close()
-            if self.opened is not None:
-                self.opened.close()
-        Path(self.path).unlink(missing_ok=True)
+        try:
+            with contextlib.suppress(Exception):
+                if self.file is not None:
+                    self.file.close()
+                if self.opened is not None:
+                    self.opened.close()
+        finally:
+            Path(self.path).unlink(missing_ok=True)

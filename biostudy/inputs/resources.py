@@ -15,7 +15,7 @@ docs/mechanics.md for the 3-D multigrid and smoothed-aggregation figures):
 - outputs: a run that writes its file streams its fields to disk as they
   are made (`data.spool`): a few outputs' fields at a time (the one being
   made, the one being written, the observables' block of at most
-  `observables.BLOCK_BYTES`) and a little bookkeeping per output; a sweep's
+  `BLOCK_BYTES`) and a little bookkeeping per output; a sweep's
   case, a calibration's simulation and the API's run without a file hold
   every snapshot's fields (phi, c, alpha; p and u with mechanics) about
   three times over (the run's snapshots, the dataset, its encoding or
@@ -54,7 +54,8 @@ MECHANICS_PER_NODE = {("direct", 2): 7.5e3, ("direct", 3): 55e3, ("multigrid", 2
                       ("amg", 2): 4.4e3, ("amg", 3): 13.2e3}
 COPIES = 3  # how many times the outputs are held at once, unless streamed
 STREAMED = 4  # outputs' fields held at once by a run that streams them (made, spooled, read back, written)
-BLOCK_BYTES = 64e6  # the observables' block (`quantities.observables.BLOCK_BYTES`, not imported: xarray)
+BLOCK_BYTES = 4e6  # fields read at once to measure a run's observables (`quantities.observables.variables`)
+BLOCK_COPIES = 6  # the block, and what measuring it makes of it (NaN filled, thresholded): measured 5.5 at 32³
 PER_OUTPUT = 2e3  # bytes of bookkeeping per snapshot and copy (objects, scalars), whatever the grid
 VALIDATION_PER_CELL = 64  # the masks and initial fields validating a scene builds (bytes per cell)
 DEFAULT_OUTPUTS = 11  # snapshots of a scene that names neither outputs nor output_times
@@ -109,7 +110,8 @@ def estimate(scene, streamed: bool = False) -> Estimate:
     written = 8.0 * per_output * outputs
     held = COPIES * (written + PER_OUTPUT * outputs)
     if streamed:
-        held = STREAMED * 8.0 * per_output + min(BLOCK_BYTES, written) + PER_OUTPUT * outputs
+        block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
+        held = STREAMED * 8.0 * per_output + BLOCK_COPIES * block + PER_OUTPUT * outputs
     return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written)
 
 

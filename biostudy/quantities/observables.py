@@ -45,11 +45,11 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
+from ..inputs.resources import BLOCK_BYTES
 from . import comstat, measures, substratum
 from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
-BLOCK_BYTES = 64e6  # fields read at once to measure a run: a few outputs of a large grid, every output of a small one
 TWO_D = " (2-D: per µm of thickness)"
 
 
