@@ -85,12 +85,14 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
                               output=None if output is None else Path(output), force=force,
                               continue_from=continue_from, write=output is not None)
         result = command.compute(loaded, progress=progress)
-    attrs = result.dataset.attrs
+    ds = result.dataset.load()  # a written run comes back from its file, read whole and closed as before
+    ds.close()
+    attrs = ds.attrs
     log.info("%s: %s steps, %s bisected, wall time %.3g s%s", loaded.scene.name, attrs["steps_taken"],
              attrs["steps_bisected"], attrs["wall_time"], f"; wrote {output}" if output is not None else "")
     for said in result.warnings():
         warnings.warn(said, stacklevel=2)
-    return netcdf.as_run(result.dataset)
+    return netcdf.as_run(ds)
 
 
 def sweep(study: str | Path, directory: str | Path, *, workers: int | None = None, scheduler: str | None = None,

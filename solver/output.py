@@ -13,12 +13,18 @@ from __future__ import annotations
 
 import importlib.metadata as metadata
 import platform
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import xarray as xr
 
 from .problem import AXES, PRESSURES, Problem, parameter_infos
+from .sink import Held
 from .transport.bounds import ROUNDOFF
+
+if TYPE_CHECKING:
+    from .timeloop import Snapshot
 
 BIOFILM_THRESHOLD = 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
@@ -91,6 +97,34 @@ def parameter_variables(problem: Problem) -> dict:
             for info in parameter_infos(p)}
 
 
+@dataclass(frozen=True)
+class Record:
+    """What the dataset keeps of one output besides its fields: time, counters, the series measured on it."""
+
+    time: float
+    steps: int
+    bisections: int
+    rejected: int
+    elapsed: float
+    phi_mean: float
+    c_mean: float
+    biofilm_volume: float
+    solved: bool  # the mechanics was solved at this output
+    mechanics: dict = field(default_factory=dict)
+
+
+def record(problem: Problem, snapshot: Snapshot) -> Record:
+    """The output's `Record`: its series measured on its fields (open cells), before the fields go to a sink."""
+    grid = problem.grid
+    active = ~problem.obstacle
+    volume = grid.cell_volume * (SLAB_THICKNESS if grid.ndim == 2 else 1.0)
+    phi = snapshot.phi[active]
+    return Record(snapshot.time, snapshot.steps, snapshot.bisections, snapshot.rejected, snapshot.elapsed,
+                  float(phi.mean()), float(snapshot.c[active].mean()),
+                  float(np.count_nonzero(phi >= BIOFILM_THRESHOLD) * volume), snapshot.p is not None,
+                  dict(snapshot.mechanics))
+
+
 def _attributes(problem: Problem, report: dict, snapshots) -> dict:
     p, n = problem.params, problem.numerics
     attrs = {
@@ -142,46 +176,52 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
     return attrs
 
 
-def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
-    """The run as a Dataset: fields, time series, static masks, attributes."""
+def to_dataset(problem: Problem, snapshots: list[Snapshot], report: dict) -> xr.Dataset:
+    """The run as a Dataset from its snapshots held in memory (`assemble`)."""
+    held = Held()
+    for snapshot in snapshots:
+        held.add(snapshot)
+    return assemble(problem, [record(problem, s) for s in snapshots], held.fields(), report)
+
+
+def assemble(problem: Problem, records: list[Record], fields: dict[str, Any], report: dict) -> xr.Dataset:
+    """The run as a Dataset: fields (as an `OutputSink` gives them: numpy or lazy arrays, one output along
+    the first axis), time series, static masks, attributes."""
     grid = problem.grid
     cell_dims = tuple(reversed(grid.axes))
     node_dims = tuple(f"{a}_node" for a in cell_dims)
-    active = ~problem.obstacle
-    volume = grid.cell_volume * (SLAB_THICKNESS if grid.ndim == 2 else 1.0)
-    times = np.array([s.time for s in snapshots])
+    times = np.array([r.time for r in records])
 
     data: dict[str, tuple] = {}
     for name in ("phi", "c", "alpha"):
         units, long_name = FIELDS[name]
-        data[name] = (("time", *cell_dims), np.stack([getattr(s, name) for s in snapshots]),
-                      {"units": units, "long_name": long_name})
-    solved = [s for s in snapshots if s.p is not None]
+        data[name] = (("time", *cell_dims), fields[name], {"units": units, "long_name": long_name})
+    solved = [r for r in records if r.solved]
     if problem.mechanics is not None:
         units, long_name = FIELDS["p"]
-        data["p"] = (("time_mechanics", *cell_dims), np.stack([s.p for s in solved]),
+        empty = (0, *grid.cells_shape)
+        data["p"] = (("time_mechanics", *cell_dims), fields.get("p", np.zeros(empty)),
                      {"units": units, "long_name": long_name, "pressure": problem.mechanics.pressure,
                       "comment": PRESSURES[problem.mechanics.pressure]})
-        data["u"] = (("time_mechanics", *node_dims, "component"), np.stack([s.u for s in solved]),
+        data["u"] = (("time_mechanics", *node_dims, "component"),
+                     fields.get("u", np.zeros((0, *(n + 1 for n in grid.cells_shape), grid.ndim))),
                      {"units": "um", "long_name": "displacement of grid node"})
-        data["newton_iterations"] = ("time_mechanics", np.array([s.mechanics.get("newton_iterations", -1)
-                                                                 for s in solved], dtype=np.int32),
+        data["newton_iterations"] = ("time_mechanics", np.array([r.mechanics.get("newton_iterations", -1)
+                                                                 for r in solved], dtype=np.int32),
                                      {"units": "1", "long_name": "Newton iterations of the mechanics"})
-    phi = data["phi"][1]
-    data["phi_mean"] = ("time", np.array([f[active].mean() for f in phi]),
+    data["phi_mean"] = ("time", np.array([r.phi_mean for r in records]),
                         {"units": "1", "long_name": "mean biofilm density over non-obstacle cells"})
-    data["c_mean"] = ("time", np.array([s.c[active].mean() for s in snapshots]),
+    data["c_mean"] = ("time", np.array([r.c_mean for r in records]),
                       {"units": "1", "long_name": "mean nutrient concentration over non-obstacle cells"})
-    data["biofilm_volume"] = ("time", np.array([np.count_nonzero(f[active] >= BIOFILM_THRESHOLD) * volume
-                                                for f in phi]),
+    data["biofilm_volume"] = ("time", np.array([r.biofilm_volume for r in records]),
                               {"units": "um3", "long_name": "volume of cells with phi >= 0.5"
                                + (" (2-D: per µm of thickness)" if grid.ndim == 2 else "")})
     for name, counter, long_name in (("steps_taken", "steps", "accepted steps so far"),
                                      ("steps_bisected", "bisections", "bisected (failed) steps so far"),
                                      ("steps_rejected", "rejected", "steps rejected by the error control so far")):
-        data[name] = ("time", np.array([getattr(s, counter) for s in snapshots], dtype=np.int64),
+        data[name] = ("time", np.array([getattr(r, counter) for r in records], dtype=np.int64),
                       {"units": "1", "long_name": long_name})
-    data["elapsed"] = ("time", np.array([s.elapsed for s in snapshots]),
+    data["elapsed"] = ("time", np.array([r.elapsed for r in records]),
                        {"units": "s", "long_name": "wall time since the start of the run"})
     data["obstacle"] = (cell_dims, problem.obstacle.astype(np.int8),
                         {"units": "1", "long_name": "rigid obstacle cell",
@@ -193,14 +233,14 @@ def to_dataset(problem: Problem, snapshots: list, report: dict) -> xr.Dataset:
     coords = _coordinates(problem)
     coords["time"] = ("time", times, TIME_ATTRS, NO_FILL)
     if problem.mechanics is not None:
-        coords["time_mechanics"] = ("time_mechanics", np.array([s.time for s in solved]),
+        coords["time_mechanics"] = ("time_mechanics", np.array([r.time for r in solved]),
                                     {**TIME_ATTRS, "long_name": "normalised time T* of the outputs where the "
                                                                 "mechanics was solved"}, NO_FILL)
         coords["component"] = ("component", list(AXES[: grid.ndim]),
                                {"long_name": "displacement component", "units": "1"})
     else:
         coords = {k: v for k, v in coords.items() if not k.endswith("_node")}
-    return xr.Dataset(data, coords=coords, attrs=_attributes(problem, report, snapshots))
+    return xr.Dataset(data, coords=coords, attrs=_attributes(problem, report, records))
 
 
 def on_output_times(ds: xr.Dataset) -> xr.Dataset:

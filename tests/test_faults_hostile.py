@@ -510,7 +510,7 @@ def test_refused_sweeps_leave_no_claim_behind(finished, tmp_path, monkeypatch):
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
     line = one_line(invoke("sweep", finished["study"], "-o", ".", "-q", "--scheduler", "tcp://127.0.0.1:9"))
     assert "nothing listens at tcp://127.0.0.1:9" in line and os.listdir(here) == []
-    monkeypatch.setattr(resources, "available_memory", lambda: 3e8)  # one run (~200 MB) fits, two do not
+    monkeypatch.setattr(resources, "available_memory", lambda: 4.5e8)  # one run (~320 MB) fits, two do not
     for target in (".", "new/deeper"):
         line = one_line(invoke("sweep", finished["study"], "-o", target, "-q", "--workers", "2"))
         assert "use fewer workers" in line and os.listdir(here) == []

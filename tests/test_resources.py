@@ -143,3 +143,20 @@ def test_sizes_read_as_people_write_them(text, size):
 def test_a_size_in_other_units_is_refused():
     with pytest.raises(ValueError):
         resources.parse_size("3 GiB")
+
+
+def test_a_streamed_runs_estimate_does_not_grow_with_its_outputs():
+    """Issue 29.1: `biostudy run` streams its outputs to disk, so its estimate holds a few outputs' fields and a
+    little bookkeeping per output; a sweep's case (held) still holds every output about three times over."""
+    from biostudy.inputs.scene import load_scene
+
+    def outputs(count: int, streamed: bool) -> float:
+        scene = load_scene(STUDIES / "directional.toml", ["grid.shape=[64,64,64]", "grid.spacing=0.3125",
+                                                           "time.steps=80", f"time.outputs={count}",
+                                                           "mechanics.enabled=false"])
+        return resources.estimate(scene, streamed=streamed).memory
+
+    one_output = 3 * 8 * 64**3
+    assert outputs(81, True) - outputs(5, True) < one_output  # bookkeeping only
+    assert outputs(81, False) - outputs(5, False) > 3 * 76 * one_output
+    assert outputs(81, True) < 1.15 * outputs(5, True)

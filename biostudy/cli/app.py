@@ -194,6 +194,7 @@ def run(
         for warning in result.warnings():
             typer.echo(f"warning: {warning}", err=True)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
+        result.dataset.close()  # the file written, opened lazily (`commands.run.compute`)
 
 
 def _job_command(quiet: bool, load: Callable, as_json: bool = False, **execution) -> None:

@@ -26,13 +26,14 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import claims, combine, continuation, store
+from ..data import claims, combine, continuation, netcdf_io, store
+from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
-from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
+from ..inputs.scene import STREAMED, Scene, load_scene, overrides_text, scene_from_data
 from ..quantities import alerts
 
 log = logging.getLogger(__name__)  # detail for `-v` and for Python callers who configure logging (cli.logs)
@@ -83,13 +84,14 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
     it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
     NAME.nc); bad input is `BadInput`."""
+    runs_here = STREAMED if write or output is not None else True  # a run that writes streams its outputs
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}
         path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"),
-                                             runs_here=True)
+                                             runs_here=runs_here)
     else:
         path = bundled.resolve(scene)
-        loaded = load_scene(path, overrides, runs_here=True)
+        loaded = load_scene(path, overrides, runs_here=runs_here)
     log.debug("%s: %s cells of %g µm, %d steps to T* = %g, %d outputs, mechanics %s", loaded.name,
               " × ".join(map(str, loaded.grid.shape)), loaded.grid.spacing, loaded.time.steps, loaded.time.t_end,
               loaded.time.count(), "on" if loaded.mechanics is not None and loaded.mechanics.enabled else "off")
@@ -111,14 +113,15 @@ def _first_dataset() -> None:
     xr.Dataset({"warm": ("warm", [0.0])})
 
 
-def _simulated(loaded: Loaded, progress) -> xr.Dataset:
-    """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped."""
+def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Dataset:
+    """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
+    fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     _first_dataset()
     problem = loaded.scene.problem()
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:
-        ds = solver.simulate(problem, progress=progress)
+        ds = solver.simulate(problem, progress=progress, sink=sink)
     except solver.SimulationError as error:
         raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
     log.debug("%s: wall time %.3g s (%s)", loaded.scene.name, ds.attrs["wall_time"], ", ".join(
@@ -140,9 +143,13 @@ def _simulated(loaded: Loaded, progress) -> xr.Dataset:
 
 def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
     """Simulate and write the dataset (stamped with the scene, its file, the overrides and the software);
-    a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here."""
+    a simulation that fails, or a dataset that cannot be written, is `Failed`; the output's claim ends here.
+    A run that writes a file streams its fields to a spool beside it (`data.spool`) and returns the file
+    written, opened lazily: its memory does not grow with its outputs."""
+    spool = None
     try:
-        ds = _simulated(loaded, progress)
+        spool = Spool(loaded.target) if loaded.target is not None else None  # no file until the first output
+        ds = _simulated(loaded, progress, spool)
         if loaded.target is not None:
             try:
                 if loaded.claim is not None:
@@ -152,7 +159,10 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
             except OSError as error:  # e.g. the disk filled up while it ran (`store.NotWritten`)
                 kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
+            ds = netcdf_io.open_dataset(loaded.target)
     finally:
+        if spool is not None:
+            spool.close()
         if loaded.claim is not None:
             loaded.claim.release()
     return Result(ds, loaded.target, loaded.replacing)

@@ -26,6 +26,8 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterator
 
+import numpy as np
+
 if TYPE_CHECKING:  # imported where a dataset is made: `show` of a run's file reads it with netCDF4 alone
     import netCDF4
     import xarray as xr
@@ -63,14 +65,19 @@ def _store(nc) -> NetCDF4DataStore:
     return NetCDF4DataStore(_manager()(nc, lock=HDF5), lock=HDF5)
 
 
-def open_dataset(path: str | Path, chunks: dict | None = None) -> xr.Dataset:
+def open_dataset(path: str | Path, chunks: dict | None = None, one_chunk_cached: bool = False) -> xr.Dataset:
     """A netCDF file as a lazy xarray Dataset (`chunks` as for `xr.open_dataset`); its close() closes the file.
+    `one_chunk_cached`: HDF5 keeps one chunk of each variable read, not as many as its cache takes (a file
+    read once through, whose reading must not hold more memory the longer it is).
     Errors are netCDF4's (OSError for a file it cannot open, RuntimeError or AttributeError for damage)."""
     import netCDF4
     import xarray as xr
 
     with HDF5:  # xarray reads the metadata here, outside its store's lock
         nc = netCDF4.Dataset(path)
+        if one_chunk_cached:
+            for variable in nc.variables.values():
+                _cache_one_chunk(variable)
         try:
             return xr.open_dataset(_store(nc), chunks=chunks)
         except BaseException:
@@ -93,10 +100,52 @@ def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
         try:
             writer = ArrayWriter(lock=HDF5)
             ds.dump_to_store(store, writer=writer, encoding=encoding)  # numpy data are written here
-            if writer.sources:
+            if writer.sources:  # lazy data (a streamed run, a study's case files): chunk by chunk, one cached
+                for variable in nc.variables.values():
+                    _cache_one_chunk(variable)
                 writer.sync()
         except BaseException:
             with contextlib.suppress(Exception):  # the reason it stopped is what is told, not a failed close
                 store.close()
             raise
         store.close()  # flushes: a disk that fills up here is an error too
+
+
+def _cache_one_chunk(variable) -> None:
+    """HDF5 caches a variable's chunks as they are written (up to its cache size): keep one, so that writing
+    many outputs holds no more memory than writing one."""
+    chunks = variable.chunking()
+    if chunks != "contiguous" and variable.dtype != str:
+        size = int(np.prod(chunks)) * np.dtype(variable.dtype).itemsize
+        variable.set_var_chunk_cache(size=max(size, 1))
+
+
+class Growing:
+    """A new netCDF4 file whose variables grow by one slab (one output) at a time along an unlimited first
+    dimension of their own, every netCDF call under `HDF5`: a writer that keeps nothing of what it wrote."""
+
+    def __init__(self, path: str | Path, compression: dict):
+        import netCDF4
+
+        self.compression = compression
+        with HDF5:
+            self.nc = netCDF4.Dataset(path, "w", format="NETCDF4")
+
+    def append(self, name: str, values) -> None:
+        """`values` (one output of the variable `name`) after those appended before."""
+        with HDF5:
+            if name not in self.nc.variables:
+                dims = [f"{name}_output", *(f"{name}_{axis}" for axis in range(values.ndim))]
+                self.nc.createDimension(dims[0], None)
+                for dim, length in zip(dims[1:], values.shape):
+                    self.nc.createDimension(dim, length)
+                variable = self.nc.createVariable(name, values.dtype, dims, fill_value=False,
+                                                  chunksizes=(1, *values.shape), **self.compression)
+                _cache_one_chunk(variable)
+            variable = self.nc.variables[name]
+            variable[variable.shape[0]] = values
+
+    def close(self) -> None:
+        with HDF5:
+            if self.nc.isopen():
+                self.nc.close()

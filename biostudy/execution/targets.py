@@ -60,7 +60,7 @@ def check_run(scene: Scene, scene_file: Path | None, target: Path, force: bool =
     masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
              if getattr(r, "shape", None) in ("mask", "image")]
     previous = store.replaceable(target, [p for p in (scene_file, *masks, *inputs) if p])
-    too_big = resources.run_problem({scene.name: resources.estimate(scene)}, 1, target)
+    too_big = resources.run_problem({scene.name: resources.estimate(scene, streamed=True)}, 1, target)
     if too_big:
         raise BadInput(too_big, scene_file)
     if previous is None:

@@ -12,11 +12,16 @@ docs/mechanics.md for the 3-D multigrid and smoothed-aggregation figures):
 - mechanics: per grid node, by preconditioner (the direct factorisation is
   the larger; "auto" means what it means to the solver:
   `solver.mechanics.linear_solver_for`);
-- outputs: every snapshot's fields (phi, c, alpha; p and u with mechanics),
-  held about three times over (the run's snapshots, the dataset, its
-  encoding or transfer);
-- a process: ~0.2 GB for an interpreter with the solver imported (each local
-  worker is one).
+- outputs: a run that writes its file streams its fields to disk as they
+  are made (`data.spool`): a few outputs' fields at a time (the one being
+  made, the one being written, the observables' block of at most
+  `BLOCK_BYTES`) and a little bookkeeping per output; a sweep's
+  case, a calibration's simulation and the API's run without a file hold
+  every snapshot's fields (phi, c, alpha; p and u with mechanics) about
+  three times over (the run's snapshots, the dataset, its encoding or
+  transfer);
+- a process: ~0.32 GB for an interpreter that runs and writes a scene (each
+  local worker is one), 0.06 GB more with the mechanics' imports.
 
 The parts are estimates within a factor of ~1.5, not bounds: a run is
 refused when its estimate exceeds the memory available (psutil), so a run
@@ -38,7 +43,9 @@ from solver.mechanics import linear_solver_for
 from ..errors import BadInput
 from . import memory
 
-PROCESS = 0.2e9  # bytes: an interpreter with the solver imported
+PROCESS = 0.32e9  # bytes: a process that runs and writes a scene (biostudy, FiPy, xarray, dask, netCDF4 imported):
+# VmHWM of `biostudy run` at 12³ 0.31 GB (benchmarks/scale.py); a bare `solver.simulate` needs ~0.2 GB
+MECHANICS_IMPORTS = 0.06e9  # scikit-fem and the mechanics' compiled kernels: 12³ with mechanics 0.37 GB
 TRANSPORT_PER_CELL = {2: 1.6e3, 3: 2.4e3}
 # 3-D multigrid: peak 0.77 GB at 40³, 2.0 GB at 60³ per snapshot, 2.8 GB for a one-shot growth to alpha = 0.2
 # at 60³ (docs/mechanics.md): 8-12 kB per node.  2-D multigrid: the first version's figure, not measured again.
@@ -46,7 +53,10 @@ TRANSPORT_PER_CELL = {2: 1.6e3, 3: 2.4e3}
 # 0.76 GB, benchmarks/mechanics_linear.py).
 MECHANICS_PER_NODE = {("direct", 2): 7.5e3, ("direct", 3): 55e3, ("multigrid", 2): 4e3, ("multigrid", 3): 12e3,
                       ("amg", 2): 4.4e3, ("amg", 3): 13.2e3}
-COPIES = 3  # how many times the outputs are held at once
+COPIES = 3  # how many times the outputs are held at once, unless streamed
+STREAMED = 4  # outputs' fields held at once by a run that streams them (made, spooled, read back, written)
+BLOCK_BYTES = 4e6  # fields read at once to measure a run's observables (`quantities.observables.variables`)
+BLOCK_COPIES = 6  # the block, and what measuring it makes of it (NaN filled, thresholded): measured 5.5 at 32³
 PER_OUTPUT = 2e3  # bytes of bookkeeping per snapshot and copy (objects, scalars), whatever the grid
 VALIDATION_PER_CELL = 64  # the masks and initial fields validating a scene builds (bytes per cell)
 DEFAULT_OUTPUTS = 11  # snapshots of a scene that names neither outputs nor output_times
@@ -84,8 +94,9 @@ def size(value: float) -> str:
     return f"~{value / 1e3:.3g} kB"
 
 
-def estimate(scene) -> Estimate:
-    """What running `scene` (a validated `Scene`, or one being validated) needs."""
+def estimate(scene, streamed: bool = False) -> Estimate:
+    """What running `scene` (a validated `Scene`, or one being validated) needs; `streamed`: as a run that writes
+    its file (`biostudy run`), whose memory does not grow with its outputs."""
     shape = list(scene.grid.shape)
     ndim = len(shape)
     cells = math.prod(shape)
@@ -95,11 +106,14 @@ def estimate(scene) -> Estimate:
     per_output = 3 * cells  # phi, c, alpha
     if scene.mechanics is not None and scene.mechanics.enabled:
         method = linear_solver_for(scene.mechanics.linear_solver, ndim * nodes)
-        mechanics = MECHANICS_PER_NODE[(method, ndim)] * nodes
+        mechanics = MECHANICS_IMPORTS + MECHANICS_PER_NODE[(method, ndim)] * nodes
         per_output += cells + ndim * nodes  # p, u
     written = 8.0 * per_output * outputs
-    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics,
-                    COPIES * (written + PER_OUTPUT * outputs), written)
+    held = COPIES * (written + PER_OUTPUT * outputs)
+    if streamed:
+        block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
+        held = STREAMED * 8.0 * per_output + BLOCK_COPIES * block + PER_OUTPUT * outputs
+    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written)
 
 
 MEMORY_VARIABLE = "BIOSTUDY_MEMORY"  # e.g. "16 GB": the memory this process may use, instead of the others

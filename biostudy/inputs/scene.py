@@ -48,6 +48,8 @@ def _field(default, description: str, units: str = "1", **kw):
     return Field(default, description=description, json_schema_extra={"units": units}, **kw)
 
 
+STREAMED = "streamed"  # runs_here of a run that writes its file as it goes: its outputs stream to disk
+
 class GridSpec(BaseModel):
     """Structured grid of cubic cells, origin at 0."""
 
@@ -272,7 +274,7 @@ class Scene(BaseModel):
         if too_big:
             raise InvalidAt("grid.shape", too_big)
         if (info.context or {}).get("runs_here"):  # a run here: its whole estimate, before building the masks
-            found = estimate(self)
+            found = estimate(self, streamed=(info.context or {}).get("runs_here") == STREAMED)
             too_big = run_problem({self.name: found}, 1)
             if too_big:
                 outputs = "time.output_times" if self.time.output_times is not None else "time.outputs"
@@ -387,10 +389,12 @@ def key_info(key: str) -> tuple[str, str]:
     return found.description, str((found.json_schema_extra or {}).get("units", "1"))
 
 
-def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None, runs_here: bool = False) -> Scene:
+def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None,
+                    runs_here: bool | str = False) -> Scene:
     """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
     value that an override gave names that override instead (`origins`).  `runs_here`: the scene is to run
-    in this process, so a run that could not fit in its memory is refused before the grid's arrays are made."""
+    in this process, so a run that could not fit in its memory is refused before the grid's arrays are made
+    (`STREAMED`: a run that writes its file as it goes, `resources.estimate`)."""
     file = Path(file)
     data = copy.deepcopy(data)
     if isinstance(data.get("name", ""), str) and not data.get("name"):
@@ -409,7 +413,7 @@ def read_scene_data(path: str | Path) -> dict:
     return data
 
 
-def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Scene:
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool | str = False) -> Scene:
     """Read, override and validate a scene file: the only way a scene file becomes a `Scene` (`runs_here`: see
     `scene_from_data`)."""
     data = read_scene_data(path)

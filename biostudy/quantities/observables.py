@@ -45,6 +45,7 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
+from ..inputs.resources import BLOCK_BYTES
 from . import comstat, measures, substratum
 from .saturation import SATURATION
 
@@ -169,10 +170,33 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     return out.unstack("_case").transpose(*extra, "time").assign_attrs(attrs)
 
 
-def variables(ds: xr.Dataset) -> dict[str, xr.DataArray]:
-    """Every observable this run's fields give, as time series with units and long_name (for study.nc)."""
-    fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})].load()  # each read once
-    return {n: evaluate(fields, n) for n, o in REGISTRY.items() if available(ds, o)}
+def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES) -> dict[str, xr.DataArray]:
+    """Every observable this run's fields give, as time series with units and long_name (for study.nc).
+    The fields are read once, at most `block_bytes` of them at a time (`_blocks`): a run whose fields stay
+    on disk (`data.spool`) is measured without holding every output."""
+    fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})]
+    names = [n for n, o in REGISTRY.items() if available(ds, o)]
+    blocks = _blocks(fields, block_bytes)
+    if len(blocks) == 1:
+        fields = fields.load()
+        return {n: evaluate(fields, n) for n in names}
+    parts: dict[str, list[xr.DataArray]] = {n: [] for n in names}
+    for block in blocks:
+        chosen = fields.isel(time=[0, *block] if block[0] else block)  # the first output: where fronts start
+        if "time_mechanics" in chosen.dims:
+            chosen = chosen.sel(time_mechanics=chosen["time_mechanics"].isin(chosen["time"].values))
+        chosen = chosen.load()
+        for n in names:
+            parts[n].append(evaluate(chosen, n).isel(time=slice(1 if block[0] else 0, None)))
+    return {n: xr.concat(p, "time").assign_attrs(p[0].attrs) for n, p in parts.items()}
+
+
+def _blocks(fields: xr.Dataset, block_bytes: float) -> list[list[int]]:
+    """The output indices in consecutive blocks whose fields take at most `block_bytes` (one output at least)."""
+    outputs = fields.sizes.get("time", 0)
+    per_output = sum(v.nbytes for v in fields.data_vars.values()) / max(outputs, 1)
+    size = max(1, int(block_bytes // max(per_output, 1)))
+    return [list(range(start, min(start + size, outputs))) for start in range(0, outputs, size)] or [[]]
 
 
 def available(ds: xr.Dataset, observable: Observable) -> bool:

@@ -71,6 +71,7 @@ def _compared() -> tuple[Compared, ...]:
 
 
 COMPARED = _compared()
+COSTS = ("cpu_time_loop", "cpu_time_first")  # a level's own cost, and its one-off start (`solver.timeloop.CpuTime`)
 QUANTITIES = tuple(c.name for c in COMPARED)
 
 
@@ -92,6 +93,7 @@ def final_state(ds: xr.Dataset, time: float | None = None) -> dict:
         **{q: observables.value(ds, q, index) if observables.available(ds, observables.get(q)) else float("nan")
            for q in OBSERVED},
         "front_position": measures.front_position(ds, index), "wall_time": float(ds.attrs["wall_time"]),
+        **{name: float(ds.attrs.get(name, np.nan)) for name in COSTS},
         "steps_taken": int(ds.attrs["steps_taken"]), "t_end": float(ds["time"].values[-1]),
         "time": float(ds["time"].values[index]),
         "extent": tuple(float(ds[a].values[-1]) + 0.5 * measures.spacing(ds) for a in ("x", "y", "z") if a in ds.dims),
@@ -161,7 +163,8 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
     `final_state` that every level is measured against instead of its series' finest level."""
     results = {level.job_id: _final(store.case_file(out_dir, level.job_id), time) for level in wanted}
     shape = (len(series), levels)
-    table = {name: np.full(shape, np.nan) for name in ("cells", "h", "dt", "tolerance", "wall_time", "steps_taken")}
+    table = {name: np.full(shape, np.nan) for name in ("cells", "h", "dt", "tolerance", "wall_time", "steps_taken",
+                                                      *COSTS)}
     errors = {q: np.full(shape, np.nan) for q in QUANTITIES}
     attrs = {}
     h0, cells0 = float(base.grid.spacing), int(np.prod(base.grid.shape))
@@ -182,6 +185,8 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
                 continue
             table["wall_time"][s, i] = result["wall_time"]
             table["steps_taken"][s, i] = result["steps_taken"]
+            for cost in COSTS:
+                table[cost][s, i] = result[cost]
             table["dt"][s, i] = result["t_end"] / result["steps_taken"]
             if reference is not None and (given is not None or level.job_id != reference_level.job_id):
                 coarse = mine[0].refine
@@ -210,6 +215,9 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
         "wall_time": (("series", "level"), table["wall_time"], {"units": "s", "long_name": "wall time of the run"}),
         "steps_taken": (("series", "level"), table["steps_taken"],
                         {"units": "1", "long_name": MEANINGS["steps_taken"]}),
+        "cell_steps": (("series", "level"), table["cells"] * table["steps_taken"],
+                       {"units": "1", "long_name": "cells times accepted steps: the work, whatever the machine"}),
+        **{name: (("series", "level"), table[name], {"units": "s", "long_name": MEANINGS[name]}) for name in COSTS},
         **{f"error_{c.name}": (("series", "level"), errors[c.name], {"units": c.units, "long_name": c.long_name})
            for c in COMPARED},
     }
@@ -228,7 +236,8 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
 def table_text(ds: xr.Dataset) -> str:
     """Markdown table of every level, then the observed orders."""
     present = [q for q in QUANTITIES if np.isfinite(ds[f"error_{q}"].values).any()]
-    head = ["series", "level", "cells", "h µm", "dt", "tolerance", "steps", "wall s"] + [f"err {q}" for q in present]
+    head = (["series", "level", "cells", "h µm", "dt", "tolerance", "steps", "loop CPU s", "first step s", "wall s"]
+            + [f"err {q}" for q in present])
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name in ds.series.values:
         for level in ds.level.values:
@@ -237,10 +246,15 @@ def table_text(ds: xr.Dataset) -> str:
                 continue
             cells = [str(name), str(int(level)), number(row.cells, 12), number(row.h), number(row.dt, 3),
                      number(row.tolerance, 1, exponent=True), number(row.steps_taken, 9),
+                     *(number(row[name], 3) if np.isfinite(float(row[name])) else "-" for name in COSTS),
                      number(row.wall_time, 3) if np.isfinite(float(row.wall_time)) else "failed"]
             cells += [number(row[f"error_{q}"], 3, exponent=True) if np.isfinite(float(row[f"error_{q}"])) else "ref"
                       for q in present]
             lines.append("| " + " | ".join(cells) + " |")
+    lines.append("")
+    lines.append("loop CPU s: the level's own time loop (its steps and mechanics solves), CPU time of the thread that "
+                 "ran it; first step s: its first step and mechanics solve, which load compiled kernels and build "
+                 "the first hierarchies (one-off, like the process start and imports in wall s).")
     lines.append("")
     lines.append("observed orders (slope of log |q_l - q_(l+1)| against log h, dt or tolerance):")
     lines.append("")

@@ -54,7 +54,7 @@ def needs(path) -> str:
             f"here          {available}; N local workers need about N times one simulation"]
                          + _refused(found[largest], "one simulation needs"))
     scene = load_scene(path)
-    found = resources.estimate(scene)
+    found = resources.estimate(scene, streamed=True)  # `biostudy run` writes its file as it goes
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
     return "\n".join([
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "

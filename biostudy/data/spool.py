@@ -1,0 +1,65 @@
+"""A run's fields written to disk as they are made: the output sink of a run that writes a file.
+
+`solver.simulate` hands every output's fields to its sink at once
+(`solver.sink`); `Spool` appends them to a hidden netCDF file beside the
+target (`store.temporary_name`: a killed run's spool is a temporary like
+any other, removed by the next run into that output or sweep there) and gives them back at the
+end as lazy arrays, read one output at a time.  The dataset is then made,
+measured (`quantities.observables` in blocks of outputs) and written to the
+target's own temporary chunk by chunk (`netcdf_io.write`), so a run's
+memory does not grow with its number of outputs (issue 29; measured in
+docs/transport.md, "How far one machine goes").  The spool is lightly
+compressed: it lives for one run, and its disk is the dataset's again.
+"""
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+from typing import Any
+
+from solver.sink import CELL_FIELDS, MECHANICS_FIELDS
+
+from . import netcdf_io
+from .store import temporary_name
+
+SPOOL_COMPRESSION = {"zlib": True, "complevel": 1, "shuffle": True}
+
+
+class Spool:
+    """An `solver.sink.OutputSink` on a file beside `target`, made at the first output; `close` removes it (after
+    the dataset is written, or whatever stopped the run: an interruption included)."""
+
+    def __init__(self, target: Path):
+        self.path = temporary_name(target)
+        self.file: netcdf_io.Growing | None = None
+        self.opened: Any = None
+        self.read = False
+
+    def add(self, snapshot) -> None:
+        assert not self.read, "a spool takes no outputs after its fields were read"
+        if self.file is None:
+            self.file = netcdf_io.Growing(self.path, SPOOL_COMPRESSION)
+        for name in (*CELL_FIELDS, *MECHANICS_FIELDS):
+            value = getattr(snapshot, name)
+            if value is not None:
+                self.file.append(name, value)
+
+    def fields(self) -> dict[str, Any]:
+        """Every field kept, as a dask array of one chunk per output."""
+        assert self.file is not None, "a spool gives fields only after outputs were added"
+        self.file.close()
+        self.read = True
+        names = (*CELL_FIELDS, *MECHANICS_FIELDS)
+        self.opened = netcdf_io.open_dataset(self.path, {f"{name}_output": 1 for name in names}, one_chunk_cached=True)
+        return {name: self.opened[name].data for name in names if name in self.opened}
+
+    def close(self) -> None:
+        """Close and remove the spool (whatever was written of it)."""
+        try:
+            with contextlib.suppress(Exception):
+                if self.file is not None:
+                    self.file.close()
+                if self.opened is not None:
+                    self.opened.close()
+        finally:
+            Path(self.path).unlink(missing_ok=True)

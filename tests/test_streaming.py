@@ -1,0 +1,97 @@
+"""A run that writes a file streams its outputs (issue 29.1): the same file as the dataset held in memory, and
+memory that does not grow with the number of outputs."""
+from __future__ import annotations
+
+import gc
+import weakref
+
+import netCDF4
+import numpy as np
+import pytest
+
+import solver
+from biostudy.commands import run as command
+from biostudy.data import store
+from biostudy.quantities import observables
+
+VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds", "cpu_time_loop", "cpu_time_first"}  # timings
+
+
+def _layout(path) -> dict:
+    """Each variable's dimensions, type, chunks, filters and attributes as netCDF4 reads them."""
+    with netCDF4.Dataset(path) as nc:
+        return {name: (var.dimensions, str(var.dtype), var.chunking(), var.filters(),
+                       {k: str(var.getncattr(k)) for k in var.ncattrs()}) for name, var in nc.variables.items()}
+
+
+def test_a_streamed_run_writes_the_file_the_dataset_held_in_memory_writes(tiny_scene, tmp_path):
+    overrides = ("time.outputs=5", "mechanics.enabled=true", "mechanics.every=2")
+    streamed = tmp_path / "streamed.nc"
+    command.compute(command.load(tiny_scene, overrides=overrides, output=streamed))
+    held = command._simulated(command.load(tiny_scene, overrides=overrides, write=False), None)
+    store.write_atomic(held, tmp_path / "held.nc")
+
+    assert _layout(streamed) == _layout(tmp_path / "held.nc")
+    a, b = store.open_dataset(streamed), store.open_dataset(tmp_path / "held.nc")
+    assert a.sizes["time_mechanics"] == 3
+    for name in a.variables:
+        if name != "elapsed":  # wall time
+            assert a[name].equals(b[name]), name
+    same = {k for k in a.attrs if not k.startswith("wall_time_") and k not in VOLATILE_ATTRS}
+    assert same == {k for k in b.attrs if not k.startswith("wall_time_") and k not in VOLATILE_ATTRS}
+    assert all(str(a.attrs[k]) == str(b.attrs[k]) for k in same)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["held.nc", "streamed.nc", "tiny.toml"]  # no spool left
+
+
+def test_observables_measured_in_blocks_of_outputs_equal_those_measured_at_once(tiny_scene):
+    loaded = command.load(tiny_scene, overrides=("time.outputs=7", "mechanics.enabled=true", "mechanics.every=3"),
+                          write=False)
+    ds = command._simulated(loaded, None)
+    whole = observables.variables(ds)
+    one_output = ds["phi"].isel(time=0).nbytes + ds["c"].isel(time=0).nbytes
+    for block in (one_output, 3 * one_output):
+        blocked = observables.variables(ds, block_bytes=block)
+        assert list(blocked) == list(whole)
+        for name in whole:
+            assert blocked[name].equals(whole[name]) and blocked[name].attrs == whole[name].attrs, name
+
+
+class Counting:
+    """An output sink that keeps nothing but weak references to the fields it is given, and counts at each
+    output how many fields of earlier outputs are still alive somewhere."""
+
+    def __init__(self) -> None:
+        self.seen: list[weakref.ref] = []
+        self.alive: list[int] = []
+
+    def add(self, snapshot) -> None:
+        gc.collect()
+        self.alive.append(sum(ref() is not None for ref in self.seen))
+        self.seen += [weakref.ref(getattr(snapshot, name)) for name in ("phi", "c", "alpha", "u", "p")
+                      if getattr(snapshot, name) is not None]
+
+    def fields(self) -> dict:
+        return {}
+
+
+def test_the_time_loop_holds_no_output_it_gave_its_sink(tiny_scene):
+    problem = command.load(tiny_scene, overrides=("time.outputs=6",), write=False).scene.problem()
+    sink = Counting()
+    with pytest.raises(KeyError):  # a sink that kept nothing has no fields to give
+        solver.simulate(problem, sink=sink)
+    assert len(sink.alive) == 6
+    assert max(sink.alive) <= 3  # the last output's phi, c, alpha at most (the loop's variable), never more
+
+
+@pytest.mark.parametrize("shape", [(6,), (2, 3)])
+def test_the_growing_file_appends_one_output_at_a_time(tmp_path, shape):
+    from biostudy.data import netcdf_io
+
+    grown = netcdf_io.Growing(tmp_path / "g.nc", {})
+    values = [np.full(shape, float(i)) for i in range(3)]
+    for v in values:
+        grown.append("f", v)
+    grown.close()
+    with netCDF4.Dataset(tmp_path / "g.nc") as nc:
+        np.testing.assert_array_equal(nc["f"][:], np.stack(values))
+        assert nc.dimensions["f_output"].isunlimited()
