@@ -152,13 +152,13 @@ def _many_times(n: int) -> str:
 
 def test_a_table_of_many_distinct_times_is_refused_when_its_outputs_cannot_fit_and_show_says_so(tmp_path,
                                                                                                monkeypatch):
-    # 20,000 outputs of 8 x 8 cells: ~0.2 GB held three times over, beside the process's 0.2 GB
+    # 20,000 outputs of 8 x 8 cells: ~0.2 GB held three times over, beside the process's 0.32 GB
     path = calibration(tmp_path, _many_times(20_000), '[estimate]\nr = [20.0, 250.0]\n')
-    monkeypatch.setenv("BIOSTUDY_MEMORY", "300 MB")
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "500 MB")
     refused = one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
                        "t.tsv: 20,000 outputs per simulation of condition scene (one per distinct measurement time): "
                        "needs ~")
-    assert "300 MB available" in refused and not (tmp_path / "out").exists()
+    assert "500 MB available" in refused and not (tmp_path / "out").exists()
     shown = invoke("show", path)
     assert shown.exit_code == 0, shown.output
     memory = refused.split("needs ")[1].split(" of memory")[0]
