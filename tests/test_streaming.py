@@ -17,6 +17,14 @@ from biostudy.quantities import observables
 VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds", "cpu_time_loop", "cpu_time_first"}  # timings
 
 
+@pytest.fixture(autouse=True)
+def every_run_streams(monkeypatch):
+    """The tiny scene's outputs are far below `resources.STREAM_ABOVE`: these tests stream them all the same."""
+    from biostudy.inputs import resources
+
+    monkeypatch.setattr(resources, "STREAM_ABOVE", 0.0)
+
+
 def _layout(path) -> dict:
     """Each variable's dimensions, type, chunks, filters and attributes as netCDF4 reads them."""
     with netCDF4.Dataset(path) as nc:

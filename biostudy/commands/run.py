@@ -31,7 +31,7 @@ from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
-from ..inputs import bundled
+from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import STREAMED, Scene, load_scene, overrides_text, scene_from_data
 from ..quantities import alerts
@@ -132,8 +132,9 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
     clock = loaded.scene.real_time_attrs()  # the warnings say their times in real time too
     ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-                     **loaded.scene.substratum_attrs(), **clock, **alerts.attrs(ds.assign_attrs(clock)))
+                     **loaded.scene.substratum_attrs(), **clock)
     ds = store.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
+    ds.attrs.update(alerts.attrs(ds))  # from the volumes just measured
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
@@ -148,7 +149,8 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     written, opened lazily: its memory does not grow with its outputs."""
     spool = None
     try:
-        spool = Spool(loaded.target) if loaded.target is not None else None  # no file until the first output
+        streamed = loaded.target is not None and resources.streams(loaded.scene)
+        spool = Spool(loaded.target) if streamed else None  # no file until the first output
         ds = _simulated(loaded, progress, spool)
         if loaded.target is not None:
             try:

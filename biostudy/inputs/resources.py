@@ -13,7 +13,7 @@ docs/mechanics.md for the 3-D multigrid and smoothed-aggregation figures):
   the larger; "auto" means what it means to the solver:
   `solver.mechanics.linear_solver_for`);
 - outputs: a run that writes its file streams its fields to disk as they
-  are made (`data.spool`): a few outputs' fields at a time (the one being
+  are made, once they exceed `STREAM_ABOVE` (`streams`, `data.spool`): a few outputs' fields at a time (the one being
   made, the one being written, the observables' block of at most
   `BLOCK_BYTES`) and a little bookkeeping per output; a sweep's
   case, a calibration's simulation and the API's run without a file hold
@@ -55,6 +55,7 @@ MECHANICS_PER_NODE = {("direct", 2): 7.5e3, ("direct", 3): 55e3, ("multigrid", 2
                       ("amg", 2): 4.4e3, ("amg", 3): 13.2e3}
 COPIES = 3  # how many times the outputs are held at once, unless streamed
 STREAMED = 4  # outputs' fields held at once by a run that streams them (made, spooled, read back, written)
+STREAM_ABOVE = 64e6  # bytes of output fields beyond which a run that writes its file streams them (`streams`)
 BLOCK_BYTES = 4e6  # fields read at once to measure a run's observables (`quantities.observables.variables`)
 BLOCK_COPIES = 6  # the block, and what measuring it makes of it (NaN filled, thresholded): measured 5.5 at 32³
 PER_OUTPUT = 2e3  # bytes of bookkeeping per snapshot and copy (objects, scalars), whatever the grid
@@ -96,7 +97,7 @@ def size(value: float) -> str:
 
 def estimate(scene, streamed: bool = False) -> Estimate:
     """What running `scene` (a validated `Scene`, or one being validated) needs; `streamed`: as a run that writes
-    its file (`biostudy run`), whose memory does not grow with its outputs."""
+    its file (`biostudy run`), whose memory does not grow with its outputs once they are worth streaming."""
     shape = list(scene.grid.shape)
     ndim = len(shape)
     cells = math.prod(shape)
@@ -110,10 +111,17 @@ def estimate(scene, streamed: bool = False) -> Estimate:
         per_output += cells + ndim * nodes  # p, u
     written = 8.0 * per_output * outputs
     held = COPIES * (written + PER_OUTPUT * outputs)
-    if streamed:
+    if streamed and written > STREAM_ABOVE:
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
         held = STREAMED * 8.0 * per_output + BLOCK_COPIES * block + PER_OUTPUT * outputs
     return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written)
+
+
+def streams(scene) -> bool:
+    """Whether a run of `scene` that writes its file streams its outputs to disk as they are made: when their
+    fields exceed `STREAM_ABOVE`.  Below, holding them three times over is a few hundred MB at most, and the
+    spool (a second file, read back lazily) would cost a small run more than it saves (~0.5 s a run)."""
+    return estimate(scene).disk > STREAM_ABOVE
 
 
 MEMORY_VARIABLE = "BIOSTUDY_MEMORY"  # e.g. "16 GB": the memory this process may use, instead of the others

@@ -25,8 +25,8 @@ def vanished(ds: xr.Dataset) -> str:
     """'' if the dense biofilm did not vanish while the biofilm grew, else what happened and the check to make."""
     if "phi" not in ds or "time" not in ds.dims or ds.sizes["time"] < 2:
         return ""
-    dense = measures.volume(ds, measures.DENSE)
-    biofilm = measures.volume(ds, measures.THRESHOLD)
+    dense = measures.kept_volume(ds, measures.DENSE)
+    biofilm = measures.kept_volume(ds, measures.THRESHOLD)
     times = ds["time"].values
     for j in range(1, len(dense)):
         if dense[j] > 0 or dense[:j].max() <= 0:

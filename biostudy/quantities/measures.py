@@ -106,10 +106,22 @@ def spacing(ds: xr.Dataset) -> float:
     return float(centres[1] - centres[0])
 
 
+RECORDED = {THRESHOLD: "biofilm_volume", DENSE: "dense_volume"}  # the observables a run's dataset keeps of these
+
+
 def volume(ds: xr.Dataset, level: float = DENSE) -> np.ndarray:
     """Volume (µm³; 2-D: µm² per µm of thickness) of cells with phi >= level, per output time."""
     dims = _cell_dims(ds)
     return (ds["phi"] >= level).sum(dims).values * spacing(ds) ** len(dims)
+
+
+def kept_volume(ds: xr.Dataset, level: float) -> np.ndarray:
+    """`volume`, read from the run's own observable where the dataset keeps it (a streamed run's phi is read from
+    disk again for every pass over it)."""
+    name = RECORDED.get(level)
+    if name in ds.data_vars and ds[name].dims == ("time",):
+        return np.asarray(ds[name].values, dtype=float)
+    return volume(ds, level)
 
 
 def phi_max(ds: xr.Dataset) -> np.ndarray:

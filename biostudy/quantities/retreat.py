@@ -29,7 +29,7 @@ def lost(ds: xr.Dataset) -> str:
     """'' if the biofilm never fell below 1 - FRACTION of its largest volume before, else when and how much."""
     if "phi" not in ds or "time" not in ds.dims or ds.sizes["time"] < 2:
         return ""
-    volume = measures.volume(ds, measures.THRESHOLD)
+    volume = measures.kept_volume(ds, measures.THRESHOLD)
     peak = np.maximum.accumulate(volume)
     fallen = np.flatnonzero((peak > 0) & (volume < (1 - FRACTION) * peak))
     if fallen.size == 0:
