@@ -24,7 +24,7 @@ from .sink import Held
 from .transport.bounds import ROUNDOFF
 
 if TYPE_CHECKING:
-    from .timeloop import Snapshot
+    from .snapshot import Snapshot
 
 BIOFILM_THRESHOLD = 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from .timeloop import Snapshot
+    from .snapshot import Snapshot
 
 CELL_FIELDS = ("phi", "c", "alpha")  # on every output (dimension time)
 MECHANICS_FIELDS = ("p", "u")  # on the outputs where the mechanics was solved (dimension time_mechanics)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -33,6 +33,7 @@ from .counters import Counters, declared
 from .errors import SimulationError, StepFailure
 from .problem import Problem
 from .sink import Held, OutputSink
+from .snapshot import Snapshot
 from .transport import State, Transport
 
 
@@ -48,23 +49,6 @@ class Progress:
     mechanics_seconds: float = 0.0  # wall time of the mechanics solves so far: their cost is not in proportion
     mechanics_solves: int = 0  # to simulated time (they come at outputs), so a time-left estimate counts them
     mechanics_left: int = 0  # apart: how many are done and how many are still to come
-
-
-@dataclass
-class Snapshot:
-    """Fields at one output time, as grid arrays (NaN in obstacles), with the run's counters so far."""
-
-    time: float
-    phi: np.ndarray
-    c: np.ndarray
-    alpha: np.ndarray
-    steps: int
-    bisections: int
-    rejected: int
-    elapsed: float
-    u: np.ndarray | None = None
-    p: np.ndarray | None = None
-    mechanics: dict = field(default_factory=dict)
 
 
 class _Rejected(Exception):

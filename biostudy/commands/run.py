@@ -149,8 +149,8 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     written, opened lazily: its memory does not grow with its outputs."""
     spool = None
     try:
-        streamed = loaded.target is not None and resources.streams(loaded.scene)
-        spool = Spool(loaded.target) if streamed else None  # no file until the first output
+        if loaded.target is not None and resources.streams(loaded.scene):
+            spool = Spool(loaded.target)  # no file until the first output
         ds = _simulated(loaded, progress, spool)
         if loaded.target is not None:
             try:
