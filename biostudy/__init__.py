@@ -9,7 +9,7 @@ The packages are stages whose imports run one way (`tests/test_layout.py` holds 
 maths), inputs, quantities, data, plans, execution, reports, plots, commands, cli; each imports only the
 stages before it (and `solver`, `formatting`, `errors`).
 
-From Python (a notebook, a script; README, "From Python"):
+From Python (a notebook, a script; docs/results.md):
 
     import biostudy
     ds = biostudy.run("directional", set={"grid.shape": [10, 10, 10], "mechanics.enabled": False})

@@ -70,7 +70,7 @@ def main(names: list[str]) -> None:
             write_tables(table, rows, findings, found)
             continue
         for earlier in OUT.glob(f"{name}_*.png"):  # drawn again; those of a version before biostudy's mark would
-            earlier.unlink()                        # not be replaced (README, "Nothing lost, nothing hung")
+            earlier.unlink()                        # not be replaced (docs/reliability.md)
         began = time.perf_counter()
         biostudy("plot", str(data), "-o", str(OUT / f"{name}.png"), "--warp", "500")
         drawn = time.perf_counter() - began

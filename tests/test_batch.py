@@ -100,7 +100,7 @@ def test_array_tasks_share_the_lock_a_whole_sweep_does_not(tmp_path):
 
 
 def test_sweep_on_a_cluster_found_by_its_scheduler_file(tiny_study, tmp_path):
-    """As in a batch job, the sweep finds its cluster by the file the scheduler wrote (README, "Batch clusters";
+    """As in a batch job, the sweep finds its cluster by the file the scheduler wrote (docs/clusters.md;
     the recipe's `dask scheduler --scheduler-file F` does the same as the scheduler here)."""
     distributed = pytest.importorskip("distributed")
     file = tmp_path / "scheduler.json"

@@ -1,4 +1,4 @@
-"""The `biostudy` command line (README, "Commands"): load, validate, call; nothing else.
+"""The `biostudy` command line (README's command table): load, validate, call; nothing else.
 
 Every command calls one function of `biostudy.commands` with keyword-only
 options.  Exit status: 0 done, 1 a computation failed (the message says why),

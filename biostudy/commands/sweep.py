@@ -3,7 +3,7 @@
 Re-running skips finished cases (`execution.jobs.run_jobs`); the directory
 belongs to one study (`execution.targets.owned`).
 
-Array jobs without Dask (a SLURM or PBS job array; README, "Batch clusters"):
+Array jobs without Dask (a SLURM or PBS job array; docs/clusters.md):
 ``--case ID`` runs the cases named; ``--task N`` alone case number N, the
 fixed numbering of the study's order from 0 (an array index: resubmitting
 ``--array=3,5`` runs cases 3 and 5 again, nothing else); ``--task N --tasks

@@ -1,6 +1,6 @@
 """A twin experiment's measurement table: the model itself at known parameters, plus noise.
 
-The standard test of a calibration method (README, "Calibration"): simulate
+The standard test of a calibration method (docs/calibrate.md): simulate
 a scene at the parameter values taken as the truth, measure the observables
 at the given times, add normal noise of `noise` times each true value and
 write PEtab's measurement table (the sigma column: that standard deviation).

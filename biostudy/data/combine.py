@@ -19,7 +19,7 @@ its swept values as coordinates along the study's dimensions, of length 1
 (grid: one per swept key; zip and sampled: `case`, with the values on it), its
 status, message, wall time and steps as variables, so that
 ``xr.open_mfdataset("DIR/cases/*.nc")`` rebuilds the study without a
-``preprocess`` (README, "Looking at the results").
+``preprocess`` (docs/results.md).
 """
 from __future__ import annotations
 

@@ -14,7 +14,7 @@
   those through a second handle of a file held open in the same process
   (a case open in a notebook while a sweep resumes, which reads every finished
   case back) corrupts HDF5's state and crashes a later open (HDFGroup/hdf5#5359,
-  Unidata/netcdf-c#2510).  Measured in the README ("Looking at the results").
+  Unidata/netcdf-c#2510).  Measured in docs/results.md.
 * `history`: the CF ``history`` attribute, the command line that made the file
   (or the Python call, inside `called`: the API's, not a notebook kernel's argv).
 * `as_run`: a sweep's case file carries its place in the study as dimensions of

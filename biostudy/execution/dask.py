@@ -1,8 +1,8 @@
-"""Cases on a Dask cluster (README, "Sweeps on a Dask cluster"), and the choice between it and local workers.
+"""Cases on a Dask cluster (docs/clusters.md), and the choice between it and local workers.
 
 A cluster is named by its scheduler's address or by the scheduler file it
 wrote (``dask scheduler --scheduler-file FILE``, how a batch job started
-inside an allocation is found: README, "Batch clusters").
+inside an allocation is found: docs/clusters.md).
 
 The cluster's workers only simulate: each receives a compiled `solver.Problem`
 (plain arrays) and returns the dataset or the reason it failed; this process

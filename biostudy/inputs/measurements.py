@@ -1,4 +1,4 @@
-"""A measurement table as a lab keeps it: PEtab's measurement-table columns, CSV or TSV (README, "Calibration").
+"""A measurement table as a lab keeps it: PEtab's measurement-table columns, CSV or TSV (docs/calibrate.md).
 
 ::
 

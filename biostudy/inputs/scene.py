@@ -1,4 +1,4 @@
-"""A scene file (README, "Scene and study files"): one simulation, validated, then compiled to a `solver.Problem`.
+"""A scene file (docs/scenes.md): one simulation, validated, then compiled to a `solver.Problem`.
 
 The pydantic models below are the schema: every key, its unit and meaning,
 its allowed range (the parameters' from `solver.Parameters`, docs/model.md), and the cross-field

@@ -1,4 +1,4 @@
-"""A calibration file (README, "Calibration"): a base scene, a measurement table, the keys to estimate and how.
+"""A calibration file (docs/calibrate.md): a base scene, a measurement table, the keys to estimate and how.
 
 ::
 

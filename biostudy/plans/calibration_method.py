@@ -1,4 +1,4 @@
-"""How a calibration's parameters are estimated: its [method] table (README, "Calibration")."""
+"""How a calibration's parameters are estimated: its [method] table (docs/calibrate.md)."""
 from __future__ import annotations
 
 from typing import Literal

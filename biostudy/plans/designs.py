@@ -1,4 +1,4 @@
-"""Sampling designs of a study (`[sample]`, README "Sampling designs and sensitivity"): which cases to run.
+"""Sampling designs of a study (`[sample]`, docs/sensitivity.md): which cases to run.
 
 ::
 

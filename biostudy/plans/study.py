@@ -1,4 +1,4 @@
-"""A study file (README, "Scene and study files"): a base scene and a sweep over dotted scene keys, expanded into cases.
+"""A study file (docs/scenes.md): a base scene and a sweep over dotted scene keys, expanded into cases.
 
 ::
 

@@ -1,6 +1,6 @@
 """What a calibration found, as DIR/calibration.nc and its table (calibration.md, printed too).
 
-calibration.nc (README, "Calibration"):
+calibration.nc (docs/calibrate.md):
 
 * dimension `parameter` (names: g, r, r[half]): `estimate`, `standard_error`
   (from the Jacobian at the optimum, to first order in the parameter's units),
