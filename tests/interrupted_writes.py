@@ -86,7 +86,7 @@ def output(directory: Path, kind: str) -> Path:
 
 def main(directory: Path, kind: str, trials: int, sent_signal: signal.Signals = signal.SIGTERM) -> None:
     from biostudy.cli import app
-    from biostudy.data import store
+    from biostudy.data import netcdf_io
 
     directory = directory / f"{kind}-{sent_signal.name}"
     directory.mkdir()
@@ -118,7 +118,8 @@ def main(directory: Path, kind: str, trials: int, sent_signal: signal.Signals = 
         print(json.dumps({"kind": kind, "signal": sent_signal.name, "delay": delay, "took": took, "ended": ended,
                           "status": status,
                           "temporaries": sorted(p.name for p in target.parent.glob(".*.tmp")),
-                          "output": target.exists(), "whole": target.exists() and store.intact(target)}), flush=True)
+                          "output": target.exists(),
+                          "whole": target.exists() and netcdf_io.intact(target)}), flush=True)
 
 
 if __name__ == "__main__":

@@ -207,7 +207,7 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
             assert nc[name].chunking() == [1, 8, 9, 10], name
         assert nc["u"].chunking() == [1, 9, 10, 11, 3]
         for name in ("phi", "u", "phi_mean", "time", "x_bounds", "obstacle"):
-            assert nc[name].filters()["fletcher32"], name  # checksums (store.intact) need chunked storage
+            assert nc[name].filters()["fletcher32"], name  # checksums (netcdf_io.intact) need chunked storage
         assert nc["phi_mean"].chunking() == [3] and not nc["phi_mean"].filters()["zlib"]  # one chunk, not compressed
     with netCDF4.Dataset(made / "grid" / "study.nc") as nc:
         assert nc["phi"].chunking() == [1, 1, 1, 16, 16] and nc["phi"].filters()["zlib"]

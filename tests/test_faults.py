@@ -30,7 +30,7 @@ from typer.testing import CliRunner
 import solver
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
-from biostudy.data import store
+from biostudy.data import netcdf_io, store
 from biostudy.execution import backends, ownership, pool
 from biostudy.execution import jobs as runner
 from biostudy.execution.jobs import Execution
@@ -224,7 +224,7 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     damaged = min(1024, length - 64)
     raw[at + 64:at + 64 + damaged] = b"\x7f" * damaged  # garbage inside the chunk, the size unchanged
     path.write_bytes(raw)
-    assert not store.intact(path) and store.recorded(path)["status"] == "done"
+    assert not netcdf_io.intact(path) and store.recorded(path)["status"] == "done"
     assert "damaged: it cannot be read whole" in one_line_error(invoke("show", path))
     study_nc = (out / "study.nc").read_bytes()
     (out / "study.nc").write_bytes(study_nc[:8] + b"\0" * (len(study_nc) - 8))  # beyond reading: replaced
@@ -238,7 +238,7 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
 
 def test_resuming_while_this_process_holds_a_case_file_open(tiny_study, tmp_path):
     """Resume checks read numbers only: a variable-length string read through a second handle of a file held
-    open here would crash HDF5 at a later open (store.intact)."""
+    open here would crash HDF5 at a later open (netcdf_io.intact)."""
     out = tmp_path / "out"
     plan = load_study(tiny_study)
     sweep(plan, out)

@@ -32,7 +32,7 @@ import solver
 from biostudy.cli import app
 from biostudy.commands.analyze import current
 from biostudy.commands.sweep import run_study
-from biostudy.data import combine, store
+from biostudy.data import combine, netcdf_io, store
 from biostudy.execution import backends, dask, pool
 from biostudy.execution.jobs import Execution
 from biostudy.inputs import files, resources
@@ -118,7 +118,7 @@ def test_a_case_header_changed_in_place_is_damaged_to_every_command_and_computed
     at = raw.index(b"radius = 3.0")  # 3 bytes inside the scene attribute: radius 3 -> 9, the size unchanged
     raw[at + 9:at + 12] = b"9.0"
     path.write_bytes(raw)
-    assert not store.intact(path)
+    assert not netcdf_io.intact(path)
     for args in (["show", path], ["plot", path, "-o", tmp_path / "fig.png"], ["export", path, tmp_path / "vtk"],
                  ["analyze", out]):
         line = one_line(invoke(*args))
@@ -129,7 +129,7 @@ def test_a_case_header_changed_in_place_is_damaged_to_every_command_and_computed
     assert f"warning: 1 case file was damaged (could not be read whole: header, attributes or data) and computed " \
            f"again: {CASE}" in result.stderr
     np.testing.assert_array_equal(store.open_dataset(path).phi.values, good)
-    assert store.intact(out / "study.nc")
+    assert netcdf_io.intact(out / "study.nc")
 
 
 def test_truncated_case_files_are_named_and_computed_again(finished, tmp_path):
@@ -141,7 +141,7 @@ def test_truncated_case_files_are_named_and_computed_again(finished, tmp_path):
     report = run_study(plan, out)
     assert sorted(report.damaged) == sorted(report.ran) == ["g=1e+08_r=50", "g=1e+09_r=100"]
     assert "g=1e+08_r=50, g=1e+09_r=100" in report.warnings()[0]
-    assert store.intact(cut) and store.intact(emptied)
+    assert netcdf_io.intact(cut) and netcdf_io.intact(emptied)
 
 
 def test_combine_names_the_truncated_and_the_damaged_case_files_it_cannot_read(finished, tmp_path):
@@ -208,7 +208,7 @@ def test_a_result_is_not_written_over_a_file_changed_while_it_ran(finished, tmp_
     kept = tmp_path / "out.1.nc"
     assert line == (f"error: {out} was changed by another program while this run computed; it is left as it is, "
                     f"and this run's result is kept in {kept}")
-    assert out.read_text() == "written by another program meanwhile" and store.intact(kept)
+    assert out.read_text() == "written by another program meanwhile" and netcdf_io.intact(kept)
     assert not list(tmp_path.glob(".*.tmp"))
 
 
@@ -485,7 +485,7 @@ def test_a_disk_full_during_a_case_or_study_nc_is_one_line_and_keeps_the_cases(f
     assert line == (f"error: cannot write {second}: {_full(disk)}; the cases recorded before are kept, run the same "
                     "command again to resume once there is room")
     assert [p.name for p in (disk / "a" / "cases").iterdir()] == ["g=1e+08_r=50.nc"]
-    assert store.intact(disk / "a" / "cases" / "g=1e+08_r=50.nc")
+    assert netcdf_io.intact(disk / "a" / "cases" / "g=1e+08_r=50.nc")
     (disk / "filler").unlink()
     shutil.rmtree(disk / "a")
     monkeypatch.setattr(backends, "solve", solve)

@@ -10,21 +10,19 @@ and `-h` do not pay for numpy, xarray and FiPy.
 """
 from __future__ import annotations
 
-import contextlib
 import enum
 import os
-import signal
-import sys
 from pathlib import Path
-from typing import Annotated, Callable, List, Optional
+from typing import Annotated, List, Optional
 
 import typer
 
-from ..errors import BadInput, Failed
+from ..errors import BadInput
 from ..execution import worker
 from ..inputs import bundled
 from . import logs, output, progress
-from .held import held_warnings
+from .guard import OneLineErrors, guarded
+from .jobs import job_command
 from .options import (
     FLAG,
     CaseOverrides,
@@ -45,42 +43,7 @@ from .options import (
     overrides,
 )
 
-_USAGE_ERROR = typer.BadParameter.__mro__[1]  # click's UsageError, wherever this typer takes click from
-_CLICK_ERROR = _USAGE_ERROR.__mro__[1]  # click's ClickException
-
-
-class _OneLineErrors(typer.core.TyperGroup):
-    """Usage errors (an unknown option, a missing argument, a value out of range) told in one line, exit status
-    2, as every other error: "error: biostudy run: No such option: --bogus (biostudy run -h lists them)"."""
-
-    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
-        if not standalone_mode:
-            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        try:
-            status = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        except _USAGE_ERROR as error:
-            if type(error).__name__ == "NoArgsIsHelpError":  # `biostudy` alone: the help, as typer shows it
-                error.show()
-                sys.exit(error.exit_code)
-            command = error.ctx.command_path if error.ctx else "biostudy"
-            message = " ".join(error.format_message().split())
-            typer.echo(f"error: {command}: {message} (see `{command} -h`)", err=True)
-            sys.exit(2)
-        except _CLICK_ERROR as error:
-            typer.echo(f"error: {' '.join(error.format_message().split())}", err=True)
-            sys.exit(error.exit_code)
-        except typer.Abort as abort:  # click's for a KeyboardInterrupt, and for an EOFError, which is none
-            if isinstance(abort.__cause__, EOFError):
-                raise abort.__cause__ from None
-            typer.echo("interrupted", err=True)
-            sys.exit(interrupted_status(abort.__cause__))
-        except KeyboardInterrupt as late:  # while click ended the command (Ctrl-C just as it returned)
-            typer.echo("interrupted", err=True)
-            sys.exit(interrupted_status(late))
-        sys.exit(status if isinstance(status, int) else 0)
-
-
-app = typer.Typer(name="biostudy", cls=_OneLineErrors, no_args_is_help=True, pretty_exceptions_enable=False,
+app = typer.Typer(name="biostudy", cls=OneLineErrors, no_args_is_help=True, pretty_exceptions_enable=False,
                   context_settings={"help_option_names": ["-h", "--help"]},
                   help="Parameter studies of biofilm growth: run scenes, sweep studies, inspect results.")
 
@@ -112,62 +75,6 @@ def _process(ctx: typer.Context,
     os.environ["MPLBACKEND"] = "Agg"
 
 
-def _fail(message: str, status: int) -> typer.Exit:
-    typer.echo(message, err=True)  # plain echo: rich would wrap a long message over several lines
-    return typer.Exit(status)
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, unwinding as Ctrl-C does (temporary files are removed on the way out), told apart by its exit
-    status: 143 (128 + 15), where Ctrl-C's is 130 (128 + 2)."""
-
-
-def interrupted_status(error: BaseException | None) -> int:
-    return 128 + (signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT)
-
-
-def _terminate(signum, frame):
-    raise Terminated
-
-
-def _unwinding(error: BaseException) -> KeyboardInterrupt | None:
-    """The interruption `error` was raised while handling, if any: an error on the way out of an interrupted
-    write (closing a file HDF5 was writing) is the interruption's, not a failure of its own."""
-    seen: BaseException | None = error.__context__
-    while seen is not None and not isinstance(seen, KeyboardInterrupt):
-        seen = seen.__context__
-    return seen
-
-
-@contextlib.contextmanager
-def _guarded():
-    """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C -> exit 130,
-    SIGTERM -> exit 143.  Warnings are held and told after the command, one line each, not after bad input."""
-    previous = signal.signal(signal.SIGTERM, _terminate)
-    held = []
-    try:
-        with held_warnings() as held:
-            try:
-                yield
-            except Exception as error:
-                interruption = _unwinding(error)
-                if interruption is None:
-                    raise
-                raise interruption from None
-    except BadInput as error:
-        held.clear()  # a bad input prints only its own lines
-        raise _fail("\n".join(f"error: {line}" for line in error.lines()), 2) from None
-    except Failed as error:
-        raise _fail(f"error: {error}", 1) from None
-    except KeyboardInterrupt as error:
-        raise _fail("interrupted: finished files are kept, nothing is left half-written",
-                    interrupted_status(error)) from None
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        for line in held:
-            typer.echo(f"warning: {line}", err=True)
-
-
 @app.command()
 def run(
     scene: SceneArgument,
@@ -185,7 +92,7 @@ def run(
                                               "(default: RUN-tT_END.nc beside it)")] = None,
 ):
     """Run one simulation and write its dataset (netCDF)."""
-    with _guarded():
+    with guarded():
         from ..commands import run as command  # lazily (module docstring)
 
         loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from)
@@ -195,37 +102,6 @@ def run(
             typer.echo(f"warning: {warning}", err=True)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)
         result.dataset.close()  # the file written, opened lazily (`commands.run.compute`)
-
-
-def _job_command(quiet: bool, load: Callable, as_json: bool = False, **execution) -> None:
-    """The one path of every job command (sweep, convergence, stability).
-
-    load() reads and validates (bad input: exit 2 before anything runs) and returns a `commands.JobCommand`,
-    which runs the jobs on the chosen pool and says what came of them (`commands.finished.Finished`).  A job
-    that failed, or a pool that broke down, is exit status 1.  `as_json`: the result as JSON on stdout
-    instead of the table (`output.finished`).
-    """
-    with _guarded():
-        from ..execution.dask import check_choice  # lazily (module docstring)
-        from ..execution.jobs import Execution  # lazily
-
-        check_choice(execution.get("workers"), execution.get("scheduler"), execution.get("scheduler_file"))
-        if execution.get("workers"):
-            from ..execution.pool import warm_up  # lazily
-
-            warm_up()  # the fork server imports the solver while this process imports it and validates
-        job = load()
-        with progress.jobs(job.title, quiet, job.noun) as notify:
-            finished = job.run(Execution(notify=notify, **execution))
-        if as_json:
-            output.emit(output.finished(job, finished.result))
-        elif finished.table:
-            typer.echo(finished.table)
-        for warning in finished.warnings:
-            typer.echo(f"warning: {warning}", err=True)
-        progress.err().print(finished.summary)
-        if finished.failures:
-            raise _fail(finished.failure_line(), 1)
 
 
 @app.command()
@@ -262,7 +138,7 @@ def sweep(
         return command.load(study, output=output, overrides=overrides, cases=cases, task=task, tasks=tasks,
                             combine_only=combine_only, runs_here=runs_here(scheduler, scheduler_file))
 
-    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+    job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  retry_failed=retry_failed, force=force, rerun_all=rerun_all)
 
 
@@ -294,12 +170,12 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
     running it needs (memory, disk); for several runs, how they differ (scenes, parameters, observables at their
     common times, the largest field differences)."""
     if as_json:
-        with _guarded():
+        with guarded():
             records = [output.shown(p) for p in paths]
             output.emit(records[0] if len(paths) == 1 else records)
         return
     if len(paths) > 1:
-        with _guarded():
+        with guarded():
             from ..data.store import open_result  # lazily (module docstring)
             from ..reports.compare import show_compared  # lazily (module docstring)
 
@@ -307,7 +183,7 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
             show_compared(runs, paths, progress.out())
         return
     path = paths[0]
-    with _guarded():
+    with guarded():
         if path.suffix == ".toml" or (not path.exists() and not path.suffix):
             from ..reports.needs import needs  # lazily (module docstring)
 
@@ -347,7 +223,7 @@ def plot(
                                                        "by this factor (e.g. 500, paper Fig. 13)")] = None,
 ):
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
-    with _guarded():
+    with guarded():
         from ..data.real_time import t_star  # lazily (module docstring)
         from ..data.store import open_result
         from ..plots import plot as draw
@@ -377,7 +253,7 @@ def analyze(
     as_json: Json = False,
 ):
     """Which parameter matters: Sobol' or Morris indices of a sampled study, rank correlations of any study."""
-    with _guarded():
+    with guarded():
         from ..commands.analyze import analyze as command  # lazily (module docstring)
 
         written, table = command(path, outputs=outputs, times=times)
@@ -400,7 +276,7 @@ def export(
                                       "with the time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vtu,
 ):
     """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
-    with _guarded():
+    with guarded():
         from ..data.store import open_result  # lazily (module docstring)
 
         ds = open_result(path, ("run",), "export writes one run's fields")
@@ -458,7 +334,7 @@ def convergence(
         return command.load(scene, output=output, levels=levels, series=series, tolerance=tolerance,
                             overrides=overrides, reference=reference, time=time)
 
-    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+    job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  force=force, rerun_all=rerun_all)
 
 
@@ -485,7 +361,7 @@ def stability(
         return command.load(catalogue, output=output, overrides=overrides,
                             runs_here=runs_here(scheduler, scheduler_file))
 
-    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+    job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  force=force, rerun_all=rerun_all)
 
 
@@ -515,5 +391,5 @@ def calibrate(
         return command.load(calibration, output=output, overrides=overrides,
                             runs_here=runs_here(scheduler, scheduler_file))
 
-    _job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
+    job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
                  force=force, rerun_all=rerun_all)

@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 import xarray as xr
 
-from ..data import claims, combine, real_time, store
+from ..data import claims, combine, netcdf_io, real_time, store
 from ..errors import BadInput
 from ..inputs.keys import key_parts
 from ..inputs.tomltext import literal
@@ -52,7 +52,7 @@ def current(source: Path) -> xr.Dataset:
     plan = load_study(study_file, _common(attrs, record == source, study_file))
     damaged = [BadInput("damaged: it cannot be read whole; run the sweep again to compute it again", path)
                for path in (store.case_file(source.parent, case.id) for case in plan.cases)
-               if path.exists() and not store.intact(path)]
+               if path.exists() and not netcdf_io.intact(path)]
     if damaged:
         raise BadInput.every(damaged)
     with contextlib.ExitStack() as opened:

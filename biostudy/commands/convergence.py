@@ -13,7 +13,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..data import claims, store
+from ..data import claims, provenance, store
 from ..errors import BadInput
 from ..execution.jobs import Execution, Job, SweepReport, run_jobs
 from ..execution.ownership import Owner
@@ -73,7 +73,7 @@ class Convergence:
             ds = measure(wanted, self.directory, self.levels, self.series, self.base, given, self.time)
             if self.reference is not None and given is not None:
                 ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()} (T* = {given['time']:g})"
-            ds.attrs = store.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
+            ds.attrs = provenance.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
                                               "scene_file": str(self.path.resolve()), "overrides": text})
             store.write_atomic(ds, self.directory / "convergence.nc")
         return ds, report

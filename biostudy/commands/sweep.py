@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..data import combine, store
+from ..data import combine, netcdf_io, store
 from ..errors import BadInput
 from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
@@ -107,7 +107,7 @@ def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Pat
         damaged = [BadInput("damaged or truncated: it cannot be read whole (header, attributes or data); "
                             f"`biostudy sweep {plan.file} -o {directory}` without --combine computes it again", path)
                    for path in (store.case_file(directory, case.id) for case in plan.cases)
-                   if path.exists() and not store.intact(path)]
+                   if path.exists() and not netcdf_io.intact(path)]
         if damaged:
             raise BadInput.every(damaged)
         return write_study(plan, directory)

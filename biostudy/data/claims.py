@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import BadInput, Failed
-from .store import remove_temporaries, temporaries, temporary_name, version, write_atomic, write_text
+from .provenance import version
+from .store import remove_temporaries, temporaries, temporary_name, write_atomic, write_text
 
 HELD: set[Path] = set()  # outputs claimed in this process: its threads share its pid, which the temporary names
 HOLDING = threading.Lock()

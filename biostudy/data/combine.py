@@ -38,7 +38,7 @@ from solver.output import cf_units
 from ..inputs.keys import dimension, id_text
 from ..inputs.scene import key_info, overrides_text
 from ..quantities import observables
-from . import netcdf, netcdf_io, store
+from . import netcdf, netcdf_io, provenance, store
 
 if TYPE_CHECKING:
     from ..plans.cases import Plan
@@ -270,7 +270,7 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
     common = {k: v for k, v in _common_attrs([ds.attrs for ds in done]).items() if k not in swept}
     omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
     statuses = [records[c.id][0] for c in plan.cases]
-    combined.attrs = store.with_provenance({
+    combined.attrs = provenance.with_provenance({
         **common,
         "title": f"biofilm growth study: {plan.spec.name}",
         "study": plan.file.read_text(encoding="utf-8"),

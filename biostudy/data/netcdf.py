@@ -6,7 +6,7 @@
   the nodes), so reading one time of one case reads one chunk; masks and bounds
   are compressed whole; time series and scalars are not compressed (too small
   to gain).  Every numeric variable of more than one value carries a fletcher32
-  checksum per chunk (so `store.intact` tells a damaged file from a good one;
+  checksum per chunk (so `netcdf_io.intact` tells a damaged file from a good one;
   HDF5 filters need chunked storage, so only scalars and strings stay
   contiguous).  Coordinates have no ``_FillValue`` (CF 2.5.1).  Text (a case
   file's status, message and case id, study coordinates such as ``case``) is

@@ -12,7 +12,7 @@ and the temporaries of processes still running, are never touched.
 
 Every numeric variable of more than one value carries a fletcher32 checksum
 per chunk (netCDF4/HDF5; `netcdf.encoding`, beside the compression), and
-HDF5 checksums its headers, so `intact` tells a damaged file from a good one
+HDF5 checksums its headers, so `netcdf_io.intact` tells a damaged file from a good one
 even when the damage keeps its size: a file that cannot be read whole
 (header, attributes or data) is damaged.  `writable` and `replaceable` check
 a target before anything is computed: a result is never lost to an
@@ -31,18 +31,14 @@ re-running a study skips exactly the cases whose inputs have not changed.
 """
 from __future__ import annotations
 
-import datetime as _dt
 import errno
 import hashlib
-import math
 import os
 import re
 import secrets
 import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
-
-import numpy as np
 
 if TYPE_CHECKING:
     import xarray as xr  # imported where a dataset is read or made: `show` of a run's file needs none
@@ -51,50 +47,13 @@ from ..errors import BadInput, Failed, first_line
 from ..inputs.files import LOOP, link_loop
 from ..inputs.resources import size
 from . import netcdf
+from .provenance import with_provenance
 
 TMP_GLOB = ".*.tmp"
 TEMPORARY = re.compile(r"^\..+\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp$")  # .NAME.PID.TOKEN.tmp, see `temporary_name`
 CASE_NAME_BYTES = 150  # a case file's name stays well within the 255 bytes of a file name, temporary suffix included
 FULL_BELOW = 1 << 20  # bytes free on a file system that failed a write: it is full
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-
-
-def version() -> str:
-    import importlib.metadata  # lazily: it imports email and more, which `show` of a run's file never needs
-
-    try:
-        return importlib.metadata.version("biostudy")
-    except importlib.metadata.PackageNotFoundError:
-        return "unknown"
-
-
-def now() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-
-
-def with_provenance(attrs: dict) -> dict:
-    """`attrs` as netCDF can store them, with the biostudy version and the time of writing: every file
-    biostudy writes says which version made it and when."""
-    return legal_attrs({**attrs, "biostudy_version": version(), "created": now(), "history": netcdf.history()})
-
-
-def legal_attrs(attrs: dict) -> dict:
-    """Attributes netCDF can store: no None, booleans as 0/1, nested dicts flattened to 'a_b' names."""
-    legal = {}
-    for name, value in attrs.items():
-        if value is None:
-            continue
-        if isinstance(value, dict):
-            legal.update(legal_attrs({f"{name}_{k}": v for k, v in value.items()}))
-        elif isinstance(value, (bool, np.bool_)):
-            legal[name] = int(value)
-        elif isinstance(value, (list, tuple)):
-            legal[name] = ", ".join(map(str, value)) if any(isinstance(v, str) for v in value) else np.asarray(value)
-        elif isinstance(value, Path):
-            legal[name] = str(value)
-        else:
-            legal[name] = value
-    return legal
 
 
 def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
@@ -383,37 +342,6 @@ def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "fa
         "run": "one run, not a sweep",
     }[found]
     raise BadInput(f"{reason}; {doing or 'nothing to do with it'}", path)
-
-
-def intact(path: str | Path, slab_bytes: int = 1 << 26) -> bool:
-    """Whether a netCDF file reads back whole: every attribute, and every numeric variable (checksums verified
-    where it has them), read in slabs of at most `slab_bytes`; False for a file that cannot be opened.
-
-    Variable-length strings (in files written before text became characters, `netcdf.encoding`) carry no
-    checksum and are not read: read through a second handle of a file that is open elsewhere in this
-    process, they leave HDF5 in a state that crashes a later open (HDFGroup/hdf5#5359)."""
-    from .netcdf_io import opened  # lazily, as in `write_atomic`
-
-    try:
-        with opened(path) as nc:
-            nc.set_auto_mask(False)
-            for name in nc.ncattrs():
-                nc.getncattr(name)
-            for var in nc.variables.values():
-                for name in var.ncattrs():
-                    var.getncattr(name)
-                if not isinstance(var.dtype, np.dtype):
-                    continue  # a variable-length string: no checksum to verify
-                if not var.ndim or not var.shape[0]:
-                    var[...]  # a scalar or an empty variable
-                    continue
-                row = math.prod(var.shape[1:]) * var.dtype.itemsize
-                step = max(1, slab_bytes // max(row, 1))
-                for start in range(0, var.shape[0], step):
-                    var[start:start + step]
-    except Exception:  # whatever HDF5 makes of damage: OSError, RuntimeError, AttributeError, IndexError, ...
-        return False
-    return True
 
 
 # ---------------------------------------------------------------------------------------------

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Callable
 
 from solver.output import versions
 
-from ..data import combine, store
+from ..data import combine, netcdf_io, provenance, store
 from ..errors import BadInput, Failed
 from ..inputs import resources
 from ..inputs.scene import Scene, overrides_text
@@ -126,7 +126,7 @@ NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a r
 
 def software_versions() -> dict[str, str]:
     """The versions a case file records (`biostudy_version`, `version_<package>`) that its numbers depend on."""
-    return {"biostudy_version": store.version(), **versions(NUMERIC_PACKAGES, python=False)}
+    return {"biostudy_version": provenance.version(), **versions(NUMERIC_PACKAGES, python=False)}
 
 
 def _outdated(record: dict) -> str:
@@ -177,7 +177,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
         same = record is not None and matches(record.get("fingerprint"), prints[job.id], legacy_fingerprint(problem))
         reusable = same and not execution.rerun_all \
             and (record.get("status") == "done" or (record.get("status") == "failed" and not execution.retry_failed))
-        if path.exists() and (record is None or reusable and not store.intact(path)):
+        if path.exists() and (record is None or reusable and not netcdf_io.intact(path)):
             report.damaged.append(job.id)  # a file that cannot be read whole: its header, attributes or data
         elif reusable:
             report.skipped.append(job.id)

@@ -22,30 +22,26 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, create_model, model_validator
+from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
 from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
 
 from ..errors import BadInput, InvalidAt, from_validation_error
 from ..formatting import units_text, value_text
+from .clock import Time
+from .declared import CONFIG, unit_field
 from .files import read_toml
 from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
-from .real_time import real_time
-from .resources import DEFAULT_OUTPUTS, estimate, run_problem, validation_problem
+from .resources import estimate, run_problem, validation_problem
 from .substratum_face import resting_face
 from .tomltext import dumps as toml_dumps
 
-CONFIG = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)  # inf is bad input wherever NaN is
 _NUMERICS = solver.Numerics()
 _MECHANICS = solver.MechanicsSetup()
-
-
-def _field(default, description: str, units: str = "1", **kw):
-    return Field(default, description=description, json_schema_extra={"units": units}, **kw)
 
 
 STREAMED = "streamed"  # runs_here of a run that writes its file as it goes: its outputs stream to disk
@@ -56,7 +52,7 @@ class GridSpec(BaseModel):
     model_config = CONFIG
     shape: list[Annotated[int, Field(ge=1)]] = Field(
         min_length=2, max_length=3, description="cells along x, y[, z]; two entries make a 2-D scene")
-    spacing: float = _field(1.0, "edge of the cubic cells, µm", "um", gt=0)
+    spacing: float = unit_field(1.0, "edge of the cubic cells, µm", "um", gt=0)
 
     def solver_grid(self) -> solver.Grid:
         return solver.Grid(tuple(self.shape), self.spacing)
@@ -68,7 +64,7 @@ def _parameters_model() -> type[BaseModel]:
     fields = {}
     for info in parameter_infos():
         shown = units_text(info.units)
-        fields[info.name] = (float, _field(info.default, f"{info.long_name}{', ' + shown if shown else ''}",
+        fields[info.name] = (float, unit_field(info.default, f"{info.long_name}{', ' + shown if shown else ''}",
                                            info.units, **info.bounds))
     return create_model("Params", __config__=CONFIG, __doc__="Model parameters (paper Table 2 by default; "
                         "docs/model.md); unspecified keys take their defaults.", **fields)
@@ -86,47 +82,6 @@ class Model(BaseModel):
                                    "Eq. 35, with c held >= 0")
 
 
-class Time(BaseModel):
-    """The model clock (steps) and the output clock (snapshots)."""
-
-    model_config = CONFIG
-    t_end: float = _field(1.0, "end time, normalised time T*", "1", gt=0)
-    steps: int = _field(1000, "nominal steps over [0, t_end]; failed steps are bisected", "1", ge=1)
-    outputs: int | None = _field(None, f"evenly spaced snapshots, t = 0 and t_end included "
-                                       f"(default {DEFAULT_OUTPUTS})", "1", ge=2)
-    output_times: list[float] | None = _field(None, "explicit snapshot times within [0, t_end], increasing "
-                                                    "(t_end is added if missing); instead of outputs", "1",
-                                              min_length=1)
-    t_ref: str | None = Field(None, description="the real time of T* = 1, any time pint reads (\"48 h\"): "
-                                                "datasets then carry time_real in that unit (absent: T* only)")
-
-    @model_validator(mode="after")
-    def _clock(self):
-        if self.t_ref is not None:
-            real_time(self.t_ref)
-        if self.outputs is not None and self.output_times is not None:
-            raise InvalidAt("output_times", "give either outputs or output_times, not both")
-        for i, t in enumerate(self.output_times or ()):
-            if not 0 <= t <= self.t_end:
-                raise InvalidAt(f"output_times[{i}]", f"{t:g} lies outside [0, t_end = {self.t_end:g}]")
-            if i and t <= self.output_times[i - 1]:
-                raise InvalidAt(f"output_times[{i}]", f"{t:g} does not come after {self.output_times[i - 1]:g}")
-        return self
-
-    def count(self) -> int:
-        """How many snapshots, counted without building the list of times (a million outputs is bad input,
-        not a million floats)."""
-        if self.output_times is not None:
-            return len(self.output_times) + (self.output_times[-1] != self.t_end)
-        return self.outputs or DEFAULT_OUTPUTS
-
-    def times(self) -> np.ndarray:
-        if self.output_times is None:
-            return np.linspace(0.0, self.t_end, self.outputs or DEFAULT_OUTPUTS)
-        times = list(self.output_times)
-        return np.array(times if times[-1] == self.t_end else [*times, self.t_end])
-
-
 class NumericsSpec(BaseModel):
     """How the equations are discretised (solver.Numerics); the defaults are the robust choice."""
 
@@ -134,12 +89,12 @@ class NumericsSpec(BaseModel):
     advection: Literal["upwind", "tvd"] = Field(
         _NUMERICS.advection, description="upwind: monotone, first order; tvd: van Leer limited, second order "
                                          "where smooth")
-    time_tolerance: float | None = _field(None, "adaptive steps: local error in phi per step kept below this "
+    time_tolerance: float | None = unit_field(None, "adaptive steps: local error in phi per step kept below this "
                                                 "(absent: fixed nominal steps, bisected on failure)", "1", gt=0)
-    gradient_floor: float = _field(_NUMERICS.gradient_floor, "the nutrient direction grad c/|grad c| fades out "
+    gradient_floor: float = unit_field(_NUMERICS.gradient_floor, "the nutrient direction grad c/|grad c| fades out "
                                                              "where |grad c| < gradient_floor * max|grad c|",
                                    "1", gt=0, lt=1)
-    max_substeps: int = _field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
+    max_substeps: int = unit_field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
                                                        "a run needing less stops with a diagnosis", "1", ge=1)
     growth_velocity: Literal["front", "pointwise"] = Field(
         _NUMERICS.growth_velocity, description="pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
@@ -147,11 +102,11 @@ class NumericsSpec(BaseModel):
                                                "front: the growth speed taken at the phi = 1/2 front and carried "
                                                "along its normals: the sharp-interface limit, dense biofilm stays "
                                                "dense on 1 µm cells (docs/paper.md)")
-    front_band: float = _field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
+    front_band: float = unit_field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
                                                      "the front take the front's speed", "1", ge=1, le=10)
-    nutrient_tolerance: float = _field(_NUMERICS.nutrient_tolerance, "relative residual of the nutrient's linear "
+    nutrient_tolerance: float = unit_field(_NUMERICS.nutrient_tolerance, "relative residual of the nutrient's linear "
                                                                      "solves", "1", gt=0, lt=1)
-    biofilm_tolerance: float = _field(_NUMERICS.biofilm_tolerance, "relative residual of the biofilm's linear "
+    biofilm_tolerance: float = unit_field(_NUMERICS.biofilm_tolerance, "relative residual of the biofilm's linear "
                                                                    "solves", "1", gt=0, lt=1)
 
     def solver_numerics(self) -> solver.Numerics:
@@ -168,9 +123,9 @@ class MechanicsSpec(BaseModel):
     enabled: bool = Field(True, description="solve the growth mechanics (u and p in the dataset)")
     clamp: list[Face] = Field([], description="faces (x-, x+, y-, y+, z-, z+) with all displacement zero")
     slide: list[Face] = Field([], description="faces with zero normal displacement")
-    residual_stiffness: float = _field(_MECHANICS.residual_stiffness, "relative stiffness of void cells "
+    residual_stiffness: float = unit_field(_MECHANICS.residual_stiffness, "relative stiffness of void cells "
                                                                       "(phi = 0)", "1", gt=0, lt=1)
-    every: int = _field(_MECHANICS.every, "solve at every n-th output time (and the last)", "1", ge=1)
+    every: int = unit_field(_MECHANICS.every, "solve at every n-th output time (and the last)", "1", ge=1)
     linear_solver: Literal[LINEAR_SOLVERS] = Field(
         _MECHANICS.linear_solver,
         description="preconditioner of the Newton steps' Krylov solves: multigrid (geometric), direct "
@@ -212,7 +167,7 @@ class SubstratumSpec(BaseModel):
     model_config = CONFIG
     face: Face | None = Field(None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+); default: "
                                                 "the face the initial biofilm rests on (inputs/substratum_face.py)")
-    threshold: float = _field(0.5, "biofilm is phi >= threshold for the substratum observables", "1", gt=0, lt=1)
+    threshold: float = unit_field(0.5, "biofilm is phi >= threshold for the substratum observables", "1", gt=0, lt=1)
     connected: bool = Field(False, description="COMSTAT's connected-volume filtering: only biofilm connected to "
                                                "the substratum (through cells sharing a face) counts")
     estimator: Literal["subcell", "voxel"] = Field(

@@ -41,7 +41,7 @@ from scipy.stats import chi2 as chi2_distribution
 
 from solver.output import cf_units
 
-from ..data import store
+from ..data import provenance
 from ..errors import Failed
 from ..fitting.least_squares import PENALTY
 from ..fitting.profiles import THRESHOLD
@@ -252,7 +252,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
         attrs.update(extra_attrs)
         attrs["method"] += ("; posterior: emcee on a Gaussian-process surrogate of the residuals, its held-out "
                             "error added to sigma² (docs/calibration.md)")
-    return xr.Dataset(data, coords=coords, attrs=store.with_provenance(attrs))
+    return xr.Dataset(data, coords=coords, attrs=provenance.with_provenance(attrs))
 
 
 def posterior_variables(plan: CalibrationPlan, sampled: Posterior, measured: np.ndarray, sigma: np.ndarray,

@@ -31,7 +31,7 @@ import xarray as xr
 from solver.counters import MEANINGS
 from solver.output import FIELDS, on_output_times
 
-from ..data import store
+from ..data import provenance, store
 from ..errors import BadInput
 from ..formatting import number
 from ..inputs.scene import Scene
@@ -230,7 +230,7 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
                      "|q_L - q_(L-1)| / (2^p - 1) of the reference's own error",
         "levels": levels, "series": ", ".join(series),
     })
-    return xr.Dataset(data, coords=coords, attrs=store.legal_attrs(attrs))
+    return xr.Dataset(data, coords=coords, attrs=provenance.legal_attrs(attrs))
 
 
 def table_text(ds: xr.Dataset) -> str:

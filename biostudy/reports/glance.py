@@ -4,7 +4,7 @@ A run's file (and a sweep's case file) holds its observables and lists them
 in its ``observables`` attribute (`store.with_observables`), so its summary
 needs only the attributes and those time series: `show` of a small file
 starts and ends in a fraction of a second.  The file is still read whole
-first, checksums verified (`store.intact`): a damaged file goes to the full
+first, checksums verified (`netcdf_io.intact`): a damaged file goes to the full
 reader, which calls it damaged.  Anything else (a study.nc, a file written
 before the observables were stored) goes there too.
 """
@@ -30,8 +30,10 @@ def glance(path: str | Path) -> Group | None:
 def read(path: str | Path) -> tuple[dict, np.ndarray | None, Series] | None:
     """A run's attributes, output times and observables, read with netCDF4 alone; None when the full reader
     must do it (not a run's file, observables not stored, damaged)."""
-    from ..data.netcdf_io import opened
-    from ..data.store import intact  # lazily: only to tell a damaged file
+    from ..data.netcdf_io import (
+        intact,  # lazily: only to tell a damaged file
+        opened,
+    )
 
     try:
         with opened(path) as nc:

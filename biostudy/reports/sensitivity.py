@@ -26,7 +26,7 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-from ..data.store import with_provenance
+from ..data.provenance import with_provenance
 from ..formatting import number
 from ..plans.designs import Sample
 from ..quantities import observables

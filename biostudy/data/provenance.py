@@ -1,0 +1,48 @@
+"""What every file biostudy writes says about itself: the version that made it, when, and how (its `history`),
+in attributes netCDF can store."""
+from __future__ import annotations
+
+import datetime as _dt
+from pathlib import Path
+
+import numpy as np
+
+from . import netcdf
+
+
+def version() -> str:
+    import importlib.metadata  # lazily: it imports email and more, which `show` of a run's file never needs
+
+    try:
+        return importlib.metadata.version("biostudy")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def with_provenance(attrs: dict) -> dict:
+    """`attrs` as netCDF can store them, with the biostudy version and the time of writing: every file
+    biostudy writes says which version made it and when."""
+    return legal_attrs({**attrs, "biostudy_version": version(), "created": now(), "history": netcdf.history()})
+
+
+def legal_attrs(attrs: dict) -> dict:
+    """Attributes netCDF can store: no None, booleans as 0/1, nested dicts flattened to 'a_b' names."""
+    legal = {}
+    for name, value in attrs.items():
+        if value is None:
+            continue
+        if isinstance(value, dict):
+            legal.update(legal_attrs({f"{name}_{k}": v for k, v in value.items()}))
+        elif isinstance(value, (bool, np.bool_)):
+            legal[name] = int(value)
+        elif isinstance(value, (list, tuple)):
+            legal[name] = ", ".join(map(str, value)) if any(isinstance(v, str) for v in value) else np.asarray(value)
+        elif isinstance(value, Path):
+            legal[name] = str(value)
+        else:
+            legal[name] = value
+    return legal
