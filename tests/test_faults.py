@@ -30,7 +30,7 @@ from typer.testing import CliRunner
 import solver
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
-from biostudy.data import netcdf_io, store
+from biostudy.data import netcdf_io, provenance, store
 from biostudy.execution import backends, ownership, pool
 from biostudy.execution import jobs as runner
 from biostudy.execution.jobs import Execution
@@ -591,10 +591,10 @@ def test_cases_of_another_version_are_reported_and_rerun_on_request(tiny_study, 
     again = invoke("sweep", tiny_study, "-o", out, "-q")
     assert again.exit_code == 0 and "0 cases run, 4 skipped" in again.stderr
     assert (f"warning: 1 finished cases were computed by other software versions (biostudy 0.0.1 (now "
-            f"{store.version()}), scipy 1.0.0 (now {scipy.__version__})) and were reused; --rerun-all computes "
+            f"{provenance.version()}), scipy 1.0.0 (now {scipy.__version__})) and were reused; --rerun-all computes "
             "every case again") in again.stderr
     rerun = invoke("sweep", tiny_study, "-o", out, "-q", "--rerun-all")
     assert rerun.exit_code == 0 and "4 cases run, 0 skipped" in rerun.stderr and "warning" not in rerun.stderr
-    assert xr.open_dataset(store.case_file(out, "g=1e+08_r=50")).attrs["biostudy_version"] == store.version()
+    assert xr.open_dataset(store.case_file(out, "g=1e+08_r=50")).attrs["biostudy_version"] == provenance.version()
 
 

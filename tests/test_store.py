@@ -8,13 +8,13 @@ import pytest
 import xarray as xr
 from conftest import CUBE_SCENE
 
-from biostudy.data import store
+from biostudy.data import provenance, store
 from biostudy.inputs.scene import load_scene
 from solver import simulate
 
 
 def test_legal_attrs_has_no_none_bool_or_nested_dict():
-    legal = store.legal_attrs({"a": None, "b": True, "c": {"x": 1, "y": {"z": False}}, "d": ["u", "v"],
+    legal = provenance.legal_attrs({"a": None, "b": True, "c": {"x": 1, "y": {"z": False}}, "d": ["u", "v"],
                                "e": [1, 2], "f": "text"})
     assert legal == {"b": 1, "c_x": 1, "c_y_z": 0, "d": "u, v", "e": legal["e"], "f": "text"}
     assert list(legal["e"]) == [1, 2]

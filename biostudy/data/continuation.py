@@ -31,7 +31,6 @@ from ..inputs.scene import Scene
 from . import store
 
 FREE = ("name", "description")  # besides [time]: what a continuation may change
-CONTINUE = "--continue"
 FIELDS = ("phi", "c", "alpha")  # on time and the cells: the state a continuation starts from
 SERIES = ("phi_mean", "c_mean", "biofilm_volume", "steps_taken", "steps_bisected", "steps_rejected",
           "elapsed")  # on time: what every run writes (solver.output)

@@ -37,7 +37,6 @@ class Branch:
     parameter: int
     direction: int  # +1 toward the upper bound, -1 toward the lower
     points: list[tuple[float, float, np.ndarray]] = field(default_factory=list)
-    reached_bound: bool = False
     evaluations: int = 0
 
 
@@ -70,7 +69,6 @@ def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, specu
         if rise > THRESHOLD:
             break
         if at_bound:
-            out.reached_bound = True
             break
         increment = found.chi2 - previous
         step = step / 2 if increment > 2.5 else step * 2 if increment < 0.8 else step

@@ -23,12 +23,11 @@ SINGULAR = 1e12  # condition number of J^T J beyond which the parameters are not
 
 @dataclass(frozen=True)
 class Local:
-    """Covariance in the unit cube, standard errors there, correlations; `singular` when J^T J cannot be inverted."""
+    """Covariance in the unit cube, standard errors there, correlations (NaN where J^T J cannot be inverted)."""
 
     covariance: np.ndarray
     standard_error: np.ndarray
     correlation: np.ndarray
-    singular: bool
 
 
 def local(jacobian: np.ndarray) -> Local:
@@ -39,10 +38,10 @@ def local(jacobian: np.ndarray) -> Local:
     if np.any(scale == 0) or np.linalg.cond(normal / np.outer(scale, scale)) > SINGULAR:
         nan = np.full((k, k), np.nan)
         standard = np.where(scale == 0, np.inf, np.nan)
-        return Local(nan, standard, nan, True)
+        return Local(nan, standard, nan)
     covariance = np.linalg.inv(normal)
     standard = np.sqrt(np.diag(covariance))
-    return Local(covariance, standard, covariance / np.outer(standard, standard), False)
+    return Local(covariance, standard, covariance / np.outer(standard, standard))
 
 
 def band(jacobian: np.ndarray, covariance: np.ndarray, sigma: np.ndarray) -> np.ndarray:
