@@ -237,7 +237,7 @@ def noise() -> None:
 
 
 def posterior_grid(workers: int | None) -> None:
-    from biostudy.commands.calibrate import Simulations
+    from biostudy.execution.evaluator import Evaluator
     from biostudy.plans.calibration import load_calibration
 
     plan = load_calibration(bundled.resolve("calibrate-agar"))
@@ -248,7 +248,7 @@ def posterior_grid(workers: int | None) -> None:
           f"{load_average()})\n")
     with tempfile.TemporaryDirectory() as folder:
         began = time.perf_counter()
-        results = Simulations(plan, Path(folder), Execution(workers=workers)).evaluate(points)
+        results = Evaluator(plan, Path(folder), Execution(workers=workers)).evaluate(points)
         seconds = time.perf_counter() - began
     failed = sum(r is None for r in results)
     chi2 = np.array([np.inf if r is None else float(np.sum(np.square(r))) for r in results]).reshape(len(log_g), -1)

@@ -68,7 +68,8 @@ def _digest(path: Path) -> str:
 
 
 def test_conditions_named_like_paths_write_their_case_files_under_cases(tmp_path):
-    from biostudy.commands.calibrate import Simulations, load
+    from biostudy.commands.calibrate import load
+    from biostudy.execution.evaluator import Evaluator
     from biostudy.execution.jobs import Execution
 
     folder = tmp_path / "lab"
@@ -83,7 +84,7 @@ def test_conditions_named_like_paths_write_their_case_files_under_cases(tmp_path
     path = calibration(folder, rows, "[conditions.a.estimate]\nr = [50.0, 150.0]\n"
                        + "".join(f'[conditions."{name}"]\n"params.k" = 2.0\n' for name in hostile))
     out = folder / "out"
-    simulations = Simulations(load(path, output=out).plan, out, Execution())
+    simulations = Evaluator(load(path, output=out).plan, out, Execution())
     [residuals] = simulations.evaluate([np.array([0.5])])
     assert residuals is not None and np.all(np.isfinite(residuals))
     assert _digest(victim) == before and not (tmp_path / "elsewhere").exists()
@@ -172,7 +173,7 @@ def test_many_outputs_are_said_before_the_first_simulation_runs(tmp_path, monkey
     def stopped(*args, **kwargs):
         raise Failed("stopped before the fit")
 
-    monkeypatch.setattr(calibrate, "least_squares", stopped)
+    monkeypatch.setattr(calibrate.Evaluator, "objective", stopped)
     path = calibration(tmp_path, _many_times(1_500), '[estimate]\nr = [20.0, 250.0]\n')
     result = invoke("calibrate", path, "-o", tmp_path / "out", "-q")
     assert result.exit_code == 1 and "stopped before the fit" in result.stderr, result.output
@@ -199,8 +200,7 @@ COST = {"simulations": 0, "simulations_reused": 0, "rounds": 0, "wall_time": 0.0
 def fitted(folder: Path, rows: str, body: str, model):
     """calibration.nc's dataset and table of a fit whose simulations are `model(values) -> one value per row`
     (an analytic model in place of the solver: what is tested is what the fit's numbers are said as)."""
-    from biostudy.commands.calibrate import starts
-    from biostudy.fitting.estimate import least_squares
+    from biostudy.fitting.objective import Objective
     from biostudy.plans.calibration import load_calibration
     from biostudy.reports.calibration import dataset, table_text
 
@@ -211,9 +211,9 @@ def fitted(folder: Path, rows: str, body: str, model):
     def evaluate(points):
         return [(model(plan.values(p)) - data) / sigma for p in points]
 
-    design = starts(len(plan.parameters), plan.spec.method.starts, plan.spec.method.seed)
-    found = least_squares(design, len(data), np.full(len(data), 1e-9), evaluate, plan.spec.method.profiles)
-    ds = dataset(plan, found, design, model(plan.values(found.best.x)), COST, {}, {})
+    result = plan.spec.method.method()(Objective(evaluate, len(data), np.full(len(data), 1e-9),
+                                                 tuple(p.name for p in plan.parameters)))
+    ds = dataset(plan, result, model(plan.values(result.estimate.best.x)), COST, {}, {})
     return ds, table_text(ds)
 
 

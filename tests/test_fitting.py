@@ -1,18 +1,20 @@
 """The fitting maths (biostudy.fitting) against exact answers: a model linear in its parameters, where weighted
 least squares, its covariance and its profile intervals are known in closed form; a parameter the residuals do
-not depend on; a failed evaluation; rounds that are the same whatever the threads' timing."""
+not depend on; a failed evaluation; rounds that hold one request of every live fit, and no threads."""
 from __future__ import annotations
 
-import threading
-import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import biostudy.fitting
 from biostudy.fitting import rounds
 from biostudy.fitting.estimate import least_squares
 from biostudy.fitting.least_squares import PENALTY
+from biostudy.fitting.objective import Objective
 from biostudy.fitting.profiles import THRESHOLD
+from biostudy.fitting.rounds import Ask, Stopped
 
 T = np.linspace(0.1, 1.0, 8)
 SIGMA = np.full(8, 0.05)
@@ -27,13 +29,17 @@ def residuals_of(data, model=lambda u: 1 + BASIS @ u):
     return lambda points: [(model(np.asarray(p)) - data) / SIGMA for p in points]
 
 
+def objective(evaluate, noise=1e-9, workers=1):
+    return Objective(evaluate, 8, np.full(8, noise), ("a", "b"), workers)
+
+
 def test_a_linear_model_gives_the_closed_form_estimate_covariance_and_intervals():
     data = linear_data()
     weighted = BASIS / SIGMA[:, None]
     exact = np.linalg.lstsq(weighted, (data - 1) / SIGMA, rcond=None)[0]
     covariance = np.linalg.inv(weighted.T @ weighted)
     starts = np.array([[0.05, 0.95], [0.95, 0.05]])
-    found = least_squares(starts, 8, np.full(8, 1e-9), residuals_of(data))
+    found = least_squares(starts, objective(residuals_of(data)))
     np.testing.assert_allclose(found.best.x, exact, atol=0.01 * np.sqrt(np.diag(covariance)).max() * 10)
     np.testing.assert_allclose(found.local.covariance, covariance, rtol=1e-4)  # forward differences of a line
     np.testing.assert_allclose(found.local.correlation[0, 1], covariance[0, 1] / np.sqrt(covariance[0, 0] *
@@ -51,7 +57,7 @@ def test_a_linear_model_gives_the_closed_form_estimate_covariance_and_intervals(
 def test_a_parameter_the_data_cannot_see_is_not_identifiable_and_its_interval_reaches_the_bounds():
     data = linear_data(2, truth=(0.3, 0.0))
     model = lambda u: 1 + BASIS[:, 0] * u[0] + 1e-9 * u[1]  # noqa: E731 -- u[1] moves the model by nothing
-    found = least_squares(np.array([[0.2, 0.3]]), 8, np.full(8, 1e-12), residuals_of(data, model))
+    found = least_squares(np.array([[0.2, 0.3]]), objective(residuals_of(data, model), 1e-12))
     first, second = found.profiles
     assert first.identifiable and not second.identifiable
     assert second.open_below and second.open_above and (second.lower, second.upper) == (0.0, 1.0)
@@ -65,10 +71,10 @@ def test_a_failed_evaluation_is_a_penalty_and_the_fit_stops_at_its_edge():
     def evaluate(points):  # beyond u0 = 0.8 every simulation 'fails', the optimum among them
         return [None if p[0] > 0.8 else r for p, r in zip(points, good(points))]
 
-    found = least_squares(np.array([[0.4, 0.5]]), 8, np.full(8, 1e-9), evaluate, with_profiles=False)
+    found = least_squares(np.array([[0.4, 0.5]]), objective(evaluate), with_profiles=False)
     assert found.fits[0].failed >= 1  # it tried, was refused, and went on
     assert found.best.x[0] <= 0.8 and found.best.chi2 < PENALTY  # the best point that ran
-    edge = least_squares(np.array([[0.79, 0.6]]), 8, np.full(8, 1e-9), good, with_profiles=False).best
+    edge = least_squares(np.array([[0.79, 0.6]]), objective(good), with_profiles=False).best
     assert found.best.chi2 < chi2_at(good, np.array([0.4, 0.5]))
     assert edge.x[0] > 0.8  # without the failures it would have gone there
 
@@ -77,31 +83,61 @@ def chi2_at(residuals, point):
     return float(np.sum(residuals([point])[0] ** 2))
 
 
-def test_rounds_hold_one_request_of_every_live_fit_whatever_the_timing():
+def asking(asks):
+    """A fit that asks for one point at a time, `asks` times, and returns the sum of its answers."""
+    total = 0.0
+    for i in range(asks):
+        total += sum((yield Ask([np.array([i, 1.0])])))
+    return total
+
+
+def test_rounds_hold_one_request_of_every_live_fit():
     seen = []
 
     def evaluate(points):
         seen.append(len(points))
         return [float(np.sum(p)) for p in points]
 
-    def task(delay, asks):
-        def run(ask):
-            total = 0.0
-            for i in range(asks):
-                time.sleep(delay * (i % 2))  # the threads arrive in different orders from round to round
-                total += sum(ask([np.array([i, 1.0])]))
-            return total
-        return run
-
-    outcome = rounds.run({"a": task(0.01, 3), "b": task(0.0, 5), "c": task(0.02, 1)}, evaluate)
+    outcome = rounds.run({"a": asking(3), "b": asking(5), "c": asking(1)}, evaluate)
     assert seen == [3, 2, 2, 1, 1]  # while all three live, then two, then one
     assert outcome == {"a": 6.0, "b": 15.0, "c": 1.0}
-    assert threading.active_count() >= 1
+
+
+def test_a_stopped_fit_ends_where_it_waits_and_the_others_go_on():
+    fits = {"a": asking(3), "b": asking(3)}
+    outcome = rounds.run(fits, lambda points: [1.0] * len(points),
+                         lambda waiting: {"b"} if len(waiting) == 2 else set())
+    assert outcome["a"] == 3.0 and isinstance(outcome["b"], Stopped)
+
+
+def test_soon_points_join_a_round_only_when_workers_would_wait():
+    def fit():
+        answers = yield Ask([np.zeros(2)], [np.ones(2), np.full(2, 2.0)])
+        return len(answers)
+
+    for workers, taken in ((1, 1), (2, 1), (3, 3)):
+        assert rounds.run({"f": fit()}, lambda points: [0.0] * len(points), workers=workers)["f"] == taken
+
+
+def test_more_workers_do_not_change_the_path():
+    data = linear_data(4)
+    serial = least_squares(np.array([[0.2, 0.7]]), objective(residuals_of(data)))
+    wide = least_squares(np.array([[0.2, 0.7]]), objective(residuals_of(data), workers=16))
+    np.testing.assert_array_equal(serial.best.x, wide.best.x)
+    for a, b in zip(serial.profiles, wide.profiles):
+        np.testing.assert_array_equal(a.u, b.u) and np.testing.assert_array_equal(a.chi2, b.chi2)
 
 
 def test_an_error_in_a_round_ends_every_fit():
     def evaluate(points):
         raise KeyboardInterrupt
 
+    fits = {"a": asking(2), "b": asking(2)}
     with pytest.raises(KeyboardInterrupt):
-        rounds.run({"a": lambda ask: ask([np.zeros(1)]), "b": lambda ask: ask([np.ones(1)])}, evaluate)
+        rounds.run(fits, evaluate)
+    assert all(fit.gi_frame is None for fit in fits.values())  # closed, nothing left waiting
+
+
+def test_the_fits_run_without_threads():
+    package = Path(biostudy.fitting.__file__).parent
+    assert not [path.name for path in package.glob("*.py") if "threading" in path.read_text(encoding="utf-8")]

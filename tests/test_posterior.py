@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import qmc
 
 from biostudy.fitting import sampling, surrogate
+from biostudy.fitting.objective import Objective
 from biostudy.fitting.posterior import Options, posterior
 
 LOW, HIGH = np.array([0.2, 0.1]), np.array([0.7, 0.9])
@@ -87,7 +88,7 @@ def test_the_posterior_of_a_linear_gaussian_model_is_its_closed_form():
 
     options = Options(design=12, held_out=4, walkers=16, steps=2500, box=6.0, seed=3)
     se = np.sqrt(np.diag(covariance))
-    found = posterior(evaluate, exact, se, [], options, ["a", "b"])
+    found = posterior(Objective(evaluate, 8, np.zeros(8), ("a", "b")), exact, se, options)
     assert calls == [12, 6, 4] and found.trained_on == 18 and found.held.count == 4  # design, refinement, held out
     assert np.all(found.held.error < 1e-3)  # a linear model: the trend is exact
     chains = found.chains
@@ -112,7 +113,8 @@ def test_failed_runs_are_left_out_of_the_training_and_the_held_out_error_and_cou
         return [None if (len(asked) - len(points) + i) % 3 == 0 else (1 + BASIS @ p - data) / SIGMA
                 for i, p in enumerate(points)]
 
-    found = posterior(evaluate, exact, se, [], Options(design=12, held_out=6, steps=1000, seed=3), ["a", "b"])
+    found = posterior(Objective(evaluate, 8, np.zeros(8), ("a", "b")), exact, se,
+                      Options(design=12, held_out=6, steps=1000, seed=3))
     failed = sum(i % 3 == 0 for i in range(len(asked)))
     assert found.failed == failed and len(asked) == 12 + 6 + 6
     assert found.trained_on == found.designed == 12 + 6 - sum(i % 3 == 0 for i in range(18))
@@ -130,7 +132,8 @@ def test_a_parameter_the_data_do_not_see_is_said_to_reach_its_bounds_and_its_int
         return [(1 + 2 * T * p[0] - data) / SIGMA for p in points]
 
     options = Options(design=12, held_out=4, walkers=16, steps=1500, box=6.0, seed=3)
-    found = posterior(evaluate, np.array([exact, 0.5]), np.array([se, np.inf]), [], options, ["a", "b"])
+    found = posterior(Objective(evaluate, 8, np.zeros(8), ("a", "b")), np.array([exact, 0.5]), np.array([se, np.inf]),
+                      options)
     said = " ".join(found.verdicts)
     assert "the posterior of b reaches its lower bound" in said and "the posterior of b reaches its upper bound" in said
     assert "the data do not bound b on that side" in said and "posterior of a" not in said, found.verdicts

@@ -11,18 +11,20 @@ estimate and its Jacobian are taken from there, and the intervals are measured a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
+from scipy.stats import qmc
 
 from . import rounds
 from .least_squares import STEP, Fit, Problem, fit
+from .objective import Objective, key
 from .profiles import Branch, Profile, branch, profile
 from .rounds import Stopped
 from .uncertainty import Local, local
 
 MERGE = 0.05  # starts this close (unit cube, every coordinate) are heading for the same minimum
 REFIT = 0.1  # a profile point this much below the best start's chi²: the fit is repeated from it
+DESIGN_MARGIN = 0.05  # the starts' Latin hypercube fills [0.05, 0.95] of every range
 
 
 @dataclass
@@ -39,6 +41,12 @@ class Estimate:
     starts_chi2: float | None = None  # the starts' best chi², when the profiles found lower and the fit was repeated
 
 
+def starts(k: int, n: int, seed: int) -> np.ndarray:
+    """n starts in the unit cube: a scrambled Latin hypercube over [DESIGN_MARGIN, 1 - DESIGN_MARGIN]^k."""
+    design = qmc.LatinHypercube(d=k, scramble=True, rng=seed).random(n)
+    return DESIGN_MARGIN + (1 - 2 * DESIGN_MARGIN) * design
+
+
 def _best_point(problem: Problem) -> tuple[np.ndarray, float] | None:
     if not problem.path:
         return None
@@ -46,88 +54,67 @@ def _best_point(problem: Problem) -> tuple[np.ndarray, float] | None:
     return point, value
 
 
-def least_squares(starts: np.ndarray, n: int, noise: np.ndarray, evaluate: Callable[[list[np.ndarray]], list],
-                  with_profiles: bool = True, workers: int = 1) -> Estimate:
-    """Fit from every start (rows of the unit cube), then profile every parameter of the best fit; `workers`: how
-    many simulations run at once (a fit asks for a point and its neighbours together when there are enough)."""
-    k = starts.shape[1]
-    problems: dict[str, Problem] = {}
-    live = {"fits": len(starts)}  # fits in the last round: set between rounds, the same whatever the timing
+def _merge(problems: dict[str, Problem], waiting: list[str]) -> set[str]:
+    """Of the starts waiting, those whose best point is within `MERGE` of another's with a higher chi²."""
+    ends = {name: _best_point(problems[name]) for name in waiting}
+    ends = {name: end for name, end in ends.items() if end is not None}
+    stopped: set[str] = set()
+    for a in sorted(ends):
+        for b in sorted(ends):
+            if a < b and a not in stopped and b not in stopped:
+                if np.max(np.abs(ends[a][0] - ends[b][0])) < MERGE:
+                    stopped.add(b if ends[b][1] >= ends[a][1] else a)
+    return stopped
 
-    def speculate(free: int) -> bool:
-        return workers >= live["fits"] * (free + 1)
 
-    def counted(waiting: list[str], stopped: set[str] = frozenset()) -> None:
-        live["fits"] = max(1, len(set(waiting) - set(stopped)))
+def _joined(problem: Problem, n: int, k: int) -> Fit | None:
+    """A stopped start's best point, as a `Fit` marked stopped (None: it had evaluated nothing)."""
+    found = _best_point(problem)
+    if found is None:
+        return None
+    return Fit(found[0], found[1], problem.known[key(found[0])], np.zeros((n, k)), problem.steps,
+               len(problem.path), "stopped: joined another start", problem.failed, True)
 
-    def start_task(name: str, start: np.ndarray):
-        def task(ask):
-            problems[name] = Problem(ask, n, noise, np.full(k, STEP), speculate)
-            return fit(start, problems[name])
-        return task
 
-    names = [f"start{i}" for i in range(len(starts))]
-    tasks = {name: start_task(name, start) for name, start in zip(names, starts)}
+def _from_starts(design: np.ndarray, objective: Objective) -> list[Fit | None]:
+    """Every start's fit, side by side in rounds; a start heading for another's minimum is stopped (`_merge`)."""
+    k = design.shape[1]
+    problems = {f"start{i}": Problem(objective.n, objective.noise, np.full(k, STEP)) for i in range(len(design))}
+    outcome = rounds.run({name: fit(start, problems[name]) for name, start in zip(problems, design)},
+                         objective.evaluate, lambda waiting: _merge(problems, waiting), objective.workers)
+    return [_joined(problems[name], objective.n, k) if isinstance(outcome[name], Stopped) else outcome[name]
+            for name in problems]  # type: ignore[misc]
 
-    def merge(waiting: list[str]) -> set[str]:
-        ends = {name: _best_point(problems[name]) for name in waiting if name in problems}
-        ends = {name: end for name, end in ends.items() if end is not None}
-        stopped = set()
-        for a in sorted(ends):
-            for b in sorted(ends):
-                if a < b and a not in stopped and b not in stopped:
-                    if np.max(np.abs(ends[a][0] - ends[b][0])) < MERGE:
-                        stopped.add(b if ends[b][1] >= ends[a][1] else a)
-        counted(waiting, stopped)
-        return stopped
 
-    outcome = rounds.run(tasks, evaluate, merge)
-    fits: list[Fit | None] = []
-    for name in names:
-        result = outcome[name]
-        if isinstance(result, Stopped):
-            found = _best_point(problems[name]) if name in problems else None
-            fits.append(None if found is None else Fit(found[0], found[1], problems[name].known[
-                tuple(np.round(found[0], 15))], np.zeros((n, k)), problems[name].steps, len(problems[name].path),
-                "stopped: joined another start", problems[name].failed, True))
-        elif isinstance(result, BaseException):
-            raise result
-        else:
-            fits.append(result)
-    best = min((f for f in fits if f is not None and not f.stopped), key=lambda f: f.chi2)
-    estimate = Estimate(fits, best, local(best.jacobian), minimum=best.chi2, lowest=best.x)
-    if not with_profiles:
-        return estimate
-    branches = {f"profile{j}{'-+'[d > 0]}": (j, d) for j in range(k) for d in (-1, 1)}
-    tasks = {name: (lambda ask, j=j, d=d: branch(best, j, d, ask, noise, speculate,
-                                                   float(estimate.local.standard_error[j])))
-             for name, (j, d) in branches.items()}
-    live["fits"] = len(tasks)
-
-    def profiles_counted(waiting: list[str]) -> set[str]:
-        counted(waiting)
-        return set()
-
-    outcome = rounds.run(tasks, evaluate, profiles_counted)
-    for result in outcome.values():
-        if isinstance(result, BaseException):
-            raise result
-    estimate.branches = [outcome[name] for name in branches]
+def _profiles(estimate: Estimate, objective: Objective) -> None:
+    """The 2k profile branches from the best fit side by side; the fit repeated from a profile point more than
+    `REFIT` below it; the profiles' intervals against the lowest chi² found."""
+    best = estimate.best
+    names = {f"profile{j}{'-+'[d > 0]}": (j, d) for j in range(objective.k) for d in (-1, 1)}
+    outcome = rounds.run({name: branch(best, j, d, objective.noise, float(estimate.local.standard_error[j]))
+                          for name, (j, d) in names.items()}, objective.evaluate, workers=objective.workers)
+    estimate.branches = [outcome[name] for name in names]  # type: ignore[misc]
     for b in estimate.branches:
         for _, value, point in b.points:
             if value < estimate.minimum:
                 estimate.minimum, estimate.lowest = value, point
     if estimate.minimum < best.chi2 - REFIT:
-        live["fits"] = 1
-        lowest = estimate.lowest
-        again = rounds.run({"refit": lambda ask: fit(lowest, Problem(ask, n, noise, best.steps, speculate))},
-                           evaluate, profiles_counted)["refit"]
-        if isinstance(again, BaseException):
-            raise again
+        again = rounds.run({"refit": fit(estimate.lowest, Problem(objective.n, objective.noise, best.steps))},
+                           objective.evaluate, workers=objective.workers)["refit"]
+        assert isinstance(again, Fit)
         if again.chi2 < best.chi2:
             estimate.starts_chi2, estimate.best, estimate.local = best.chi2, again, local(again.jacobian)
         if again.chi2 < estimate.minimum:
             estimate.minimum, estimate.lowest = again.chi2, again.x
     estimate.profiles = [profile(best, outcome[f"profile{j}-"], outcome[f"profile{j}+"], estimate.minimum)
-                         for j in range(k)]  # the branches start from `best`, the starts' best
+                         for j in range(objective.k)]  # type: ignore[arg-type]  # from `best`, the starts' best
+
+
+def least_squares(design: np.ndarray, objective: Objective, with_profiles: bool = True) -> Estimate:
+    """Fit from every start (rows of the unit cube), then profile every parameter of the best fit."""
+    fits = _from_starts(design, objective)
+    best = min((f for f in fits if f is not None and not f.stopped), key=lambda f: f.chi2)
+    estimate = Estimate(fits, best, local(best.jacobian), minimum=best.chi2, lowest=best.x)
+    if with_profiles:
+        _profiles(estimate, objective)
     return estimate

@@ -8,9 +8,8 @@ Newton step would lower chi² by less than `TOLERANCE` (absolute: what matters b
 judged on the damped step, a few rejected steps would end it anywhere). scipy's bounded `trf` ended on the size
 of its steps, which the model's small jumps shrink: on the tiny agar twin it stopped at chi² 19 where 3.5 was to
 be had. The Jacobian is forward differences (backward at an upper bound), their k runs asked for at once, and
-when `speculate()` says so together with the point itself (k + 1 runs in one round: worth it only when workers
-would otherwise wait, i.e. when there are at least k + 1 workers for each fit asking; the path is the same either
-way).
+offered with the point itself (`rounds.Ask.soon`: k + 1 runs in one round, taken only when workers would otherwise
+wait; the path is the same either way).  `fit` is a generator: it yields what it needs (`rounds`).
 
 The step is chosen against the observables' own resolution (`noise`: per measurement the smallest change
 of the model that is not noise, in residual units): a column whose largest change is less than `SIGNAL`
@@ -26,11 +25,11 @@ away from it); a failed neighbour of a Jacobian leaves that column zero for that
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
-from .rounds import Ask
+from .objective import key
+from .rounds import Ask, Asking
 
 STEP = 0.01  # the smallest finite-difference step, in units of the range (unit cube)
 MAX_STEP = 0.05
@@ -63,11 +62,11 @@ class Fit:
 
 
 class Problem:
-    """The residuals of one fit: asked for in rounds, remembered per point, with finite-difference Jacobians."""
+    """The residuals of one fit, remembered per point (`objective.key`), with finite-difference Jacobians; its
+    methods are generators that yield an `Ask` when they need residuals not yet known (`rounds`)."""
 
-    def __init__(self, ask: Ask, n: int, noise: np.ndarray, steps: np.ndarray,
-                 speculate: Callable[[int], bool] = lambda free: False):
-        self.ask, self.n, self.noise, self.speculate = ask, n, np.asarray(noise, float), speculate
+    def __init__(self, n: int, noise: np.ndarray, steps: np.ndarray):
+        self.n, self.noise = n, np.asarray(noise, float)
         self.steps = np.array(steps, dtype=float)
         self.known: dict[tuple, np.ndarray] = {}
         self.failed = 0
@@ -75,20 +74,21 @@ class Problem:
 
     def _store(self, points, results) -> None:
         for point, result in zip(points, results):
-            key = tuple(np.round(point, 15))
-            if key in self.known:
+            if key(point) in self.known:
                 continue
             if result is None:
                 self.failed += 1
                 result = np.full(self.n, PENALTY)
-            self.known[key] = np.asarray(result, dtype=float)
-            self.path.append((np.array(point), chi2(self.known[key])))
+            self.known[key(point)] = np.asarray(result, dtype=float)
+            self.path.append((np.array(point), chi2(self.known[key(point)])))
 
-    def residuals(self, points: list[np.ndarray]) -> list[np.ndarray]:
-        wanted = [p for p in points if tuple(np.round(p, 15)) not in self.known]
+    def residuals(self, points: list[np.ndarray], soon: tuple[np.ndarray, ...] = ()) -> Asking[list[np.ndarray]]:
+        """The residuals at `points`, asked for if not known (with `soon`, which the round may take too)."""
+        wanted = [p for p in points if key(p) not in self.known]
         if wanted:
-            self._store(wanted, self.ask(wanted))
-        return [self.known[tuple(np.round(p, 15))] for p in points]
+            later = [p for p in soon if key(p) not in self.known]
+            self._store(wanted + later, (yield Ask(wanted, later)))
+        return [self.known[key(p)] for p in points]
 
     def neighbour(self, point: np.ndarray, j: int) -> np.ndarray:
         step = self.steps[j] if point[j] + self.steps[j] <= 1.0 else -self.steps[j]
@@ -96,19 +96,20 @@ class Problem:
         moved[j] += step
         return moved
 
-    def at(self, point: np.ndarray, free: list[int]) -> np.ndarray:
-        points = [point] + ([self.neighbour(point, j) for j in free] if self.speculate(len(free)) else [])
-        return self.residuals(points)[0]
+    def at(self, point: np.ndarray, free: list[int]) -> Asking[np.ndarray]:
+        """The residuals at `point`; its Jacobian's neighbours asked for with it if the round has room."""
+        found = yield from self.residuals([point], tuple(self.neighbour(point, j) for j in free))
+        return found[0]
 
-    def jacobian(self, point: np.ndarray, free: list[int]) -> np.ndarray:
+    def jacobian(self, point: np.ndarray, free: list[int]) -> Asking[np.ndarray]:
         """d r / d u at `point` over the free coordinates (the others zero), each step large enough against the
         noise (`SIGNAL`)."""
-        centre = self.residuals([point])[0]
+        centre = (yield from self.residuals([point]))[0]
         columns = np.zeros((self.n, len(point)))
         todo = list(free)
         while todo:
             moved = {j: self.neighbour(point, j) for j in todo}
-            values = dict(zip(todo, self.residuals(list(moved.values()))))
+            values = dict(zip(todo, (yield from self.residuals(list(moved.values())))))
             again = []
             for j in todo:
                 delta = values[j] - centre
@@ -128,21 +129,21 @@ class Problem:
 
 
 def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = None, tolerance: float = TOLERANCE,
-        max_iterations: int = MAX_ITERATIONS, final_jacobian: bool = True) -> Fit:
+        max_iterations: int = MAX_ITERATIONS, final_jacobian: bool = True) -> Asking[Fit]:
     """Minimise chi² from `start` inside the unit cube, the coordinates in `fixed` held at their values:
     Levenberg-Marquardt (module docstring); `final_jacobian`: the Jacobian at the end too (for the covariance;
-    a profile's points need none)."""
+    a profile's points need none).  A generator (`rounds`): it yields the points it needs."""
     fixed = fixed or {}
     k = len(start)
     free = [j for j in range(k) if j not in fixed]
     x = np.clip(np.array(start, dtype=float), 0.0, 1.0)
     for j, value in fixed.items():
         x[j] = value
-    r = problem.at(x, free)
+    r = yield from problem.at(x, free)
     if not free:
-        return Fit(x, chi2(r), r, np.zeros((problem.n, k)), problem.steps.copy(), 1, "nothing free", problem.failed,
-                   path=problem.path)
-    jacobian = problem.jacobian(x, free)
+        return Fit(x, chi2(r), r, np.zeros((problem.n, k)), problem.steps.copy(), 1, "nothing free",
+                      problem.failed, path=problem.path)
+    jacobian = yield from problem.jacobian(x, free)
     damping, evaluations, message = DAMPING, 1, f"stopped after {max_iterations} iterations"
     for _ in range(max_iterations):
         # converged when even the undamped Gauss-Newton step would gain less than the tolerance: judged on the
@@ -154,11 +155,11 @@ def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = No
         step = _step(x, r, jacobian, free, damping)
         predicted = chi2(r) - chi2(r + jacobian @ step)
         trial = x + step
-        r_trial = problem.at(trial, free)
+        r_trial = yield from problem.at(trial, free)
         evaluations += 1
         if chi2(r) - chi2(r_trial) > 0.25 * predicted:
             x, r = trial, r_trial
-            jacobian = problem.jacobian(x, free)
+            jacobian = yield from problem.jacobian(x, free)
             damping = max(damping / 4, 1e-9)
         else:
             damping *= 4
@@ -166,9 +167,9 @@ def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = No
                 message = "stalled: no step lowers chi² (a plateau, or noise)"
                 break
     if final_jacobian:
-        jacobian = problem.jacobian(x, free)
+        jacobian = yield from problem.jacobian(x, free)
     return Fit(x, chi2(r), r, jacobian, problem.steps.copy(), evaluations, message, problem.failed,
-               path=problem.path)
+                  path=problem.path)
 
 
 def _step(x: np.ndarray, r: np.ndarray, jacobian: np.ndarray, free: list[int], damping: float) -> np.ndarray:

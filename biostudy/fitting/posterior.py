@@ -24,17 +24,20 @@ bundled example takes ~0.6 s, so directly on the simulator that is hours (docs/c
 7. The band: the surrogate's mean of every observable at the data times over the posterior samples, its
    2.5 % and 97.5 % quantiles (the model's band, the measurement noise not added).
 
-Every simulation is asked for through `evaluate` (points -> weighted residuals, None for a failed run), so
-the command's case files and fingerprints serve here as in least squares.
+Every simulation is asked for through the `Objective` (points -> weighted residuals, None for a failed run), so
+the command's case files and fingerprints serve here as in least squares, and the fit's own simulations inside
+the box join the training.
 """
 from __future__ import annotations
 
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.stats import qmc
 
+from .objective import Objective, key
 from .sampling import Chains, sample
 from .surrogate import HeldOut, Surrogate, held_out, train
 
@@ -44,6 +47,10 @@ EDGE_DENSITY = 0.02  # ... at a face above this share of its peak: the box cuts 
 BAND_SAMPLES = 1000
 WIDENINGS = 3  # times the box may be widened where the first pass finds the posterior cut by it
 FIRST_STEPS = 200  # the first pass only picks the held-out points: a quarter of the steps, at least these
+
+
+class Untrainable(Exception):
+    """The surrogate could not be trained (too few successful simulations in the box)."""
 
 
 @dataclass(frozen=True)
@@ -136,93 +143,134 @@ def _first_pass(training: dict, low: np.ndarray, high: np.ndarray, centre: np.nd
     return surrogate, sample(log_probability, start, max(FIRST_STEPS, options.steps // 4), options.seed)
 
 
-def posterior(evaluate: Callable[[list[np.ndarray]], list], centre: np.ndarray, standard_error: np.ndarray,
-              known: list[tuple[np.ndarray, np.ndarray | None]], options: Options,
-              names: list[str]) -> Posterior:
-    """Sample the posterior (module docstring): `centre`, `standard_error` the least-squares estimate and its
-    standard errors (unit cube); `known` the simulations already made (point, residuals or None)."""
-    k = len(centre)
-    centre, standard_error = np.asarray(centre, float), np.asarray(standard_error, float)
-    rng = np.random.default_rng(options.seed)
+@dataclass
+class _Training:
+    """The surrogate's training runs (key -> point, residuals), and what they cost."""
+
+    runs: dict[tuple, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    designed: int = 0  # of the design's (the first, every widening's and the refinement's)
+    from_fit: int = 0  # of least squares' own
+    failed: int = 0  # design or held-out runs that failed (left out)
+    seconds: float = 0.0  # wall time of the surrogates and the first passes
+
+    def add(self, points: np.ndarray, results: list) -> None:
+        self.failed += sum(r is None for r in results)
+        self.designed += sum(r is not None for r in results)
+        self.runs.update({key(p): (p, np.asarray(r)) for p, r in zip(points, results) if r is not None})
+
+    def take(self, known: list[tuple[np.ndarray, np.ndarray | None]], low: np.ndarray, high: np.ndarray) -> None:
+        """The fit's own simulations inside the box join the training."""
+        for point, result in known:
+            if result is not None and key(point) not in self.runs and _inside(point, low, high):
+                self.runs[key(point)] = (np.asarray(point), np.asarray(result))
+                self.from_fit += 1
+
+    @contextmanager
+    def timed(self):
+        began = time.perf_counter()
+        yield
+        self.seconds += time.perf_counter() - began
+
+
+def _fill_box(objective: Objective, centre: np.ndarray, standard_error: np.ndarray, options: Options,
+              rng: np.random.Generator, training: _Training):
+    """Steps 1-3: the design in the box, the first pass on its surrogate, the box widened where the first pass
+    finds it cutting the posterior; returns the box, the last first pass and how often it was widened."""
     low, high = box(centre, standard_error, options.box)
-    training: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-    candidates = [(np.asarray(p), r) for p, r in known if r is not None]
-    failed, from_fit, count, designed = 0, 0, options.design, 0
+    known = [(p, r) for p, r in objective.known()]
+    count = options.design
     for widening in range(WIDENINGS + 1):
-        design = low + (high - low) * qmc.LatinHypercube(d=k, scramble=True, rng=options.seed + widening).random(
-            count)
-        ran = evaluate(list(design))
-        failed += sum(r is None for r in ran)
-        designed += sum(r is not None for r in ran)
-        for point, result in candidates:
-            key = tuple(np.round(point, 12))
-            if key not in training and _inside(point, low, high):
-                training[key] = (point, np.asarray(result))
-                from_fit += 1
-        candidates = [(p, r) for p, r in candidates if tuple(np.round(p, 12)) not in training]
-        training.update({tuple(np.round(p, 12)): (p, np.asarray(r)) for p, r in zip(design, ran) if r is not None})
-        surrogate, first = _first_pass(training, low, high, centre, standard_error, options, rng, False)
+        design = low + (high - low) * qmc.LatinHypercube(d=objective.k, scramble=True,
+                                                         rng=options.seed + widening).random(count)
+        ran = objective.evaluate(list(design))
+        training.take(known, low, high)
+        training.add(design, ran)
+        with training.timed():
+            _, first = _first_pass(training.runs, low, high, centre, standard_error, options, rng, False)
         cut = _cut(first.samples, low, high)
         if not cut or widening == WIDENINGS:
-            break
+            return low, high, first, widening
         for j, side in cut:  # that side's distance from the estimate doubled, within the bounds
             if side < 0:
                 low[j] = max(0.0, centre[j] - 2 * (centre[j] - low[j]))
             else:
                 high[j] = min(1.0, centre[j] + 2 * (high[j] - centre[j]))
-        count = max(k + 2, options.design // 2)
+        count = max(objective.k + 2, options.design // 2)
+    raise AssertionError("unreachable")
+
+
+def _held_out(objective: Objective, surrogate: Surrogate, picked: np.ndarray, training: _Training,
+              verdicts: list[str]) -> tuple[HeldOut, np.ndarray]:
+    """Step 5: the surrogate's error on runs it was not trained on, and the variance it adds per residual."""
+    answers = objective.evaluate(list(picked))
+    training.failed += sum(r is None for r in answers)
+    good = [(p, r) for p, r in zip(picked, answers) if r is not None]
+    with training.timed():
+        if good:
+            held = held_out(surrogate, np.array([p for p, _ in good]), np.array([r for _, r in good]))
+            return held, held.error**2
+        _, variance = surrogate.predict(picked)
+    verdicts.append("no held-out simulation succeeded: the surrogate's error is its own predicted variance, "
+                    "not measured")
+    residuals = next(iter(training.runs.values()))[1]
+    return HeldOut(np.full(len(residuals), np.nan), np.sqrt(np.mean(variance, axis=0)), 0), np.mean(variance, axis=0)
+
+
+def _statements(chains: Chains, inflation: np.ndarray, low: np.ndarray, high: np.ndarray, widening: int,
+                options: Options, names: tuple[str, ...]) -> list[str]:
+    """What the sampler, the surrogate's error and the box say about the posterior, in words."""
+    said = chains.verdicts(list(names))
+    worst = float(np.sqrt(np.max(inflation)))
+    if worst > SMALL:
+        said.append(f"the surrogate's error on held-out simulations reaches {worst:.2g} sigma (measurement "
+                    f"{int(np.argmax(inflation)) + 1} of the table): not small against the data's noise, it "
+                    f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %), "
+                    "and more training runs ([method] design) would shrink it")
+    for j, side, share in _edges(chains.samples, low, high):
+        said.append(f"the posterior of {names[j]} reaches the {'lower' if side < 0 else 'upper'} edge of the "
+                    f"surrogate's box (widened {widening} times from {options.box:g} standard errors of least "
+                    f"squares), where its density is still {100 * share:.0f} % of its peak: "
+                    "widen it ([method] box)")
+    for j, side, share in _edges(chains.samples, low, high, bounds=True):
+        said.append(f"the posterior of {names[j]} reaches its {'lower' if side < 0 else 'upper'} bound "
+                    f"([estimate]), where its density is still {100 * share:.0f} % of its peak: the data do not "
+                    f"bound {names[j]} on that side, so its credible interval there is the prior's range, not "
+                    "the data's (the profile likelihood, profiles = true, says whether the data determine it)")
+    return said
+
+
+def posterior(objective: Objective, centre: np.ndarray, standard_error: np.ndarray, options: Options) -> Posterior:
+    """Sample the posterior (module docstring): `centre`, `standard_error` the least-squares estimate and its
+    standard errors (unit cube); the objective's simulations so far inside the box join the training."""
+    centre, standard_error = np.asarray(centre, float), np.asarray(standard_error, float)
+    rng = np.random.default_rng(options.seed)
+    training = _Training()
+    low, high, first, widening = _fill_box(objective, centre, standard_error, options, rng, training)
     # refinement: runs where the first posterior lies, trained on too; the held-out runs are drawn after it
-    refined = first.samples[rng.choice(len(first.samples), size=min(max(k + 2, options.design // 2),
+    refined = first.samples[rng.choice(len(first.samples), size=min(max(objective.k + 2, options.design // 2),
                                                                     len(first.samples)), replace=False)]
-    ran = evaluate(list(refined))
-    failed += sum(r is None for r in ran)
-    designed += sum(r is not None for r in ran)
-    training.update({tuple(np.round(p, 12)): (p, np.asarray(r)) for p, r in zip(refined, ran) if r is not None})
-    surrogate, first = _first_pass(training, low, high, centre, standard_error, options, rng, True)
-    points = np.array([p for p, _ in training.values()])
-    residuals = np.array([r for _, r in training.values()])
+    training.add(refined, objective.evaluate(list(refined)))
+    with training.timed():
+        surrogate, first = _first_pass(training.runs, low, high, centre, standard_error, options, rng, True)
     picked = first.samples[rng.choice(len(first.samples), size=min(options.held_out, len(first.samples)),
                                       replace=False)]
-    answers = evaluate(list(picked))
-    failed += sum(r is None for r in answers)
-    good = [(p, r) for p, r in zip(picked, answers) if r is not None]
-    verdicts = []
-    if good:
-        held = held_out(surrogate, np.array([p for p, _ in good]), np.array([r for _, r in good]))
-        inflation = held.error**2
-    else:
-        _, variance = surrogate.predict(picked)
-        held = HeldOut(np.full(residuals.shape[1], np.nan), np.sqrt(np.mean(variance, axis=0)), 0)
-        inflation = np.mean(variance, axis=0)
-        verdicts.append("no held-out simulation succeeded: the surrogate's error is its own predicted variance, "
-                        "not measured")
+    verdicts: list[str] = []
+    held, inflation = _held_out(objective, surrogate, picked, training, verdicts)
 
     def log_probability(u: np.ndarray) -> np.ndarray:
         mean, _ = surrogate.predict(u, variance=False)
         value = -0.5 * np.sum(mean**2 / (1.0 + inflation), axis=1)
         return np.where(_inside(u, low, high), value, -np.inf)
 
-    start = _starts(centre, standard_error, low, high, options.walkers, rng)
-    chains = sample(log_probability, start, options.steps, options.seed + 1)
-    shown = chains.samples[rng.choice(len(chains.samples), size=min(BAND_SAMPLES, len(chains.samples)),
-                                      replace=False)]
-    band = np.quantile(surrogate.predict(shown, variance=False)[0], [0.025, 0.975], axis=0)
-    verdicts += chains.verdicts(names)
-    worst = float(np.sqrt(np.max(inflation)))
-    if worst > SMALL:
-        verdicts.append(f"the surrogate's error on held-out simulations reaches {worst:.2g} sigma (measurement "
-                        f"{int(np.argmax(inflation)) + 1} of the table): not small against the data's noise, it "
-                        f"widens the posterior (sigma inflated by up to {100 * (np.sqrt(1 + worst**2) - 1):.0f} %), "
-                        "and more training runs ([method] design) would shrink it")
-    for j, side, share in _edges(chains.samples, low, high):
-        verdicts.append(f"the posterior of {names[j]} reaches the {'lower' if side < 0 else 'upper'} edge of the "
-                        f"surrogate's box (widened {widening} times from {options.box:g} standard errors of least "
-                        f"squares), where its density is still {100 * share:.0f} % of its peak: "
-                        "widen it ([method] box)")
-    for j, side, share in _edges(chains.samples, low, high, bounds=True):
-        verdicts.append(f"the posterior of {names[j]} reaches its {'lower' if side < 0 else 'upper'} bound "
-                        f"([estimate]), where its density is still {100 * share:.0f} % of its peak: the data do not "
-                        f"bound {names[j]} on that side, so its credible interval there is the prior's range, not "
-                        "the data's (the profile likelihood, profiles = true, says whether the data determine it)")
-    return Posterior(chains, surrogate, held, low, high, inflation, len(points), designed, widening, from_fit, failed,
-                     band, first, verdicts)
+    with training.timed():
+        start = _starts(centre, standard_error, low, high, options.walkers, rng)
+        chains = sample(log_probability, start, options.steps, options.seed + 1)
+        shown = chains.samples[rng.choice(len(chains.samples), size=min(BAND_SAMPLES, len(chains.samples)),
+                                          replace=False)]
+        band = np.quantile(surrogate.predict(shown, variance=False)[0], [0.025, 0.975], axis=0)
+    verdicts += _statements(chains, inflation, low, high, widening, options, objective.names)
+    if training.failed:
+        verdicts.append(f"{training.failed} of the posterior's design and held-out simulations failed: left out of "
+                        "the surrogate's training and of its held-out error")
+    return Posterior(chains, surrogate, held, low, high, inflation, len(training.runs), training.designed, widening,
+                     training.from_fit, training.failed, band, first, verdicts, training.seconds)

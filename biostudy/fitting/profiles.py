@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
 from .least_squares import Fit, Problem, fit
-from .rounds import Ask
+from .rounds import Asking
 
 THRESHOLD = 3.841458820694124  # chi²(1) at 95 %
 MAX_POINTS = 12  # per branch
@@ -40,11 +39,11 @@ class Branch:
     evaluations: int = 0
 
 
-def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, speculate: Callable[[int], bool],
-           standard_error: float) -> Branch:
-    """Step the profile of coordinate j from the optimum `best` toward one bound (see the module)."""
+def branch(best: Fit, j: int, direction: int, noise: np.ndarray, standard_error: float) -> Asking[Branch]:
+    """Step the profile of coordinate j from the optimum `best` toward one bound (see the module); a generator
+    (`rounds`)."""
     out = Branch(j, direction)
-    problem = Problem(ask, len(best.residuals), noise, best.steps, speculate)
+    problem = Problem(len(best.residuals), noise, best.steps)
     # one standard error first (chi² + 1 where the profile is quadratic), then about twice that (+ 4: past 3.84)
     step = FIRST if not math.isfinite(standard_error) else float(np.clip(standard_error, SMALLEST, 2 * FIRST))
     here, previous, floor = best.x.copy(), best.chi2, best.chi2
@@ -58,7 +57,7 @@ def branch(best: Fit, j: int, direction: int, ask: Ask, noise: np.ndarray, specu
             start += (here - before) * (target - here[j]) / (here[j] - before[j])
         start = np.clip(start, 0.0, 1.0)
         start[j] = target
-        found = fit(start, problem, {j: target}, INNER_TOLERANCE, final_jacobian=False)
+        found = yield from fit(start, problem, {j: target}, INNER_TOLERANCE, final_jacobian=False)
         out.points.append((target, found.chi2, found.x))
         out.evaluations += found.evaluations
         floor = min(floor, found.chi2)  # a profile may find lower chi² than the fit did

@@ -1,105 +1,85 @@
-"""Rounds: several fits (threads) ask for points, and each round evaluates what all of them asked for at once.
+"""Rounds: fits written as generators ask for points by yielding them; one loop evaluates every fit's request at once.
 
 A calibration's fits are independent of each other (the starts of a multi-start
 optimisation, the branches of the profile likelihoods) but each is sequential:
 it needs the residuals at one point (and its finite-difference neighbours)
-before it knows the next.  Each fit runs in its own thread and calls
-``ask(points)``, which blocks; when every live fit is waiting, the round's
-points are evaluated together (`evaluate`, which hands them to the workers or
-the Dask cluster at once) and every fit gets its answers.  A round therefore
-holds exactly one request of every live fit, whatever the timing: the
-sequence of rounds, and so the result, is deterministic.  `stop` may end
-fits between rounds (a start that has joined another); their `ask` raises
-`Stopped`.  An exception in this thread (Ctrl-C) ends every fit (`Aborted`).
+before it knows the next.  A fit is therefore a generator: it yields an `Ask`
+(the points it needs, and points it would need soon if workers are idle) and
+is sent the results.  `run` advances every fit to its next request, evaluates
+all of a round's requests in one call (`evaluate`, which hands them to the
+workers or the Dask cluster at once) and sends each fit its answers.  A round
+holds exactly one request of every live fit, and fits are asked in the order
+of their names: the sequence of rounds, and so the result, is deterministic.
+Between rounds `stop` may end fits (a start that has joined another); they are
+closed and end as `Stopped`.  Nothing runs in a thread: Ctrl-C ends the loop
+where it is, as everywhere else.
 """
 from __future__ import annotations
 
-import threading
-from typing import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Callable, Generator, TypeVar
 
 import numpy as np
 
-Ask = Callable[[Sequence[np.ndarray]], list]  # points -> one result each (residuals, or None: a failed run)
+from .objective import Evaluate
+
+T = TypeVar("T")
 
 
-class Aborted(Exception):
-    """The calibration ends (interrupted, or a round failed): every fit ends with it."""
+@dataclass(frozen=True)
+class Ask:
+    """What a fit needs before it can go on (`points`), and what it will need next if the round has room for it
+    (`soon`: finite-difference neighbours, evaluated only when workers would otherwise wait)."""
+
+    points: list[np.ndarray]
+    soon: list[np.ndarray] = field(default_factory=list)
 
 
-class Stopped(Exception):
-    """This fit is no longer needed (`Rounds.run`'s stop chose it)."""
+Asking = Generator[Ask, list, T]  # yields what it needs; sent one result per point asked (and `soon` point taken)
 
 
-def run(tasks: dict[str, Callable[[Ask], object]], evaluate: Callable[[list[np.ndarray]], list],
-        stop: Callable[[list[str]], set[str]] | None = None) -> dict[str, object]:
-    """Run every task(ask) in a thread of its own, in rounds; returns name -> what the task returned (or the
-    exception it raised).  evaluate(points) -> results, in order; stop(waiting names) -> names to stop."""
-    lock = threading.Condition()
-    pending: dict[str, list[np.ndarray]] = {}
-    answers: dict[str, object] = {}
-    alive = set(tasks)
+class Stopped:
+    """The outcome of a fit that `run`'s stop ended (it joined another)."""
+
+
+def _room(workers: int, fits: int, ask: Ask) -> bool:
+    """Take a fit's `soon` points too when the workers would otherwise wait: at least one worker per point for
+    every fit of the round."""
+    return bool(ask.soon) and workers >= fits * (len(ask.points) + len(ask.soon))
+
+
+def run(fits: dict[str, Asking], evaluate: Evaluate, stop: Callable[[list[str]], set[str]] | None = None,
+        workers: int = 1) -> dict[str, object]:
+    """Advance every fit in rounds until each has returned; name -> what it returned (or a `Stopped`).
+    evaluate(points) -> one result each, in order; stop(waiting names) -> names to stop; `workers`: how many
+    simulations run at once (whether a fit's `soon` points join the round)."""
     outcome: dict[str, object] = {}
-    state = {"aborted": False}
+    waiting: dict[str, Ask] = {}
 
-    def asker(name: str) -> Ask:
-        def ask(points):
-            with lock:
-                if state["aborted"]:
-                    raise Aborted
-                pending[name] = [np.asarray(p, dtype=float) for p in points]
-                lock.notify_all()
-                while name not in answers and not state["aborted"]:
-                    lock.wait()
-                if state["aborted"]:
-                    raise Aborted
-                answer = answers.pop(name)
-            if isinstance(answer, Stopped):
-                raise answer
-            return answer
-
-        return ask
-
-    def body(name: str, task) -> None:
+    def advance(name: str, answer: list | None) -> None:
         try:
-            result = task(asker(name))
-        except BaseException as error:  # noqa: B036 -- handed to the caller, which decides
-            result = error
-        with lock:
-            outcome[name] = result
-            alive.discard(name)
-            lock.notify_all()
+            waiting[name] = fits[name].send(answer)  # type: ignore[arg-type]  # None starts a generator
+        except StopIteration as done:
+            outcome[name] = done.value
 
-    threads = [threading.Thread(target=body, args=(name, task), daemon=True, name=f"fit-{name}")
-               for name, task in tasks.items()]
-    for thread in threads:
-        thread.start()
     try:
-        while True:
-            with lock:
-                while alive and set(pending) != alive:
-                    lock.wait(0.5)  # a timeout, so that Ctrl-C reaches this thread
-                if not alive:
-                    break
-                batch = {name: pending.pop(name) for name in sorted(pending)}
-            stopped = stop(list(batch)) if stop else set()
-            asked = [(name, points) for name, points in batch.items() if name not in stopped]
-            flat = [p for _, points in asked for p in points]
-            results = evaluate(flat) if flat else []
-            with lock:
-                at = 0
-                for name, points in asked:
-                    answers[name] = results[at:at + len(points)]
-                    at += len(points)
-                for name in stopped & set(batch):
-                    answers[name] = Stopped()
-                lock.notify_all()
-    except BaseException:
-        with lock:
-            state["aborted"] = True
-            lock.notify_all()
-        for thread in threads:
-            thread.join(5)
-        raise
-    for thread in threads:
-        thread.join()
+        for name in fits:
+            advance(name, None)
+        while waiting:
+            round_ = {name: waiting.pop(name) for name in sorted(waiting)}
+            stopped = stop(list(round_)) if stop else set()
+            for name in stopped & set(round_):
+                fits[name].close()
+                outcome[name] = Stopped()
+            asked = {name: ask for name, ask in round_.items() if name not in stopped}
+            taken = {name: ask.points + (ask.soon if _room(workers, len(asked), ask) else [])
+                     for name, ask in asked.items()}
+            results = evaluate([point for points in taken.values() for point in points]) if taken else []
+            at = 0
+            for name, points in taken.items():
+                advance(name, results[at:at + len(points)])
+                at += len(points)
+    finally:
+        for fit in fits.values():  # an error or Ctrl-C ends every fit where it waits (a finished one: no-op)
+            fit.close()
     return outcome

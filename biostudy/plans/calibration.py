@@ -50,11 +50,11 @@ from ..formatting import value_text
 from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements, refusal
 from ..inputs.real_time import apart, check_agree, exact
-from ..inputs.scene import SCENE_KEYS, Scene
+from ..inputs.scene import SCENE_KEYS, Scene, scene_from_data
 from ..quantities import observables
 from .calibration_method import MethodSpec
 from .calibration_table import DataSpec, extreme_numbers
-from .cases import Case, ManyCases, Plan, base_scene, case_scene, load_plan
+from .cases import Case, OnScene, base_scene, case_scene, compile_cases, not_varied, origins_of, read_spec
 from .designs import Range, check_ends, parse_range
 
 SCENE = "scene"  # the condition of a calibration without [conditions]
@@ -91,10 +91,9 @@ class Condition(BaseModel):
         return {"set": flatten(data), "estimate": _ranges(estimate, "estimate")}
 
 
-class Calibration(ManyCases):
+class Calibration(OnScene):
     """A base scene, measurements, the keys to estimate (shared or per condition), and the method."""
 
-    model_config = ConfigDict(extra="forbid")
     data: DataSpec
     estimate: dict[str, Range] = Field({}, description="estimated dotted scene key -> [low, high] or [low, high, "
                                                        "\"log\"], shared by every condition")
@@ -113,7 +112,7 @@ class Calibration(ManyCases):
         if not self.estimate and not any(c.estimate for c in self.conditions.values()):
             raise InvalidAt("estimate", "estimates no key: add e.g. g = [1e7, 1e10, \"log\"]")
         if self.method.name == "posterior":
-            k = len(self.varied_keys_with_conditions())
+            k = len(self.parameter_names())
             if self.method.walkers < 2 * k:
                 raise InvalidAt("method.walkers", f"emcee needs at least twice as many walkers as parameters: "
                                                   f"{self.method.walkers} < 2 x {k}")
@@ -135,21 +134,19 @@ class Calibration(ManyCases):
     def condition_names(self) -> list[str]:
         return list(self.conditions) or [SCENE]
 
-    def cases(self) -> list[Case]:
+    def condition_cases(self) -> list[Case]:
         """One case per condition, at the scene's own values of the estimated keys: validated before anything
         runs."""
         return [Case(name, dict(self.conditions[name].set) if name in self.conditions else {}, (i,),
                      {"case_id": f"condition {name}"}) for i, name in enumerate(self.condition_names())]
 
-    def varied_keys(self) -> list[str]:
+    def estimated_keys(self) -> list[str]:
+        """Every estimated scene key, once."""
         return list(dict.fromkeys([*self.estimate, *(k for c in self.conditions.values() for k in c.estimate)]))
 
-    def varied_keys_with_conditions(self) -> list[str]:
+    def parameter_names(self) -> list[str]:
         """One entry per estimated parameter (a key estimated per condition counts once per condition)."""
         return [*self.estimate, *(f"{k}[{n}]" for n, c in self.conditions.items() for k in c.estimate)]
-
-    def case_noun(self) -> str:
-        return "conditions"
 
     def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
         problems = []
@@ -242,7 +239,9 @@ class CalibrationPlan:
 
     file: Path
     spec: Calibration
-    plan: Plan  # one case per condition (at the scene's values)
+    scene_file: Path
+    base: Scene  # the base scene with [set] and --set applied
+    scenes: dict[str, Scene]  # every condition's (at the scene's own values of the estimated keys)
     base_data: dict  # the base scene's raw data with [set] and --set applied
     parameters: list[Parameter]
     measurements: list[Measurement]
@@ -271,8 +270,7 @@ class CalibrationPlan:
 
     def scene_at(self, condition: str, values: dict[str, float]) -> Scene:
         """The validated scene of one simulation (bounds were checked: a value inside them is valid)."""
-        return case_scene(self.base_data, self.overrides(condition, values), self.plan.scene_file, self.file,
-                          condition)
+        return case_scene(self.base_data, self.overrides(condition, values), self.scene_file, self.file, condition)
 
 
 def _condition(measurement: Measurement) -> str:
@@ -301,13 +299,14 @@ def _unknown_observable(name: str) -> str:
                                              f"; observables are {', '.join(observables.REGISTRY)}")
 
 
-def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list[Measurement], np.ndarray]:
+def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
+                  path: Path) -> tuple[Path, list[Measurement], np.ndarray]:
     """The table, read and checked against the conditions' scenes; every problem at once."""
     data_file = path.parent / spec.data.measurements
     try:
         factor = spec.data.time_factor()
-        for scene in plan.scenes.values():  # one clock: the table's t_ref is the scene's
-            check_agree(spec.data.t_ref, scene.time.t_ref, plan.scene_file.name)
+        for scene in scenes.values():  # one clock: the table's t_ref is the scene's
+            check_agree(spec.data.t_ref, scene.time.t_ref, scene_file.name)
     except InvalidAt as error:
         raise BadInput(error.problem, path, f"data.{error.key}") from None
     rows = read_measurements(data_file)
@@ -319,7 +318,7 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
             problems.append(BadInput(f"empty; the calibration has conditions {', '.join(spec.conditions)}", data_file,
                                      f"line {m.line}: simulationConditionId"))
             continue
-        if condition not in plan.scenes:
+        if condition not in scenes:
             what = (f"conditions are {', '.join(spec.conditions)}" if spec.conditions
                     else "the calibration has no [conditions]: leave it empty")
             problems.append(BadInput(f"unknown condition {m.condition!r} ({what})", data_file,
@@ -328,7 +327,7 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
         extreme = extreme_numbers(m)
         if extreme:
             problems.append(BadInput(extreme[1], data_file, f"line {m.line}: {extreme[0]}"))
-        scene = plan.scenes[condition]
+        scene = scenes[condition]
         try:
             observable = observables.get(m.observable)
         except ValueError:
@@ -350,7 +349,7 @@ def _measurements(spec: Calibration, plan: Plan, path: Path) -> tuple[Path, list
                           f"conditions.{name}") for name in spec.conditions if name not in named]
     if problems:
         raise refusal(problems, data_file)
-    return data_file, rows, np.minimum(times, [plan.scenes[_condition(m)].time.t_end for m in rows])
+    return data_file, rows, np.minimum(times, [scenes[_condition(m)].time.t_end for m in rows])
 
 
 def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarray, data_file: Path,
@@ -377,14 +376,18 @@ def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarra
 def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
                      runs_here: bool = False) -> CalibrationPlan:
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
-    `BadInput` (every problem of the table at once; `runs_here`: as for `load_plan`)."""
+    `BadInput` (every problem of the table at once; `runs_here`: as for `cases.load_plan`)."""
     path = Path(path)
-    plan = load_plan(path, Calibration, overrides, _wrong_kind, runs_here)
-    spec = plan.spec
-    assert isinstance(spec, Calibration)
-    _, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
-    data_file, rows, times = _measurements(spec, plan, path)
-    return CalibrationPlan(path, spec, plan, base_data, _parameters(spec), rows, times, data_file)
+    spec = read_spec(path, Calibration, _wrong_kind)
+    scene_file, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
+    origins = origins_of(spec.set, path, overrides)
+    base = scene_from_data(base_data, scene_file, origins, runs_here)
+    spec.check(base_data, scene_file, path)
+    not_varied(spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace "
+               "it; change its bounds instead", spec.set, path, overrides)
+    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, runs_here)
+    data_file, rows, times = _measurements(spec, scenes, scene_file, path)
+    return CalibrationPlan(path, spec, scene_file, base, scenes, base_data, _parameters(spec), rows, times, data_file)
 
 
 def _wrong_kind(data: dict) -> str:

@@ -21,7 +21,7 @@ def estimates(plan: CalibrationPlan) -> dict[str, resources.Estimate]:
     """What one simulation of every condition needs: its scene with outputs at its measurement times."""
     found = {}
     for condition in plan.conditions:
-        scene = plan.plan.scenes[condition]
+        scene = plan.scenes[condition]
         timed = scene.time.model_copy(update={"output_times": plan.output_times(condition)})
         found[condition] = resources.estimate(scene.model_copy(update={"time": timed}))
     return found

@@ -6,6 +6,8 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import InvalidAt
+from ..fitting.methods import LeastSquares, Method, PosteriorSampling
+from ..fitting.posterior import Options
 
 METHODS = ("least-squares", "posterior")
 POSTERIOR_KEYS = ("design", "held_out", "walkers", "steps", "box")  # [method] keys of "posterior" alone
@@ -40,3 +42,11 @@ class MethodSpec(BaseModel):
         elif "profiles" not in self.model_fields_set:
             self.profiles = False
         return self
+
+    def method(self) -> Method:
+        """The fitting method this table describes (`fitting.methods`)."""
+        fit = LeastSquares(self.starts, self.profiles, self.seed)
+        if self.name == "posterior":
+            return PosteriorSampling(fit, Options(self.design, self.held_out, self.walkers, self.steps, self.box,
+                                                  self.seed))
+        return fit

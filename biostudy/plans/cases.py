@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -49,14 +49,19 @@ class Case:
         return dict(self.values)
 
 
-class ManyCases(FlatSet):
-    """What study files and stability catalogues share: many cases of one base scene."""
+class OnScene(FlatSet):
+    """A file of simulations of one base scene (a study, a catalogue, a calibration): its name, its one line for
+    `biostudy scenes`, the base scene and the overrides of every simulation."""
 
     model_config = ConfigDict(extra="forbid")
     name: str = Field("", description="short name (default: the file's name without .toml)")
     description: str = Field("", description="one line shown by `biostudy scenes`")
     scene: str = Field(description="base scene file, relative to this file")
     set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
+
+
+class ManyCases(OnScene):
+    """What study files and stability catalogues share: many cases of one base scene."""
 
     def varied_keys(self) -> list[str]:
         """The keys that vary from case to case."""
@@ -131,6 +136,43 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
                               lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
 
 
+M = TypeVar("M", bound=OnScene)
+
+
+def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "") -> M:
+    """A study, catalogue or calibration file validated as `model`; wrong_kind(data) says why the file is not of
+    this kind ("" if it is), before it is validated."""
+    data = read_toml(path)
+    problem = wrong_kind(data)
+    if problem:
+        raise BadInput(problem, path)
+    data.setdefault("name", path.stem)
+    try:
+        return model.model_validate(data)
+    except ValidationError as error:
+        raise from_validation_error(error, path, known_keys=model.model_fields) from None
+
+
+def origins_of(given_set: dict[str, Any], path: Path, overrides) -> Origins:
+    """Where each common override came from: the file's [set] or --set."""
+    return {**given_by(given_set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
+
+
+def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Path, origins: Origins,
+                  runs_here: bool) -> dict[str, Scene]:
+    """Every case's validated scene; every bad case told at once (as a scene tells every bad key)."""
+    scenes, problems = {}, []
+    for case in cases:
+        try:
+            scenes[case.id] = case_scene(base_data, case.values, scene_file, path,
+                                         case.attrs.get("case_id", case.id), origins, runs_here)
+        except BadInput as error:
+            problems.append(error)
+    if problems:
+        raise BadInput.every(problems)
+    return scenes
+
+
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
               wrong_kind: Callable[[dict], str] = lambda data: "", runs_here: bool = False) -> Plan:
     """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
@@ -140,20 +182,13 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
     memory is refused by its estimate before its masks are made (`scene_from_data`).
     """
     path = Path(path)
-    data = read_toml(path)
-    problem = wrong_kind(data)
-    if problem:
-        raise BadInput(problem, path)
-    data.setdefault("name", path.stem)
-    try:
-        spec = model.model_validate(data)
-    except ValidationError as error:
-        raise from_validation_error(error, path, known_keys=model.model_fields) from None
+    spec = read_spec(path, model, wrong_kind)
     scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
-    origins = {**given_by(spec.set, path, "set."), **given_by(map(parse_override, overrides), "--set")}
+    origins = origins_of(spec.set, path, overrides)
     base = scene_from_data(base_data, scene_file, origins, runs_here)
     spec.check(base_data, scene_file, path)
-    _not_swept(spec, path, overrides)
+    not_varied(spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace "
+               "it; change the study's values instead", spec.set, path, overrides)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)
@@ -163,34 +198,22 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
                        f"cases {' and '.join(map(str, twins[:2]))} collide as file names: both are case "
                        f"{repeated} (a case id keeps letters, digits and . + -; others become -)", path,
                        spec.case_noun())
-    scenes, problems = {}, []
-    for case in cases:  # every case checked, every bad one told (as a scene tells every bad key)
-        try:
-            scenes[case.id] = case_scene(base_data, case.values, scene_file, path,
-                                         case.attrs.get("case_id", case.id), origins, runs_here)
-        except BadInput as error:
-            problems.append(error)
-    if problems:
-        raise BadInput.every(problems)
+    scenes = compile_cases(cases, base_data, scene_file, path, origins, runs_here)
     return Plan(path, spec, scene_file, base, cases, scenes, common)
 
 
-def _not_swept(spec: ManyCases, path: Path, overrides) -> None:
+def not_varied(varied_keys: list[str], what: str, given_set: dict[str, Any], path: Path, overrides) -> None:
     """`BadInput` for an override ([set] or --set) of a key the cases vary: every case would replace it, while
-    the record would say it was set."""
-    varied = {tuple(key_parts(key)): key for key in spec.varied_keys()}
+    the record would say it was set.  `what` says who varies it and what to do ({key}: the varied key)."""
+    varied = {tuple(key_parts(key)): key for key in varied_keys}
     problems = []
-    for where, prefix, keys in ((str(path), "set.", list(spec.set)),
+    for where, prefix, keys in ((str(path), "set.", list(given_set)),
                                 ("--set", "", [parse_override(text)[0] for text in overrides])):
         for key in keys:
             parts = tuple(key_parts(key))
             swept = next((name for v, name in varied.items() if v[:len(parts)] == parts or parts[:len(v)] == v),
                          None)
             if swept is not None:
-                problems.append(BadInput(f"is varied by this study ({spec.case_noun()} {swept}), so every case "
-                                         "would replace it; change the study's values instead", where,
-                                         prefix + key))
+                problems.append(BadInput(f"is {what.format(key=swept)}", where, prefix + key))
     if problems:
         raise BadInput.every(problems)
-
-

@@ -45,16 +45,16 @@ from ..data import provenance
 from ..errors import Failed
 from ..fitting.least_squares import PENALTY
 from ..fitting.profiles import THRESHOLD
-from ..fitting.sampling import quantiles
 from ..fitting.uncertainty import band, natural
 from ..formatting import number
 from ..inputs.scene import key_info
 from ..quantities import alerts, observables
 from .parameter_units import MIXED, clock_of, model_units, real_rows, scalar_variables, shown
+from .posterior import posterior_variables
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
-    from ..fitting.posterior import Posterior
+    from ..fitting.methods import Result
     from ..plans.calibration import CalibrationPlan
 
 TEXT = {"units": "1"}
@@ -114,30 +114,21 @@ def _no_fit(plan: CalibrationPlan, model: np.ndarray, failed: dict[str, str]) ->
             f"finished: is σ (noiseParameters) in the measurement's units?")
 
 
-def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: np.ndarray, cost: dict,
-            failed: dict[str, str], raised: dict[str, dict[str, str]], sampled: Posterior | None = None) -> xr.Dataset:
-    """calibration.nc's contents (module docstring): `model` at the estimate per measurement, `cost` the counts and
-    times (simulations, simulations_reused, rounds, wall_time, ...), `failed` the failed simulations (id -> why),
-    `raised` the simulations `quantities.alerts` spoke of (attribute -> id -> sentence), `sampled` the posterior when
-    sampled."""
-    best = found.best
-    if best.chi2 >= len(model) * PENALTY**2:
-        raise Failed(_no_fit(plan, model, failed))
+def _parameter_variables(plan: CalibrationPlan, found: Estimate) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray]:
+    """Per parameter: the estimate, its standard error, the profile interval, identifiability, bounds, scale,
+    key, correlations and the profiles; also the estimate, lower and upper ends as arrays."""
     params = plan.parameters
-    k, n = len(params), len(model)
-    measured = np.array([m.value for m in plan.measurements])
-    sigma = np.array([m.sigma for m in plan.measurements])
-    names = [p.name for p in params]
-    estimate = np.array([p.value(u) for p, u in zip(params, best.x)])
+    k = len(params)
+    each = MIXED
+    estimate = np.array([p.value(u) for p, u in zip(params, found.best.x)])
     scaled = np.array([math.log10(v) if p.log else v for p, v in zip(params, estimate)])
     errors = [natural(float(e), p.range.low, p.range.high, p.log, v)
               for p, e, v in zip(params, found.local.standard_error, estimate)]
-    units = [cf_units(key_info(p.key)[1]) for p in params]
     profiled = bool(found.profiles)
-    lower = np.array([p.value(prof.lower) for p, prof in zip(params, found.profiles)]) \
-        if profiled else np.full(k, np.nan)
-    upper = np.array([p.value(prof.upper) for p, prof in zip(params, found.profiles)]) \
-        if profiled else np.full(k, np.nan)
+    lower = np.array([p.value(prof.lower) for p, prof in zip(params, found.profiles)]) if profiled \
+        else np.full(k, np.nan)
+    upper = np.array([p.value(prof.upper) for p, prof in zip(params, found.profiles)]) if profiled \
+        else np.full(k, np.nan)
     identifiable = np.array([prof.identifiable for prof in found.profiles]) if profiled \
         else np.isfinite(found.local.standard_error)
     length = max((len(prof.u) for prof in found.profiles), default=1)
@@ -146,10 +137,6 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
     for j, (p, prof) in enumerate(zip(params, found.profiles)):
         profile_value[j, :len(prof.u)] = [p.value(u) for u in prof.u]
         profile_chi2[j, :len(prof.u)] = prof.chi2
-    half = band(best.jacobian, found.local.covariance, sigma)
-    rows = plan.measurements
-    each = MIXED
-    mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
     data = {
         "estimate": ("parameter", estimate, {**each, "long_name": "estimated value (least squares)"}),
         "standard_error": ("parameter", np.array([e[1] for e in errors]),
@@ -176,6 +163,18 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
                           {**each, "long_name": "profiled parameter value"}),
         "profile_chi2": (("parameter", "profile_point"), profile_chi2,
                          {"units": "1", "long_name": "chi² with the other parameters re-optimised"}),
+    }
+    return data, estimate, lower, upper
+
+
+def _measurement_variables(plan: CalibrationPlan, found: Estimate, model: np.ndarray) -> dict:
+    """Per row of the table: what was measured, its sigma, the fitted model, its band and the residual."""
+    rows = plan.measurements
+    measured = np.array([m.value for m in rows])
+    sigma = np.array([m.sigma for m in rows])
+    half = band(found.best.jacobian, found.local.covariance, sigma)
+    mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
+    return {
         "observable": ("measurement", _text(m.observable for m in rows), {**TEXT, "long_name": "observableId"}),
         "condition": ("measurement", _text(m.condition for m in rows),
                       {**TEXT, "long_name": "simulationConditionId"}),
@@ -186,7 +185,7 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
                                                                                    "as the table gives it"}),
         "measured": ("measurement", measured, {**mapped, "long_name": "measurement"}),
         "sigma": ("measurement", sigma, {**mapped, "long_name": "standard deviation of the measurement "
-                                                                            "(noiseParameters)"}),
+                                                                "(noiseParameters)"}),
         "fitted": ("measurement", model, {**mapped, "long_name": "model at the estimate"}),
         "band_lower": ("measurement", model - half, {**mapped, "long_name": "lower end of the 95 % band of the "
                                                                            "fitted model (Jacobian covariance)"}),
@@ -194,119 +193,104 @@ def dataset(plan: CalibrationPlan, found: Estimate, design: np.ndarray, model: n
                                                                            "fitted model (Jacobian covariance)"}),
         "residual": ("measurement", (model - measured) / sigma,
                      {"units": "1", "long_name": "weighted residual (fitted - measured) / sigma"}),
-        "start_point": (("start", "parameter"), np.array([[p.value(u) for p, u in zip(params, s)] for s in design]),
-                        {**each, "long_name": "where the start began"}),
+    }
+
+
+def _start_variables(plan: CalibrationPlan, result: Result) -> dict:
+    """Per start of the optimiser: where it began and ended, its chi², whether it joined another."""
+    params, fits = plan.parameters, result.estimate.fits
+    return {
+        "start_point": (("start", "parameter"), np.array([[p.value(u) for p, u in zip(params, s)]
+                                                          for s in result.starts]),
+                        {**MIXED, "long_name": "where the start began"}),
         "start_end": (("start", "parameter"), np.array([[p.value(u) for p, u in zip(params, f.x)] if f is not None
-                                                        else [np.nan] * k for f in found.fits]),
-                      {**each, "long_name": "where the start ended"}),
-        "start_chi2": ("start", np.array([f.chi2 if f is not None else np.nan for f in found.fits]),
+                                                        else [np.nan] * len(params) for f in fits]),
+                      {**MIXED, "long_name": "where the start ended"}),
+        "start_chi2": ("start", np.array([f.chi2 if f is not None else np.nan for f in fits]),
                        {"units": "1", "long_name": "chi² where the start ended"}),
-        "start_stopped": ("start", np.array([f is None or f.stopped for f in found.fits]),
+        "start_stopped": ("start", np.array([f is None or f.stopped for f in fits]),
                           {"long_name": "stopped early: it joined another start"}),
     }
-    coords = {
+
+
+def _coordinates(plan: CalibrationPlan, result: Result, units: list[str], length: int) -> dict:
+    params, rows = plan.parameters, plan.measurements
+    names = [p.name for p in params]
+    return {
         "parameter": ("parameter", _text(names), {**TEXT, "long_name": "estimated parameter"}),
         "parameter_other": ("parameter_other", _text(names), {**TEXT, "long_name": "estimated parameter"}),
         "units": ("parameter", _text(units), {**TEXT, "long_name": "units of each parameter (udunits)"}),
         "units_model": ("parameter", _text(model_units(p.key) for p in params),
                         {**TEXT, "long_name": "units of each parameter in the model's terms (per T*)"}),
-        "measurement": ("measurement", np.arange(n), {"units": "1", "long_name": "row of the measurement table"}),
+        "measurement": ("measurement", np.arange(len(rows)), {"units": "1", "long_name": "row of the measurement "
+                                                                                          "table"}),
         "time": ("measurement", plan.times, {"units": "1", "long_name": "normalised time T* of the measurement"}),
         "measurement_units": ("measurement", _text(observables.get(m.observable).units for m in rows),
                               {**TEXT, "long_name": "units of each measurement (udunits)"}),
-        "start": ("start", np.arange(len(design)), {"units": "1", "long_name": "start of the optimiser"}),
+        "start": ("start", np.arange(len(result.starts)), {"units": "1", "long_name": "start of the optimiser"}),
         "profile_point": ("profile_point", np.arange(length), {"units": "1", "long_name": "point of a profile"}),
     }
-    clock = clock_of(plan)
-    data.update(scalar_variables(names, [p.key for p in params], {
-        "estimate": (estimate, "estimated value"), "lower": (lower, "lower end of the 95 % profile interval"),
-        "upper": (upper, "upper end of the 95 % profile interval")}, clock))
+
+
+def _attributes(plan: CalibrationPlan, found: Estimate, cost: dict, failed: dict[str, str],
+                raised: dict[str, dict[str, str]]) -> dict:
+    """chi² and what it says, what the calibration cost, its statements, and where its inputs are."""
+    params = plan.parameters
+    n, k = len(plan.measurements), len(params)
     dof = n - k
-    said = (statements(plan, found) if profiled else []) + _too_few(n, k)
-    attrs = {
+    profiled = bool(found.profiles)
+    clock = clock_of(plan)
+    return {
         "Conventions": "CF-1.10",
         "title": f"calibration: {plan.spec.name}",
         "method": "weighted least squares (Levenberg-Marquardt, bounded), multi-start, finite-difference Jacobian"
                   + (", profile likelihoods (95 %: chi² + 3.84)" if profiled else ""),
-        "chi2": best.chi2, "dof": dof,
-        "chi2_p_value": float(chi2_distribution.sf(best.chi2, dof)) if dof > 0 else float("nan"),
+        "chi2": found.best.chi2, "dof": dof,
+        "chi2_p_value": float(chi2_distribution.sf(found.best.chi2, dof)) if dof > 0 else float("nan"),
         "chi2_minimum": found.minimum,
         "profiles": int(profiled),
         **cost,
         "simulations_failed": len(failed),
-        "finite_difference_steps": ", ".join(f"{p.name} {s:.3g}" for p, s in zip(params, best.steps)),
-        "statements": "; ".join(said),
+        "finite_difference_steps": ", ".join(f"{p.name} {s:.3g}" for p, s in zip(params, found.best.steps)),
+        "statements": "; ".join((statements(plan, found) if profiled else []) + _too_few(n, k)),
         **{name: ", ".join(sorted(raised.get(name, {}))) for name in alerts.ATTRIBUTES},  # the simulations' ids
         "calibration": plan.file.read_text(encoding="utf-8"),
         "calibration_file": str(plan.file.resolve()),
         "measurements_file": str(plan.data_file.resolve()),
-        "scene": plan.plan.base.to_toml(),
-        "scene_file": str(plan.plan.scene_file.resolve()),
+        "scene": plan.base.to_toml(),
+        "scene_file": str(plan.scene_file.resolve()),
         "time_unit": plan.spec.data.time_unit or "T*",
         "t_ref": clock.text if clock else "1 T*",
     }
-    if sampled is not None:
-        extra, extra_coords, extra_attrs = posterior_variables(plan, sampled, measured, sigma, units)
+
+
+def dataset(plan: CalibrationPlan, result: Result, model: np.ndarray, cost: dict, failed: dict[str, str],
+            raised: dict[str, dict[str, str]]) -> xr.Dataset:
+    """calibration.nc's contents (module docstring) from the method's `result`: `model` at the estimate per
+    measurement, `cost` the counts and times (simulations, simulations_reused, rounds, wall_time, ...), `failed`
+    the failed simulations (id -> why), `raised` the simulations `quantities.alerts` spoke of (attribute -> id ->
+    sentence)."""
+    found = result.estimate
+    if found.best.chi2 >= len(model) * PENALTY**2:
+        raise Failed(_no_fit(plan, model, failed))
+    params = plan.parameters
+    units = [cf_units(key_info(p.key)[1]) for p in params]
+    data, estimate, lower, upper = _parameter_variables(plan, found)
+    data.update(_measurement_variables(plan, found, model))
+    data.update(_start_variables(plan, result))
+    data.update(scalar_variables([p.name for p in params], [p.key for p in params], {
+        "estimate": (estimate, "estimated value"), "lower": (lower, "lower end of the 95 % profile interval"),
+        "upper": (upper, "upper end of the 95 % profile interval")}, clock_of(plan)))
+    coords = _coordinates(plan, result, units, data["profile_value"][1].shape[1])
+    attrs = _attributes(plan, found, cost, failed, raised)
+    if result.posterior is not None:
+        extra, extra_coords, extra_attrs = posterior_variables(plan, result.posterior, units)
         data.update(extra)
         coords.update(extra_coords)
         attrs.update(extra_attrs)
         attrs["method"] += ("; posterior: emcee on a Gaussian-process surrogate of the residuals, its held-out "
                             "error added to sigma² (docs/calibration.md)")
     return xr.Dataset(data, coords=coords, attrs=provenance.with_provenance(attrs))
-
-
-def posterior_variables(plan: CalibrationPlan, sampled: Posterior, measured: np.ndarray, sigma: np.ndarray,
-                        units: list[str]) -> tuple[dict, dict, dict]:
-    """The posterior's part of calibration.nc: the samples (dimension `sample`, one variable per parameter), the
-    summaries per parameter, the surrogate's error and the predictive band per measurement, the sampler's
-    diagnostics."""
-    params = plan.parameters
-    chains = sampled.chains
-    values = np.stack([p.range.values(chains.samples[:, j]) for j, p in enumerate(params)], axis=1)
-    median, low, high = quantiles(values)
-    each = MIXED
-    mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
-    data = {f"posterior_{p.name}": ("sample", values[:, j], {"units": units[j], "long_name": f"posterior sample "
-                                                              f"of {p.name} ({p.key})"}) for j, p in enumerate(params)}
-    error = sampled.held.error
-    data.update({
-        "posterior_median": ("parameter", median, {**each, "long_name": "posterior median"}),
-        "posterior_lower": ("parameter", low, {**each, "long_name": "posterior 2.5 % quantile"}),
-        "posterior_upper": ("parameter", high, {**each, "long_name": "posterior 97.5 % quantile"}),
-        "autocorrelation_time": ("parameter", chains.autocorrelation,
-                                 {"units": "1", "long_name": "integrated autocorrelation time, in steps"}),
-        "effective_samples": ("parameter", chains.effective, {"units": "1", "long_name": "effective sample size"}),
-        "surrogate_low": ("parameter", np.array([p.value(u) for p, u in zip(params, sampled.low)]),
-                          {**each, "long_name": "lower edge of the surrogate's box"}),
-        "surrogate_high": ("parameter", np.array([p.value(u) for p, u in zip(params, sampled.high)]),
-                           {**each, "long_name": "upper edge of the surrogate's box"}),
-        "surrogate_error": ("measurement", error, {"units": "1", "long_name": "root-mean-square error of the "
-                                                   "surrogate on held-out simulations, in units of sigma"}),
-        "sigma_likelihood": ("measurement", sigma * np.sqrt(1.0 + sampled.inflation),
-                             {**mapped, "long_name": "standard deviation in the posterior's likelihood: sigma with "
-                                                     "the surrogate's error added in quadrature"}),
-        "posterior_band_lower": ("measurement", measured + sigma * sampled.band[0],
-                                 {**mapped, "long_name": "2.5 % quantile of the model over the posterior samples "
-                                                         "(surrogate)"}),
-        "posterior_band_upper": ("measurement", measured + sigma * sampled.band[1],
-                                 {**mapped, "long_name": "97.5 % quantile of the model over the posterior samples "
-                                                         "(surrogate)"}),
-    })
-    data.update(scalar_variables([p.name for p in params], [p.key for p in params], {
-        "median": (median, "posterior median"), "credible_lower": (low, "posterior 2.5 % quantile"),
-        "credible_upper": (high, "posterior 97.5 % quantile")}, clock_of(plan)))
-    coords = {"sample": ("sample", np.arange(len(values)), {"units": "1", "long_name": "posterior sample"})}
-    attrs = {
-        "posterior_samples": len(values), "posterior_walkers": chains.walkers, "posterior_steps": chains.steps,
-        "posterior_burn_in": chains.burn, "posterior_thin": chains.thin,
-        "acceptance_fraction": chains.acceptance, "posterior_converged": int(chains.converged),
-        "surrogate_training_runs": sampled.trained_on, "surrogate_training_from_fit": sampled.from_fit,
-        "surrogate_design_runs": sampled.designed, "surrogate_box_widened": sampled.widened,
-        "surrogate_held_out_runs": sampled.held.count, "surrogate_failed_runs": sampled.failed,
-        "surrogate_error_max": float(np.nanmax(error)) if np.isfinite(error).any() else float("nan"),
-        "posterior_statements": "; ".join(sampled.verdicts),
-    }
-    return data, coords, attrs
 
 
 def cf_time(unit: str | None) -> str:

@@ -46,7 +46,7 @@ def needs(path) -> str:
                    f"({calibration_cost.chains_text(method, k)})"] if method.name == "posterior" else [])
         return "\n".join([
             f"{plan.spec.name}: {k} parameters, {len(plan.measurements)} measurements, "
-            f"{len(found)} conditions of {plan.plan.scene_file.name}",
+            f"{len(found)} conditions of {plan.scene_file.name}",
             f"one simulation {resources.size(found[largest].memory)} of memory ({found[largest].parts()}), "
             f"{resources.size(found[largest].disk)} on disk (every simulation is kept under cases/), "
             f"{calibration_cost.outputs_text(largest, found[largest].outputs)}",
