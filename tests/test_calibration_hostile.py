@@ -260,3 +260,30 @@ def test_sigma_in_the_wrong_unit_says_how_far_the_fit_is_not_that_every_evaluati
     said = str(error.value)
     assert "every evaluation" not in said and "e+07 σ from the measurement of line 3" in said, said
     assert "is σ (noiseParameters) in the measurement's units?" in said
+
+
+# ---- Ctrl-C during a fit (issue 28: no threads in the driver) -------------------------------------------------------
+
+def test_ctrl_c_between_rounds_ends_the_calibration_at_once_and_its_finished_runs_are_reused(tmp_path, monkeypatch):
+    from biostudy.execution import evaluator
+
+    path = calibration(tmp_path, TWO_ROWS, '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 2\nprofiles = false\n')
+    out = tmp_path / "out"
+    real = evaluator.run_jobs
+
+    def interrupted_at_the_second_round(calls: list):
+        def run_jobs(jobs, *args, **kwargs):
+            if len(calls) == 1:
+                raise KeyboardInterrupt  # as Ctrl-C lands while the second round runs
+            report = real(jobs, *args, **kwargs)
+            calls.append((len(report.ran), len(report.skipped)))
+            return report
+        return run_jobs
+
+    for skipped in (0, 2):  # the second time, the first round's runs are read back, not run again
+        calls: list = []
+        monkeypatch.setattr(evaluator, "run_jobs", interrupted_at_the_second_round(calls))
+        result = invoke("calibrate", path, "-o", out, "-q")
+        assert result.exit_code == 130 and "Traceback" not in result.output, result.output
+        assert calls == [(2 - skipped, skipped)] and not (out / "calibration.nc").exists()
+        assert len(list((out / "cases").glob("*.nc"))) == 2  # the first round's two starts, recorded
