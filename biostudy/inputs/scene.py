@@ -28,6 +28,7 @@ from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_m
 
 import solver
 from solver.problem import Face, face_problem, held_faces_problem
+from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
 from .clock import Time
@@ -86,7 +87,8 @@ class SubstratumSpec(BaseModel):
     model_config = CONFIG
     face: Face | None = Field(None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+); default: "
                                                 "the face the initial biofilm rests on (inputs/substratum_face.py)")
-    threshold: float = unit_field(0.5, "biofilm is phi >= threshold for the substratum observables", "1", gt=0, lt=1)
+    threshold: float = unit_field(BIOFILM_THRESHOLD, "biofilm is phi >= threshold for the substratum observables", "1",
+                                  gt=0, lt=1)
     connected: bool = Field(False, description="COMSTAT's connected-volume filtering: only biofilm connected to "
                                                "the substratum (through cells sharing a face) counts")
     estimator: Literal["subcell", "voxel"] = Field(
