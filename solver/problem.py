@@ -117,6 +117,27 @@ def repeated(items) -> int | None:
     return None
 
 
+def times_problem(times, t_end: float) -> tuple[int, str] | None:
+    """(index, what is wrong) of the first output time outside [0, t_end] or not after the one before, or None."""
+    for i, t in enumerate(times):
+        if not 0 <= t <= t_end:
+            return i, f"{t:g} lies outside [0, t_end = {t_end:g}]"
+        if i and t <= times[i - 1]:
+            return i, f"{t:g} does not come after {times[i - 1]:g}"
+    return None
+
+
+def inside_problem(cells: np.ndarray, obstacle: np.ndarray, named: str = "an obstacle") -> str | None:
+    """What is wrong with holding the nutrient on `cells` beside `obstacle` (boolean arrays alike), or None."""
+    overlap = np.count_nonzero(cells & obstacle)
+    return f"lies inside {named} ({overlap} cells in common)" if overlap else None
+
+
+def blocked_problem(obstacle: np.ndarray) -> str | None:
+    """What is wrong with an obstacle mask that leaves no cell open, or None."""
+    return "covers every cell of the grid" if np.all(obstacle) else None
+
+
 def held_faces_problem(faces: list[str], ndim: int) -> tuple[int, str] | None:
     """(index, what is wrong) of the first face of those where the nutrient is held that is no face of an
     `ndim`-D grid or is held twice (its boundary flux would count twice), or None."""
@@ -298,16 +319,20 @@ class Problem:
         if not (self.t_end > 0 and self.steps >= 1):
             raise ValueError("t_end must be positive and steps at least 1")
         times = self.output_times
-        if times.size == 0 or np.any(np.diff(times) <= 0) or times[0] < 0 or times[-1] > self.t_end:
-            raise ValueError("output_times must increase strictly within [0, t_end]")
+        if times.size == 0:
+            raise OptionError("output_times", "no output time")
+        wrong = times_problem(times, self.t_end)
+        if wrong:
+            raise OptionError(f"output_times[{wrong[0]}]", wrong[1])
         held_twice = held_faces_problem([face for face, _ in self.nutrient_faces], self.grid.ndim)
         if held_twice:
             raise OptionError(f"nutrient_faces[{held_twice[0]}]", held_twice[1])
         values = np.concatenate([self.nutrient_value[self.nutrient_held], [v for _, v in self.nutrient_faces]])
         if np.any((values < 0) | (values > 1)):
             raise ValueError("held nutrient values must lie in [0, 1]")
-        if np.any(self.nutrient_held & self.obstacle):
-            raise ValueError("nutrient sources must not lie inside obstacles")
+        inside = inside_problem(self.nutrient_held, self.obstacle)
+        if inside:
+            raise OptionError("nutrient_held", inside)
         if not 0 <= self.start_time < self.t_end:
             raise ValueError("start_time must lie in [0, t_end)")
         if not np.any(times > self.start_time):
@@ -323,8 +348,9 @@ class Problem:
             raise ValueError("alpha0 must be > -1")
         if self.first_step is not None and not self.first_step > 0:
             raise ValueError("first_step must be positive")
-        if np.all(self.obstacle):
-            raise ValueError("every cell is an obstacle")
+        blocked = blocked_problem(self.obstacle)
+        if blocked:
+            raise OptionError("obstacle", blocked)
 
     @property
     def dt(self) -> float:

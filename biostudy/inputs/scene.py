@@ -27,7 +27,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
-from solver.problem import Face, face_problem, held_faces_problem
+from solver.problem import Face, blocked_problem, face_problem, held_faces_problem, inside_problem
 from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
@@ -185,20 +185,21 @@ class Scene(BaseModel):
                 if getattr(region, "scale", None) is not None:
                     raise InvalidAt(f"{kind}[{i}].scale", "only a biofilm region takes phi from an image's grey "
                                                           "values; give threshold (or a segmented image)")
-        if self._union(self.obstacle, grid).all():
-            raise InvalidAt("obstacle", "covers every cell of the grid")
+        blocked = blocked_problem(self._union(self.obstacle, grid))
+        if blocked:
+            raise InvalidAt("obstacle", blocked)
 
     def _sources_free(self, grid: solver.Grid) -> None:
-        """Each face held once (the solver's rule), no nutrient source inside an obstacle."""
+        """Each face held once, no nutrient source inside an obstacle (the solver's rules, told at the scene's keys)."""
         held = [i for i, source in enumerate(self.nutrient) if isinstance(source, BoundaryFace)]
         found = held_faces_problem([self.nutrient[i].face for i in held], grid.ndim)
         if found:
             raise InvalidAt(f"nutrient[{held[found[0]]}].face", found[1])
         for i, source in enumerate(self.nutrient):
             for j, solid in enumerate(self.obstacle):
-                overlap = np.count_nonzero(source.cells(grid) & solid.cells(grid))
-                if overlap:
-                    raise InvalidAt(f"nutrient[{i}]", f"lies inside obstacle[{j}] ({overlap} cells in common)")
+                inside = inside_problem(source.cells(grid), solid.cells(grid), f"obstacle[{j}]")
+                if inside:
+                    raise InvalidAt(f"nutrient[{i}]", inside)
 
     def _faces_exist(self, grid: solver.Grid) -> None:
         """The substratum's and the mechanics' faces are faces of this grid (`solver.problem.face_problem`)."""
