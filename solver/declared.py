@@ -69,7 +69,9 @@ def option_infos(settings: type) -> tuple[OptionInfo, ...]:
 
 
 class OptionError(ValueError):
-    """A rule between options broken: `option` names the field it is reported at."""
+    """A rule of the solver's settings broken (between options, or between a problem's fields): `option` names
+    the field it is told at ("slide", "output_times[1]"), `problem` says what is wrong, in the words the scene
+    uses at its own key for the same rule."""
 
     def __init__(self, option: str, problem: str):
         self.option, self.problem = option, problem

@@ -27,7 +27,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
-from solver.problem import Face, blocked_problem, face_problem, held_faces_problem, inside_problem
+from solver.problem import Consumption, Face, blocked_problem, face_problem, held_faces_problem, inside_problem
 from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
@@ -63,7 +63,7 @@ class Model(BaseModel):
     """Which form of the model's laws."""
 
     model_config = CONFIG
-    consumption: Literal["first-order", "zero-order"] = Field(
+    consumption: Consumption = Field(
         "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
                                    "Eq. 35, with c held >= 0")
 
