@@ -14,16 +14,19 @@ from __future__ import annotations
 import difflib
 import tomllib
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterable
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Iterable, Mapping
 
 from .formatting import value_text
 
 if TYPE_CHECKING:
     from pydantic import ValidationError  # pydantic when a scene is validated, not when the CLI starts
 
-# Tags of the shape union: pydantic puts them into error locations
-# (biofilm, 0, "sphere", radius); a user wrote biofilm[0].radius.
-SHAPE_TAGS = frozenset({"box", "sphere", "cylinder", "mask", "image", "maze", "grate"})
+# The tags of the tagged unions a model's lists hold, by the list's key ({"biofilm": ("box", "sphere", ...)}, as the
+# schema declares them: `inputs.declared.union_tags`).  pydantic puts a tag into an error's location
+# (biofilm, 0, "sphere", radius) where a user wrote biofilm[0].radius.
+Tags = Mapping[str, tuple[str, ...]]
+NO_TAGS: Tags = MappingProxyType({})
 
 
 def first_line(error: BaseException) -> str:
@@ -84,13 +87,14 @@ class InvalidAt(ValueError):
         super().__init__(problem)
 
 
-def key_path(loc: Iterable) -> str:
-    """('biofilm', 0, 'sphere', 'radius') -> 'biofilm[0].radius'."""
-    text, previous = "", None
+def key_path(loc: Iterable, tags: Tags = NO_TAGS) -> str:
+    """('biofilm', 0, 'sphere', 'radius') -> 'biofilm[0].radius' (the union's tag after an index left out)."""
+    text, listed, previous = "", None, None
     for part in loc:
         if isinstance(part, int):
             text += f"[{part}]"
-        elif isinstance(previous, int) and part in SHAPE_TAGS:
+            listed = previous
+        elif isinstance(previous, int) and part in tags.get(str(listed), ()):
             pass  # the union's tag, not a key the user wrote
         else:
             text += f".{part}" if text else str(part)
@@ -102,7 +106,7 @@ _BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="),
            "less_than": ("lt", "<"), "less_than_equal": ("le", "<=")}
 
 
-def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
+def _problem(error: dict, known_keys: Iterable[str], tags: Tags) -> tuple[str, str]:
     """(extra key path relative to the location, problem) for one pydantic error."""
     kind, ctx, given = error["type"], error.get("ctx") or {}, error.get("input")
     if kind == "value_error" and isinstance(ctx.get("error"), InvalidAt):
@@ -127,7 +131,10 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
         least = "at least" if kind == "too_short" else "at most"
         return "", f"must have {least} {bound} entries (got {value_text(given)})"
     if kind == "union_tag_not_found":
-        return "", "needs a 'shape' key (box, sphere, cylinder, mask or image; obstacles also maze or grate)"
+        listed = error["loc"][-2] if len(error["loc"]) > 1 else ""
+        choices = tags.get(str(listed), ())
+        named = f" ({', '.join(choices[:-1])} or {choices[-1]})" if len(choices) > 1 else ""
+        return "", f"needs a {ctx.get('discriminator', 'shape')} key{named}"
     message = error["msg"]
     for before, after in (("Input should be", "must be"), ("List should have", "must have"),
                           ("Value should have", "must have")):
@@ -139,12 +146,13 @@ def _problem(error: dict, known_keys: Iterable[str]) -> tuple[str, str]:
 
 
 def from_validation_error(error: ValidationError, file: str | Path | None,
-                          prefix: str = "", known_keys: Iterable[str] = ()) -> BadInput:
-    """Every one of pydantic's errors as one line (the first, with the others in `more`)."""
+                          prefix: str = "", known_keys: Iterable[str] = (), tags: Tags = NO_TAGS) -> BadInput:
+    """Every one of pydantic's errors as one line (the first, with the others in `more`); `tags`: the tags of the
+    model's tagged unions (`Tags`)."""
     found = []
     for item in error.errors():
-        extra, problem = _problem(item, known_keys)
-        key = ".".join(part for part in (prefix, key_path(item["loc"]), extra) if part)
+        extra, problem = _problem(item, known_keys, tags)
+        key = ".".join(part for part in (prefix, key_path(item["loc"], tags), extra) if part)
         if (problem, key) not in [(f.problem, f.key or "") for f in found]:
             found.append(BadInput(problem, file, key or None))
     return BadInput(found[0].problem, file, found[0].key, tuple(found[1:]))

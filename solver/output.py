@@ -20,14 +20,12 @@ import numpy as np
 import xarray as xr
 
 from .problem import AXES, PRESSURES, Problem, parameter_infos
+from .series import BIOFILM_THRESHOLD, SERIES, SLAB_THICKNESS, cell_volume
 from .sink import Held
 from .transport.bounds import ROUNDOFF
 
 if TYPE_CHECKING:
     from .snapshot import Snapshot
-
-BIOFILM_THRESHOLD = 0.5
-SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
 
 FIELDS = {
     "phi": ("1", "biofilm density phi (0 void, 1 dense biofilm)"),
@@ -106,9 +104,7 @@ class Record:
     bisections: int
     rejected: int
     elapsed: float
-    phi_mean: float
-    c_mean: float
-    biofilm_volume: float
+    series: dict[str, float]  # `series.SERIES` measured on this output
     solved: bool  # the mechanics was solved at this output
     mechanics: dict = field(default_factory=dict)
 
@@ -116,13 +112,10 @@ class Record:
 def record(problem: Problem, snapshot: Snapshot) -> Record:
     """The output's `Record`: its series measured on its fields (open cells), before the fields go to a sink."""
     grid = problem.grid
-    active = ~problem.obstacle
-    volume = grid.cell_volume * (SLAB_THICKNESS if grid.ndim == 2 else 1.0)
-    phi = snapshot.phi[active]
-    return Record(snapshot.time, snapshot.steps, snapshot.bisections, snapshot.rejected, snapshot.elapsed,
-                  float(phi.mean()), float(snapshot.c[active].mean()),
-                  float(np.count_nonzero(phi >= BIOFILM_THRESHOLD) * volume), snapshot.p is not None,
-                  dict(snapshot.mechanics))
+    volume = cell_volume(grid.spacing, grid.ndim)
+    measured = {s.name: s.measure(getattr(snapshot, s.field), ~problem.obstacle, volume) for s in SERIES}
+    return Record(snapshot.time, snapshot.steps, snapshot.bisections, snapshot.rejected, snapshot.elapsed, measured,
+                  snapshot.p is not None, dict(snapshot.mechanics))
 
 
 def _attributes(problem: Problem, report: dict, snapshots) -> dict:
@@ -209,13 +202,8 @@ def assemble(problem: Problem, records: list[Record], fields: dict[str, Any], re
         data["newton_iterations"] = ("time_mechanics", np.array([r.mechanics.get("newton_iterations", -1)
                                                                  for r in solved], dtype=np.int32),
                                      {"units": "1", "long_name": "Newton iterations of the mechanics"})
-    data["phi_mean"] = ("time", np.array([r.phi_mean for r in records]),
-                        {"units": "1", "long_name": "mean biofilm density over non-obstacle cells"})
-    data["c_mean"] = ("time", np.array([r.c_mean for r in records]),
-                      {"units": "1", "long_name": "mean nutrient concentration over non-obstacle cells"})
-    data["biofilm_volume"] = ("time", np.array([r.biofilm_volume for r in records]),
-                              {"units": "um3", "long_name": "volume of cells with phi >= 0.5"
-                               + (" (2-D: per µm of thickness)" if grid.ndim == 2 else "")})
+    for series in SERIES:
+        data[series.name] = ("time", np.array([r.series[series.name] for r in records]), series.attrs(grid.ndim))
     for name, counter, long_name in (("steps_taken", "steps", "accepted steps so far"),
                                      ("steps_bisected", "bisections", "bisected (failed) steps so far"),
                                      ("steps_rejected", "rejected", "steps rejected by the error control so far")):

@@ -13,17 +13,22 @@ flattening is FiPy's cell order (x fastest).  Per-node arrays have shape
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
+from .declared import OptionError, ParameterInfo, option, parameter
+
 AXES = ("x", "y", "z")
-FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
+Face = Literal["x-", "x+", "y-", "y+", "z-", "z+"]
+FACES: tuple[Face, ...] = get_args(Face)
 Consumption = Literal["first-order", "zero-order"]
 Advection = Literal["upwind", "tvd"]
 GrowthVelocity = Literal["front", "pointwise"]
-LINEAR_SOLVERS = ("auto", "multigrid", "direct", "amg")
-PRESSURES = {  # which pressure a dataset holds (solver/mechanics/pressure.py, docs/mechanics.md)
+LinearSolver = Literal["auto", "multigrid", "direct", "amg"]
+LINEAR_SOLVERS: tuple[LinearSolver, ...] = get_args(LinearSolver)
+Pressure = Literal["recovered", "element"]
+PRESSURES: dict[Pressure, str] = {  # which pressure a dataset holds (solver/mechanics/pressure.py, docs/mechanics.md)
     "recovered": "Q1/P0 element pressure without its spurious (checkerboard) modes: p = w kappa (Theta - 1) "
                  "filtered at interior nodes",
     "element": "Q1/P0 mean-dilatation element pressure p = w kappa (Theta - 1), as in the paper (carries "
@@ -97,15 +102,51 @@ class Grid:
         return tuple(reversed(grids))
 
 
-def parameter(default: float, units: str, long_name: str, **bounds: float):
-    """A field of `Parameters`: default, units (the model's, e.g. um2/T*; datasets write their udunits form,
-    `solver.output.cf_units`), meaning and allowed range
-    (bounds: gt, ge, lt, le).  The scene schema, the dataset's attributes and the tables of `show` and
-    `stability` are all derived from these declarations, so a new parameter is declared here once."""
-    unknown = set(bounds) - {"gt", "ge", "lt", "le"}
-    if unknown:
-        raise TypeError(f"unknown bounds {sorted(unknown)}; use gt, ge, lt, le")
-    return field(default=default, metadata={"units": units, "long_name": long_name, "bounds": bounds})
+def face_problem(face: str, ndim: int) -> str | None:
+    """What is wrong with naming `face` on an `ndim`-D grid, or None: the one rule (and message) wherever a
+    face meets a grid (held nutrient, clamped or sliding mechanics, the substratum)."""
+    faces = FACES[: 2 * ndim]
+    return None if face in faces else f"'{face}' is not a face of a {ndim}-D grid (faces: {', '.join(faces)})"
+
+
+def repeated(items) -> int | None:
+    """The index of the first item that an earlier one already is, or None."""
+    for index, item in enumerate(items):
+        if item in items[:index]:
+            return index
+    return None
+
+
+def times_problem(times, t_end: float) -> tuple[int, str] | None:
+    """(index, what is wrong) of the first output time outside [0, t_end] or not after the one before, or None."""
+    for i, t in enumerate(times):
+        if not 0 <= t <= t_end:
+            return i, f"{t:g} lies outside [0, t_end = {t_end:g}]"
+        if i and t <= times[i - 1]:
+            return i, f"{t:g} does not come after {times[i - 1]:g}"
+    return None
+
+
+def inside_problem(cells: np.ndarray, obstacle: np.ndarray, named: str = "an obstacle") -> str | None:
+    """What is wrong with holding the nutrient on `cells` beside `obstacle` (boolean arrays alike), or None."""
+    overlap = np.count_nonzero(cells & obstacle)
+    return f"lies inside {named} ({overlap} cells in common)" if overlap else None
+
+
+def blocked_problem(obstacle: np.ndarray) -> str | None:
+    """What is wrong with an obstacle mask that leaves no cell open, or None."""
+    return "covers every cell of the grid" if np.all(obstacle) else None
+
+
+def held_faces_problem(faces: list[str], ndim: int) -> tuple[int, str] | None:
+    """(index, what is wrong) of the first face of those where the nutrient is held that is no face of an
+    `ndim`-D grid or is held twice (its boundary flux would count twice), or None."""
+    for index, face in enumerate(faces):
+        problem = face_problem(face, ndim)
+        if problem:
+            return index, problem
+    twice = repeated(faces)
+    return None if twice is None else (twice, f"'{faces[twice]}' is held twice")
 
 
 @dataclass(frozen=True)
@@ -127,17 +168,6 @@ class Parameters:
         return 2.0 * self.mu * (1.0 + self.nu) / (3.0 * (1.0 - 2.0 * self.nu))
 
 
-@dataclass(frozen=True)
-class ParameterInfo:
-    """One declared model parameter (see `parameter`)."""
-
-    name: str
-    default: float
-    units: str
-    long_name: str
-    bounds: dict
-
-
 def parameter_infos(parameters=None) -> tuple[ParameterInfo, ...]:
     """The declared parameters of a `Parameters` class or instance (default: `Parameters`), in order."""
     found = []
@@ -153,75 +183,72 @@ def parameter_infos(parameters=None) -> tuple[ParameterInfo, ...]:
 
 @dataclass(frozen=True)
 class Numerics:
-    """How the equations are discretised and solved; defaults are the robust choice.
+    """How the equations are discretised and solved (each option says what it does); defaults are the robust
+    choice.  The growth velocity "front" is built in `transport/front.py`; the nutrient direction is
+    grad(c) / max(|grad c|, gradient_floor * max|grad c|), so it fades out linearly where c is flat."""
 
-    advection: "upwind" (monotone, first order, numerical diffusion ~ |v| h / 2)
-        or "tvd" (van Leer limited, second order where smooth, still bounded).
-    gradient_floor: the nutrient direction grad(c)/|grad(c)| uses
-        max(|grad c|, gradient_floor * max|grad c|) in the denominator, so the
-        growth velocity fades out linearly where the nutrient is flat.
-    nutrient_tolerance, biofilm_tolerance: relative residual of the linear solves.
-    max_substeps: smallest step is t_end / max_substeps (paper: 1e6).
-    time_tolerance: None = fixed nominal steps (bisected on failure); a number =
-        error-controlled steps by step doubling, local error in phi (max norm)
-        per step kept below it.
-    growth_velocity: "pointwise" (r c/(k+c) n_c in every cell: Eq. 34 as
-        written; keeps dense biofilm dense only on cells of ~1/8 µm) or "front"
-        (the growth speed taken at the phi = 1/2 front and carried along its
-        normals over the dense side and `front_band` cells into the void, see
-        `front.py`: the sharp-interface limit, dense biofilm stays dense).
-    front_band: reach of the extension into the void ahead of the front, in cells.
-    """
-
-    advection: Advection = "upwind"
-    gradient_floor: float = 1e-3
-    nutrient_tolerance: float = 1e-10
-    biofilm_tolerance: float = 1e-12
-    max_substeps: int = 1_000_000
-    time_tolerance: float | None = None
-    growth_velocity: GrowthVelocity = "pointwise"
-    front_band: float = 3.0
+    advection: Advection = option("upwind", "upwind: monotone, first order (numerical diffusion ~ |v| h / 2); "
+                                            "tvd: van Leer limited, second order where smooth, still bounded")
+    gradient_floor: float = option(1e-3, "the nutrient direction grad c/|grad c| fades out where |grad c| < "
+                                         "gradient_floor * max|grad c|", "1", gt=0, lt=1)
+    nutrient_tolerance: float = option(1e-10, "relative residual of the nutrient's linear solves", "1", gt=0, lt=1)
+    biofilm_tolerance: float = option(1e-12, "relative residual of the biofilm's linear solves", "1", gt=0, lt=1)
+    max_substeps: int = option(1_000_000, "smallest step is t_end / max_substeps (paper: 1e6); a run needing less "
+                                          "stops with a diagnosis", "1", ge=1)
+    time_tolerance: float | None = option(None, "adaptive steps (step doubling): local error in phi (max norm) per "
+                                                "step kept below this (absent: fixed nominal steps, bisected on "
+                                                "failure)", "1", gt=0)
+    growth_velocity: GrowthVelocity = option(
+        "pointwise", "pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as written; keeps dense biofilm "
+                     "dense only on cells of ~1/8 µm); front: the growth speed taken at the phi = 1/2 front and "
+                     "carried along its normals: the sharp-interface limit, dense biofilm stays dense on 1 µm cells "
+                     "(docs/paper.md)")
+    front_band: float = option(3.0, "growth_velocity = front: cells within this many cells of the front take the "
+                                    "front's speed", "1", ge=1, le=10)
 
 
 @dataclass(frozen=True)
 class MechanicsSetup:
-    """Growth mechanics (paper 2.1, 2.3.1, 3); solved only at output times.
+    """Growth mechanics (paper 2.1, 2.3.1, 3); solved only at output times (each option says what it does).
 
-    clamp: faces with all displacement components zero ("x-", ..., "z+").
-    slide: faces with zero normal displacement.
-    residual_stiffness: relative stiffness of void (phi = 0) cells, weight
-        w = eps + (1 - eps) phi^2 on shear and bulk energy.
-    every: solve at every n-th output time (and always the last one).
     newton_tolerance: |R| <= tolerance * growth load, and the predicted next
         increment <= tolerance * |u| (energy norm).
     max_newton_iterations: Newton steps per load step (the other caps are
         in `solver.mechanics.settings.Settings`).
-    linear_solver: preconditioner of the Newton steps' Krylov solves:
-        "multigrid" (geometric, on the grid), "direct" (sparse factorisation),
-        "amg" (pyamg smoothed aggregation) or "auto" (direct for small
-        problems, multigrid beyond; docs/mechanics.md).
-    pressure: which p the dataset holds: "recovered" (Q1/P0's element
-        pressure with its checkerboard modes filtered out at interior nodes)
-        or "element" (the paper's Q1/P0 element pressure); docs/mechanics.md.
     """
 
-    clamp: tuple[str, ...] = ()
-    slide: tuple[str, ...] = ()
-    residual_stiffness: float = 1e-4
-    every: int = 1
+    clamp: tuple[Face, ...] = option((), "faces (x-, x+, y-, y+, z-, z+) with all displacement zero")
+    slide: tuple[Face, ...] = option((), "faces with zero normal displacement")
+    residual_stiffness: float = option(1e-4, "relative stiffness of void cells (phi = 0): the weight w = eps + "
+                                             "(1 - eps) phi^2 on shear and bulk energy", "1", gt=0, lt=1)
+    every: int = option(1, "solve at every n-th output time (and the last)", "1", ge=1)
     newton_tolerance: float = 1e-6
     max_newton_iterations: int = 25
-    linear_solver: str = "auto"
-    pressure: str = "recovered"
+    linear_solver: LinearSolver = option(
+        "auto", "preconditioner of the Newton steps' Krylov solves: multigrid (geometric), direct (factorisation), "
+                "amg (pyamg smoothed aggregation), or auto (direct for small problems, multigrid beyond; "
+                "docs/mechanics.md)")
+    pressure: Pressure = option(
+        "recovered", "the p in the dataset: recovered (Q1/P0's element pressure with its checkerboard modes "
+                     "filtered out at interior nodes) or element (the paper's Q1/P0 element pressure); "
+                     "docs/mechanics.md")
 
     def __post_init__(self):
-        for face in (*self.clamp, *self.slide):
-            if face not in FACES:
-                raise ValueError(f"unknown face {face!r}; faces are {FACES}")
+        for name in ("clamp", "slide"):
+            for face in getattr(self, name):
+                if face not in FACES:
+                    raise OptionError(name, f"unknown face {face!r}; faces are {FACES}")
+            twice = repeated(getattr(self, name))
+            if twice is not None:
+                raise OptionError(name, f"lists {getattr(self, name)[twice]!r} twice")
+        both = sorted(set(self.clamp) & set(self.slide))
+        if both:
+            raise OptionError("slide", f"{', '.join(both)} already clamped")
         if self.linear_solver not in LINEAR_SOLVERS:
-            raise ValueError(f"unknown linear solver {self.linear_solver!r}; use one of {LINEAR_SOLVERS}")
+            raise OptionError("linear_solver", f"unknown linear solver {self.linear_solver!r}; use one of "
+                                               f"{LINEAR_SOLVERS}")
         if self.pressure not in PRESSURES:
-            raise ValueError(f"unknown pressure {self.pressure!r}; use one of {tuple(PRESSURES)}")
+            raise OptionError("pressure", f"unknown pressure {self.pressure!r}; use one of {tuple(PRESSURES)}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -292,19 +319,20 @@ class Problem:
         if not (self.t_end > 0 and self.steps >= 1):
             raise ValueError("t_end must be positive and steps at least 1")
         times = self.output_times
-        if times.size == 0 or np.any(np.diff(times) <= 0) or times[0] < 0 or times[-1] > self.t_end:
-            raise ValueError("output_times must increase strictly within [0, t_end]")
-        faces = [face for face, _ in self.nutrient_faces]
-        for face in faces:
-            if face not in FACES or face[0] not in self.grid.axes:
-                raise ValueError(f"nutrient face {face!r} is not a face of this {self.grid.ndim}-D grid")
-        if len(set(faces)) < len(faces):  # held twice would count its boundary flux twice
-            raise ValueError("a nutrient face is held more than once")
+        if times.size == 0:
+            raise OptionError("output_times", "no output time")
+        wrong = times_problem(times, self.t_end)
+        if wrong:
+            raise OptionError(f"output_times[{wrong[0]}]", wrong[1])
+        held_twice = held_faces_problem([face for face, _ in self.nutrient_faces], self.grid.ndim)
+        if held_twice:
+            raise OptionError(f"nutrient_faces[{held_twice[0]}]", held_twice[1])
         values = np.concatenate([self.nutrient_value[self.nutrient_held], [v for _, v in self.nutrient_faces]])
         if np.any((values < 0) | (values > 1)):
             raise ValueError("held nutrient values must lie in [0, 1]")
-        if np.any(self.nutrient_held & self.obstacle):
-            raise ValueError("nutrient sources must not lie inside obstacles")
+        inside = inside_problem(self.nutrient_held, self.obstacle)
+        if inside:
+            raise OptionError("nutrient_held", inside)
         if not 0 <= self.start_time < self.t_end:
             raise ValueError("start_time must lie in [0, t_end)")
         if not np.any(times > self.start_time):
@@ -320,8 +348,9 @@ class Problem:
             raise ValueError("alpha0 must be > -1")
         if self.first_step is not None and not self.first_step > 0:
             raise ValueError("first_step must be positive")
-        if np.all(self.obstacle):
-            raise ValueError("every cell is an obstacle")
+        blocked = blocked_problem(self.obstacle)
+        if blocked:
+            raise OptionError("obstacle", blocked)
 
     @property
     def dt(self) -> float:

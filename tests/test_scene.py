@@ -100,8 +100,14 @@ def test_toml_writer_round_trips():
     ("nutrient.0.lower=[0.0, 12.0]", "nutrient[0]", "lies inside obstacle[0]"),
     ("obstacle.0.upper=[3.0, 30.0]", "obstacle[0].upper", "y = 30 µm lies outside the grid [0, 16] µm"),
     ("numerics.max_substeps=10", "numerics.max_substeps", "must be >= time.steps = 20"),
-    ("mechanics.clamp=['z-']", "mechanics.clamp", "does not exist in a 2-D grid"),
-    ("mechanics.slide=['x-', 'x-']", "mechanics.slide", "lists a face twice"),
+    ("mechanics.clamp=['z-']", "mechanics.clamp", "'z-' is not a face of a 2-D grid (faces: x-, x+, y-, y+)"),
+    ("mechanics.slide=['x-', 'x-']", "mechanics.slide", "lists 'x-' twice"),
+    ("mechanics={clamp=['x-'], slide=['y-', 'x-']}", "mechanics.slide", "x- already clamped"),
+    # a face source's face: at its key, not behind the union's tag (nutrient[0].face.face)
+    ("nutrient.0={shape='face', face='q-'}", "nutrient[0].face", "must be 'x-', 'x+', 'y-', 'y+', 'z-' or 'z+' "
+                                                                 "(got 'q-')"),
+    ("nutrient.0={shape='face', face='z+'}", "nutrient[0].face", "'z+' is not a face of a 2-D grid"),
+    ("nutrient.0={value=0.5}", "nutrient[0]", "needs a 'shape' key (box, sphere, cylinder, mask, image or face)"),
     ("biofilm.0.shape=cone", "biofilm[0]", "unknown shape 'cone'"),
 ])
 def test_bad_values_name_the_key(tiny_scene, override, key, problem):
@@ -218,9 +224,40 @@ def test_a_face_held_twice_is_refused_by_the_scene_and_by_the_solver(write_toml)
         face = "y-"
         value = 0.5
         """)
-    with pytest.raises(BadInput, match=r"nutrient\[1\]\.face: 'y-' is held by nutrient\[0\] already"):
+    with pytest.raises(BadInput, match=r"nutrient\[1\]\.face: 'y-' is held twice$"):
         load_scene(path)
     grid = solver.Grid((8, 8), 1.0)
-    with pytest.raises(ValueError, match="held more than once"):
+    with pytest.raises(ValueError, match=r"nutrient_faces\[1\]: 'y-' is held twice$"):  # the same rule, the same words
         solver.Problem(grid=grid, phi0=np.zeros(grid.cells_shape), nutrient_held=np.zeros(grid.cells_shape, bool),
                        nutrient_faces=(("y-", 1.0), ("y-", 0.5)), t_end=0.01, steps=2, output_times=[0.0, 0.01])
+
+
+def _first_cells(count: int, shape=(16, 16)) -> np.ndarray:
+    """The first `count` cells of the tiny grid in the solver's order (the row y = 0 first)."""
+    cells = np.zeros(shape[0] * shape[1], bool)
+    cells[:count] = True
+    return cells.reshape(shape)
+
+
+@pytest.mark.parametrize("scene_override, scene_said, problem_change, problem_said", [
+    ("time.output_times=[0.1, 0.05]", "time.output_times[1]: 0.05 does not come after 0.1",
+     {"output_times": [0.1, 0.05]}, "output_times[1]: 0.05 does not come after 0.1"),
+    ("time.output_times=[0.1, 0.3]", "time.output_times[1]: 0.3 lies outside [0, t_end = 0.2]",
+     {"output_times": [0.1, 0.3]}, "output_times[1]: 0.3 lies outside [0, t_end = 0.2]"),
+    ("nutrient.0.lower=[0.0, 12.0]", "nutrient[0]: lies inside obstacle[0] (12 cells in common)",
+     {"obstacle": _first_cells(5), "nutrient_held": _first_cells(2)},
+     "nutrient_held: lies inside an obstacle (2 cells in common)"),
+    ("obstacle.0={shape='box', lower=[0.0, 0.0], upper=[16.0, 16.0]}", "obstacle: covers every cell of the grid",
+     {"obstacle": _first_cells(256)}, "obstacle: covers every cell of the grid"),
+])
+def test_a_rule_between_keys_is_the_solvers_in_its_words(tiny_scene, scene_override, scene_said, problem_change,
+                                                          problem_said):
+    """The scene tells a broken rule at its key with the words the solver's `Problem` uses for it."""
+    with pytest.raises(BadInput) as error:
+        load_scene(tiny_scene, [scene_override])
+    assert str(error.value) == f"--set: {scene_said}"
+    problem = load_scene(tiny_scene).problem()
+    given = {name: getattr(problem, name) for name in ("grid", "t_end", "steps", "output_times")}
+    with pytest.raises(ValueError) as refused:
+        solver.Problem(**{**given, "phi0": np.zeros((16, 16)), "nutrient_held": _first_cells(0), **problem_change})
+    assert str(refused.value) == problem_said

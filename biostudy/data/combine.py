@@ -220,8 +220,35 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
     Case files are opened lazily (dask-backed) and registered with `opened`, which closes them: a
     sweep of many large cases is streamed into study.nc, not held in memory at once.
     """
-    records, datasets = {}, {}
     dims, coords = _study_coordinates(plan)
+    records, datasets = _read_cases(plan, out_dir, opened, coords)
+    done = list(datasets.values())
+    shared = _shared_variables(done) if done else []
+    statics_shared = _statics_shared(plan)
+    once = [n for n in shared if _static(done[0][n]) and statics_shared]  # written once, as they are
+    shared = [n for n in shared if n not in once]
+    parts = _case_parts(plan, records, datasets, shared)
+    if plan.mode == "grid":
+        sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys]
+        combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
+    else:
+        combined = xr.concat(parts, dim="case", combine_attrs="override")
+    combined = combined.assign_coords(coords).transpose(*dims, ...)
+    if done:
+        first = done[0]
+        combined = combined.assign({n: first[n] for n in once})
+        if statics_shared:  # the cell bounds (CF 7.1) of the grid every case shares
+            combined = combined.assign_coords({n: first[n] for n in first.coords if n not in combined.coords})
+    omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
+    combined.attrs = _study_attrs(plan, done, [records[c.id][0] for c in plan.cases], omitted)
+    return combined
+
+
+def _read_cases(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack,
+                coords: dict) -> tuple[dict[str, tuple[str, str, dict]], dict[str, xr.Dataset]]:
+    """Every case's (status, message, recorded attributes), and the dataset of every finished one as its run wrote
+    it, measured as its scene measures now, with every observable its fields give (those it has are kept)."""
+    records, datasets = {}, {}
     for case in plan.cases:
         path = store.case_file(out_dir, case.id)
         record = store.recorded(path) or {}
@@ -231,14 +258,14 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
             ds = _measured_as_now(ds, plan.scenes[case.id].substratum_attrs())
             datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
         records[case.id] = (status, str(record.get("message", "")), record)
-    done = list(datasets.values())
-    shared = _shared_variables(done) if done else []
-    statics_shared = _statics_shared(plan)
-    once = [n for n in shared if _static(done[0][n]) and statics_shared]  # written once, as they are
-    shared = [n for n in shared if n not in once]
-    template = None
-    if done:
-        template = _floats(done[0][shared])
+    return records, datasets
+
+
+def _case_parts(plan: Plan, records: dict[str, tuple[str, str, dict]], datasets: dict[str, xr.Dataset],
+                shared: list[str]) -> list[xr.Dataset]:
+    """One dataset per case, in the plan's order: its `shared` variables (NaN where the case did not finish) and
+    its status, message, wall time, steps and id."""
+    template = _floats(next(iter(datasets.values()))[shared]) if datasets else None
     parts = []
     for case in plan.cases:
         status, message, record = records[case.id]
@@ -250,27 +277,18 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
             attrs = record  # a failure record has the wall time until it failed
         part.attrs = {}
         part = part.assign(_scalars(status, message, attrs))
-        part["case_id"] = ((), np.array(case.id, dtype=object), {"long_name": "case id (file under cases/)",
-                                                                 "units": "1"})
+        part["case_id"] = ((), np.array(case.id, dtype=object), CASE_ATTRS)
         parts.append(part)
+    return parts
 
+
+def _study_attrs(plan: Plan, done: list[xr.Dataset], statuses: list[str], omitted: list[str]) -> dict:
+    """study.nc's attributes: what every finished case shares (but the swept keys), the study and its base scene,
+    the counts of cases by status, the variables left in the case files, and the provenance."""
     keys = plan.keys
-    if plan.mode == "grid":
-        sizes = [len(plan.spec.sweep.values[k]) for k in keys]
-        combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
-    else:
-        combined = xr.concat(parts, dim="case", combine_attrs="override")
-    combined = combined.assign_coords(coords).transpose(*dims, ...)
-    if done:
-        first = done[0]
-        combined = combined.assign({n: first[n] for n in once})
-        if statics_shared:  # the cell bounds (CF 7.1) of the grid every case shares
-            combined = combined.assign_coords({n: first[n] for n in first.coords if n not in combined.coords})
     swept = {dimension(k) for k in keys} | {k.split(".")[-1] for k in keys}  # e.g. g, advection, grid_shape
     common = {k: v for k, v in _common_attrs([ds.attrs for ds in done]).items() if k not in swept}
-    omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
-    statuses = [records[c.id][0] for c in plan.cases]
-    combined.attrs = provenance.with_provenance({
+    return provenance.with_provenance({
         **common,
         "title": f"biofilm growth study: {plan.spec.name}",
         "study": plan.file.read_text(encoding="utf-8"),
@@ -289,7 +307,6 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         "omitted_variables": ", ".join(omitted) + " (coordinates differ between cases: see cases/)"
         if omitted else "",
     })
-    return combined
 
 
 def _common_attrs(attrs: list[dict]) -> dict:

@@ -23,6 +23,7 @@ import numpy as np
 import xarray as xr
 
 from solver.restart import joined
+from solver.series import SERIES as RECORDED
 
 from ..errors import BadInput
 from ..formatting import value_text
@@ -32,7 +33,7 @@ from . import store
 
 FREE = ("name", "description")  # besides [time]: what a continuation may change
 FIELDS = ("phi", "c", "alpha")  # on time and the cells: the state a continuation starts from
-SERIES = ("phi_mean", "c_mean", "biofilm_volume", "steps_taken", "steps_bisected", "steps_rejected",
+SERIES = (*(series.name for series in RECORDED), "steps_taken", "steps_bisected", "steps_rejected",
           "elapsed")  # on time: what every run writes (solver.output)
 
 

@@ -27,7 +27,7 @@ import contextlib
 import errno
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 from solver.output import versions
 
@@ -43,10 +43,6 @@ from .dask import DaskCluster, SchedulerLost
 from .identity import fingerprint, legacy_fingerprint, matches
 from .pool import LocalPool
 from .worker import Outcome
-
-if TYPE_CHECKING:
-    import solver
-
 
 
 class SweepError(Failed):
@@ -152,19 +148,49 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     no process here has its id).  A case file that exists but that biostudy did not write is `BadInput` before
     anything runs; a lost Dask scheduler is a `SweepError` that says what was kept.
     """
-    workers, scheduler = execution.workers, execution.scheduler or execution.scheduler_file
-    if workers and not scheduler:
+    scheduler = execution.scheduler or execution.scheduler_file
+    if execution.workers and not scheduler:
         pool.warm_up()  # the workers' imports overlap the checks below
     out_dir = Path(out_dir)
+    report = _started(out_dir, tidy)
+    notify = execution.notify or (lambda *args: None)
+    by_id = {job.id: job for job in jobs}
+    prints, events = _sorted_out(jobs, out_dir, execution, report)
+    ids = [job_id for event, job_id, _ in events if event == "start"]
+    _check_room({i: by_id[i].scene for i in ids}, 0 if scheduler else (execution.workers or 1), out_dir)
+    for event in events:
+        notify(*event)
+    if backend is None or not ids:
+        backend = _backend(execution, bool(ids), lambda message: notify("note", "", message))
+    try:
+        with contextlib.closing(windowed(ids, lambda job_id: by_id[job_id].scene.problem(), backend)) as results:
+            for job_id, outcome in results:
+                report.note(job_id, _record(by_id[job_id], out_dir, outcome, prints[job_id]))
+                report.ran.append(job_id)
+                if outcome.status != "done":
+                    report.failed[job_id] = outcome.message
+                notify(outcome.status, job_id, outcome.message)
+    except SchedulerLost as lost:
+        raise SweepError(f"{lost}; {_kept(report, len(ids))}") from None
+    return report
+
+
+def _started(out_dir: Path, tidy: bool) -> SweepReport:
+    """The report of a sweep into `out_dir` (DIR/cases made); `tidy`: the temporaries dead writers left removed."""
     cases_dir = out_dir / "cases"
     cases_dir.mkdir(parents=True, exist_ok=True)
     report = SweepReport(out_dir / "study.nc")
     if tidy:
         report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
-    notify = execution.notify or (lambda *args: None)
-    by_id = {job.id: job for job in jobs}
+    return report
 
-    ids, prints, events, foreign = [], {}, [], []
+
+def _sorted_out(jobs: list[Job], out_dir: Path, execution: Execution,
+                report: SweepReport) -> tuple[dict[str, str], list[tuple[str, str, str]]]:
+    """Each job's fingerprint, and the events that say which are finished ("skip", told in `report`) and which
+    run ("start"; a damaged file among them, in `report`).  `BadInput` for every case file biostudy did not
+    write, before anything runs."""
+    prints, events, foreign = {}, [], []
     for job in jobs:
         problem = job.scene.problem()
         prints[job.id] = fingerprint(problem)
@@ -180,48 +206,42 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
         if path.exists() and (record is None or reusable and not netcdf_io.intact(path)):
             report.damaged.append(job.id)  # a file that cannot be read whole: its header, attributes or data
         elif reusable:
-            report.skipped.append(job.id)
-            if record.get("status") == "failed":
-                report.failed[job.id] = str(record.get("message", ""))
-            outdated = _outdated(record)
-            if outdated:
-                report.outdated[job.id] = outdated
-            report.note(job.id, record)
+            _skipped(report, job.id, record)
             events.append(("skip", job.id, str(record.get("status"))))
             continue
-        ids.append(job.id)
         events.append(("start", job.id, ""))
     if foreign:
         raise BadInput.every(foreign)
+    return prints, events
 
-    estimates = {i: resources.estimate(by_id[i].scene) for i in ids}
-    too_big = resources.run_problem(estimates, 0 if scheduler else (workers or 1), out_dir,
-                                    2 * sum(e.disk for e in estimates.values()))
-    if too_big:  # before any case runs; on disk: the case files and the summary stacking them
+
+def _skipped(report: SweepReport, job_id: str, record: dict) -> None:
+    """Tell `report` of a finished case reused: a failure recorded, other software versions, its alerts."""
+    report.skipped.append(job_id)
+    if record.get("status") == "failed":
+        report.failed[job_id] = str(record.get("message", ""))
+    outdated = _outdated(record)
+    if outdated:
+        report.outdated[job_id] = outdated
+    report.note(job_id, record)
+
+
+def _check_room(scenes: dict[str, Scene], processes: int, out_dir: Path) -> None:
+    """`BadInput` before any case runs if the cases to run (by id) do not fit the memory of `processes` at once (0:
+    on a cluster) or the disk: the case files and the summary stacking them."""
+    estimates = {job_id: resources.estimate(scene) for job_id, scene in scenes.items()}
+    too_big = resources.run_problem(estimates, processes, out_dir, 2 * sum(e.disk for e in estimates.values()))
+    if too_big:
         raise BadInput(too_big, out_dir)
-    for event in events:
-        notify(*event)
 
-    def compile_(job_id: str) -> "solver.Problem":
-        return by_id[job_id].scene.problem()
 
-    def note(message: str) -> None:
-        notify("note", "", message)
-
-    if backend is None or not ids:
-        backend = (Here() if not ids else DaskCluster(execution.scheduler, note, execution.scheduler_file)
-                   if scheduler else LocalPool(workers) if workers else Here())
-    try:
-        with contextlib.closing(windowed(ids, compile_, backend)) as results:
-            for job_id, outcome in results:
-                report.note(job_id, _record(by_id[job_id], out_dir, outcome, prints[job_id]))
-                report.ran.append(job_id)
-                if outcome.status != "done":
-                    report.failed[job_id] = outcome.message
-                notify(outcome.status, job_id, outcome.message)
-    except SchedulerLost as lost:
-        raise SweepError(f"{lost}; {_kept(report, len(ids))}") from None
-    return report
+def _backend(execution: Execution, work: bool, note: Callable[[str], None]) -> Backend:
+    """Where the cases run: on the Dask scheduler, on `workers` local processes, else here (nothing to run: here)."""
+    if not work:
+        return Here()
+    if execution.scheduler or execution.scheduler_file:
+        return DaskCluster(execution.scheduler, note, execution.scheduler_file)
+    return LocalPool(execution.workers) if execution.workers else Here()
 
 
 def _kept(report: SweepReport, to_run: int) -> str:

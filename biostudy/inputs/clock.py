@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
+from solver.problem import times_problem
+
 from ..errors import InvalidAt
 from .declared import CONFIG, unit_field
 from .real_time import real_time
@@ -31,11 +33,9 @@ class Time(BaseModel):
             real_time(self.t_ref)
         if self.outputs is not None and self.output_times is not None:
             raise InvalidAt("output_times", "give either outputs or output_times, not both")
-        for i, t in enumerate(self.output_times or ()):
-            if not 0 <= t <= self.t_end:
-                raise InvalidAt(f"output_times[{i}]", f"{t:g} lies outside [0, t_end = {self.t_end:g}]")
-            if i and t <= self.output_times[i - 1]:
-                raise InvalidAt(f"output_times[{i}]", f"{t:g} does not come after {self.output_times[i - 1]:g}")
+        wrong = times_problem(self.output_times or [], self.t_end)  # the solver's rule
+        if wrong:
+            raise InvalidAt(f"output_times[{wrong[0]}]", wrong[1])
         return self
 
     def count(self) -> int:

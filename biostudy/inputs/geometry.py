@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from solver import Grid
-from solver.problem import FACES
+from solver.problem import Face, face_problem
 
 from ..errors import BadInput, InvalidAt, first_line
 from ..formatting import value_text
@@ -326,11 +326,12 @@ class BoundaryFace(Shape):
     bottom plane), a Dirichlet condition half a cell from the cells beside it, which stay free."""
 
     shape: Literal["face"] = Field(description="an outer face of the grid (nutrient sources only)")
-    face: Literal[FACES] = Field(description="which face: x-, x+, y-, y+, z-, z+")
+    face: Face = Field(description="which face: x-, x+, y-, y+, z-, z+")
 
     def check(self, grid):
-        if self.face[0] not in grid.axes:
-            raise InvalidAt("face", f"'{self.face}' is not a face of a {grid.ndim}-D grid")
+        problem = face_problem(self.face, grid.ndim)
+        if problem:
+            raise InvalidAt("face", problem)
 
     def cells(self, grid):
         return np.zeros(grid.cells_shape, bool)  # no cell is held: the face is

@@ -10,7 +10,9 @@ validates; `Scene.problem()` builds the solver's plain description.
 Besides the model's own keys, the ``[numerics]`` and ``[mechanics]`` tables and
 ``[time] output_times`` map onto the solver's settings (`NumericsSpec`,
 `MechanicsSpec`, `Time`: each field says what it does; the README lists them
-all, and `tests/test_docs.py` checks that it does).  ``[substratum]`` (face,
+all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[numerics]``
+and ``[mechanics]`` are derived from the solver's declarations (`declared`), so an
+option added to `solver.Numerics` or `solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
 threshold) says where and how the COMSTAT observables are measured
 (`biostudy.quantities.substratum`); it changes nothing in the simulation, and
 the datasets record it (`Scene.substratum_attrs`).
@@ -25,12 +27,12 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
-from solver.problem import FACES, LINEAR_SOLVERS, PRESSURES, parameter_infos
+from solver.problem import Consumption, Face, blocked_problem, face_problem, held_faces_problem, inside_problem
+from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
-from ..formatting import units_text, value_text
 from .clock import Time
-from .declared import CONFIG, unit_field
+from .declared import CONFIG, parameters_model, settings_model, union_tags, unit_field
 from .files import read_toml
 from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
@@ -39,10 +41,6 @@ from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
 from .resources import estimate, run_problem, validation_problem
 from .substratum_face import resting_face
 from .tomltext import dumps as toml_dumps
-
-_NUMERICS = solver.Numerics()
-_MECHANICS = solver.MechanicsSetup()
-
 
 STREAMED = "streamed"  # runs_here of a run that writes its file as it goes: its outputs stream to disk
 
@@ -58,102 +56,24 @@ class GridSpec(BaseModel):
         return solver.Grid(tuple(self.shape), self.spacing)
 
 
-def _parameters_model() -> type[BaseModel]:
-    """The [params] table, derived from the declarations of `solver.Parameters`: each parameter's
-    default, units, meaning and allowed range (`solver.problem.parameter`)."""
-    fields = {}
-    for info in parameter_infos():
-        shown = units_text(info.units)
-        fields[info.name] = (float, unit_field(info.default, f"{info.long_name}{', ' + shown if shown else ''}",
-                                           info.units, **info.bounds))
-    return create_model("Params", __config__=CONFIG, __doc__="Model parameters (paper Table 2 by default; "
-                        "docs/model.md); unspecified keys take their defaults.", **fields)
-
-
-Params = _parameters_model()
+Params = parameters_model()
 
 
 class Model(BaseModel):
     """Which form of the model's laws."""
 
     model_config = CONFIG
-    consumption: Literal["first-order", "zero-order"] = Field(
+    consumption: Consumption = Field(
         "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
                                    "Eq. 35, with c held >= 0")
 
 
-class NumericsSpec(BaseModel):
-    """How the equations are discretised (solver.Numerics); the defaults are the robust choice."""
-
-    model_config = CONFIG
-    advection: Literal["upwind", "tvd"] = Field(
-        _NUMERICS.advection, description="upwind: monotone, first order; tvd: van Leer limited, second order "
-                                         "where smooth")
-    time_tolerance: float | None = unit_field(None, "adaptive steps: local error in phi per step kept below this "
-                                                "(absent: fixed nominal steps, bisected on failure)", "1", gt=0)
-    gradient_floor: float = unit_field(_NUMERICS.gradient_floor, "the nutrient direction grad c/|grad c| fades out "
-                                                             "where |grad c| < gradient_floor * max|grad c|",
-                                   "1", gt=0, lt=1)
-    max_substeps: int = unit_field(_NUMERICS.max_substeps, "smallest step is t_end / max_substeps (paper: 1e6); "
-                                                       "a run needing less stops with a diagnosis", "1", ge=1)
-    growth_velocity: Literal["front", "pointwise"] = Field(
-        _NUMERICS.growth_velocity, description="pointwise: r c/(k+c) grad c/|grad c| in every cell (Eq. 34 as "
-                                               "written; keeps dense biofilm dense only on cells of ~1/8 µm); "
-                                               "front: the growth speed taken at the phi = 1/2 front and carried "
-                                               "along its normals: the sharp-interface limit, dense biofilm stays "
-                                               "dense on 1 µm cells (docs/paper.md)")
-    front_band: float = unit_field(_NUMERICS.front_band, "growth_velocity = front: cells within this many cells of "
-                                                     "the front take the front's speed", "1", ge=1, le=10)
-    nutrient_tolerance: float = unit_field(_NUMERICS.nutrient_tolerance, "relative residual of the nutrient's linear "
-                                                                     "solves", "1", gt=0, lt=1)
-    biofilm_tolerance: float = unit_field(_NUMERICS.biofilm_tolerance, "relative residual of the biofilm's linear "
-                                                                   "solves", "1", gt=0, lt=1)
-
-    def solver_numerics(self) -> solver.Numerics:
-        return solver.Numerics(**self.model_dump())
-
-
-Face = Literal[FACES]
-
-
-class MechanicsSpec(BaseModel):
-    """Growth mechanics (paper 2.1, 2.3.1, 3), solved at output times; absent table = off."""
-
-    model_config = CONFIG
-    enabled: bool = Field(True, description="solve the growth mechanics (u and p in the dataset)")
-    clamp: list[Face] = Field([], description="faces (x-, x+, y-, y+, z-, z+) with all displacement zero")
-    slide: list[Face] = Field([], description="faces with zero normal displacement")
-    residual_stiffness: float = unit_field(_MECHANICS.residual_stiffness, "relative stiffness of void cells "
-                                                                      "(phi = 0)", "1", gt=0, lt=1)
-    every: int = unit_field(_MECHANICS.every, "solve at every n-th output time (and the last)", "1", ge=1)
-    linear_solver: Literal[LINEAR_SOLVERS] = Field(
-        _MECHANICS.linear_solver,
-        description="preconditioner of the Newton steps' Krylov solves: multigrid (geometric), direct "
-                    "(factorisation), amg (pyamg smoothed aggregation), or auto (direct for small problems, "
-                    "multigrid beyond; docs/mechanics.md)")
-    pressure: Literal[tuple(PRESSURES)] = Field(
-        _MECHANICS.pressure,
-        description="the p in the dataset: recovered (Q1/P0's element pressure with its checkerboard modes "
-                    "filtered out at interior nodes) or element (the paper's Q1/P0 element pressure); "
-                    "docs/mechanics.md")
-
-    @model_validator(mode="after")
-    def _faces(self):
-        for name in ("clamp", "slide"):
-            faces = getattr(self, name)
-            if len(set(faces)) != len(faces):
-                raise InvalidAt(name, f"lists a face twice ({value_text(faces)})")
-        both = sorted(set(self.clamp) & set(self.slide))
-        if both:
-            raise InvalidAt("slide", f"{value_text(both)} already clamped")
-        return self
-
-    def solver_setup(self) -> solver.MechanicsSetup | None:
-        if not self.enabled:
-            return None
-        return solver.MechanicsSetup(clamp=tuple(self.clamp), slide=tuple(self.slide),
-                                     residual_stiffness=self.residual_stiffness, every=self.every,
-                                     linear_solver=self.linear_solver, pressure=self.pressure)
+NumericsSpec = settings_model(solver.Numerics, "NumericsSpec", "How the equations are discretised "
+                              "(solver.Numerics); the defaults are the robust choice.")
+MechanicsSpec = settings_model(
+    solver.MechanicsSetup, "MechanicsSpec", "Growth mechanics (paper 2.1, 2.3.1, 3), solved at output times; "
+    "absent table = off.", enabled=(bool, Field(True, description="solve the growth mechanics (u and p in the "
+                                                                  "dataset)")))
 
 
 SHAPES = (*DRAWN, Image)  # what a region of biofilm or nutrient may be; an obstacle may also be generated
@@ -167,7 +87,8 @@ class SubstratumSpec(BaseModel):
     model_config = CONFIG
     face: Face | None = Field(None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+); default: "
                                                 "the face the initial biofilm rests on (inputs/substratum_face.py)")
-    threshold: float = unit_field(0.5, "biofilm is phi >= threshold for the substratum observables", "1", gt=0, lt=1)
+    threshold: float = unit_field(BIOFILM_THRESHOLD, "biofilm is phi >= threshold for the substratum observables", "1",
+                                  gt=0, lt=1)
     connected: bool = Field(False, description="COMSTAT's connected-volume filtering: only biofilm connected to "
                                                "the substratum (through cells sharing a face) counts")
     estimator: Literal["subcell", "voxel"] = Field(
@@ -225,17 +146,34 @@ class Scene(BaseModel):
 
     @model_validator(mode="after")
     def _fits_the_grid(self, info: ValidationInfo):
-        too_big = validation_problem(self)  # before any array of the grid's size is made
+        """The rules between tables, each a step: memory first (before any array of the grid's size is made), then
+        the regions, the nutrient sources, the clock and the faces the scene names."""
+        self._fits_memory((info.context or {}).get("runs_here", False))
+        grid = self.grid.solver_grid()
+        self._regions_fit(grid)
+        self._sources_free(grid)
+        if self.numerics.max_substeps < self.time.steps:
+            raise InvalidAt("numerics.max_substeps", f"must be >= time.steps = {self.time.steps} "
+                                                     f"(got {self.numerics.max_substeps})")
+        self._faces_exist(grid)
+        self.substratum_face()  # an ambiguous default is bad input before anything runs
+        return self
+
+    def _fits_memory(self, runs_here: bool | str) -> None:
+        """Validating fits in memory; a run here (`runs_here`) fits as a whole (its estimate, before the masks)."""
+        too_big = validation_problem(self)
         if too_big:
             raise InvalidAt("grid.shape", too_big)
-        if (info.context or {}).get("runs_here"):  # a run here: its whole estimate, before building the masks
-            found = estimate(self, streamed=(info.context or {}).get("runs_here") == STREAMED)
+        if runs_here:
+            found = estimate(self, streamed=runs_here == STREAMED)
             too_big = run_problem({self.name: found}, 1)
             if too_big:
                 outputs = "time.output_times" if self.time.output_times is not None else "time.outputs"
                 raise InvalidAt("grid.shape" if found.transport + found.mechanics >= found.snapshots else outputs,
                                 too_big)
-        grid = self.grid.solver_grid()
+
+    def _regions_fit(self, grid: solver.Grid) -> None:
+        """Every region inside the grid and covering a cell; grey values only for biofilm; a cell left open."""
         for kind in ("biofilm", "nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):
                 try:
@@ -247,34 +185,32 @@ class Scene(BaseModel):
                 if getattr(region, "scale", None) is not None:
                     raise InvalidAt(f"{kind}[{i}].scale", "only a biofilm region takes phi from an image's grey "
                                                           "values; give threshold (or a segmented image)")
-        blocked = self._union(self.obstacle, grid)
-        if blocked.all():
-            raise InvalidAt("obstacle", "covers every cell of the grid")
-        held = {}
+        blocked = blocked_problem(self._union(self.obstacle, grid))
+        if blocked:
+            raise InvalidAt("obstacle", blocked)
+
+    def _sources_free(self, grid: solver.Grid) -> None:
+        """Each face held once, no nutrient source inside an obstacle (the solver's rules, told at the scene's keys)."""
+        held = [i for i, source in enumerate(self.nutrient) if isinstance(source, BoundaryFace)]
+        found = held_faces_problem([self.nutrient[i].face for i in held], grid.ndim)
+        if found:
+            raise InvalidAt(f"nutrient[{held[found[0]]}].face", found[1])
         for i, source in enumerate(self.nutrient):
-            if isinstance(source, BoundaryFace):
-                if source.face in held:
-                    raise InvalidAt(f"nutrient[{i}].face", f"'{source.face}' is held by nutrient[{held[source.face]}] "
-                                                           "already")
-                held[source.face] = i
             for j, solid in enumerate(self.obstacle):
-                overlap = np.count_nonzero(source.cells(grid) & solid.cells(grid))
-                if overlap:
-                    raise InvalidAt(f"nutrient[{i}]", f"lies inside obstacle[{j}] ({overlap} cells in common)")
-        if self.numerics.max_substeps < self.time.steps:
-            raise InvalidAt("numerics.max_substeps", f"must be >= time.steps = {self.time.steps} "
-                                                     f"(got {self.numerics.max_substeps})")
-        face = self.substratum.face
-        if face is not None and face[0] not in grid.axes:
-            raise InvalidAt("substratum.face", f"'{face}' is not a face of a {grid.ndim}-D grid (faces: "
-                                               f"{', '.join(f for f in FACES if f[0] in grid.axes)})")
-        self.substratum_face()  # an ambiguous default is bad input before anything runs
+                inside = inside_problem(source.cells(grid), solid.cells(grid), f"obstacle[{j}]")
+                if inside:
+                    raise InvalidAt(f"nutrient[{i}]", inside)
+
+    def _faces_exist(self, grid: solver.Grid) -> None:
+        """The substratum's and the mechanics' faces are faces of this grid (`solver.problem.face_problem`)."""
+        named = [("substratum.face", self.substratum.face)] if self.substratum.face is not None else []
         if self.mechanics is not None:
-            for name in ("clamp", "slide"):
-                for face in getattr(self.mechanics, name):
-                    if face[0] not in grid.axes:
-                        raise InvalidAt(f"mechanics.{name}", f"face '{face}' does not exist in a 2-D grid")
-        return self
+            named += [(f"mechanics.{name}", face) for name in ("clamp", "slide") for face in getattr(self.mechanics,
+                                                                                                    name)]
+        for key, face in named:
+            problem = face_problem(face, grid.ndim)
+            if problem:
+                raise InvalidAt(key, problem)
 
     @staticmethod
     def _union(regions: list[Shape], grid: solver.Grid) -> np.ndarray:
@@ -296,12 +232,12 @@ class Scene(BaseModel):
             value[cells] = region.value
         blocked = self._union(self.obstacle, grid)
         phi0[blocked] = 0.0  # biofilm does not live inside a solid
-        mechanics = self.mechanics.solver_setup() if self.mechanics is not None else None
+        mechanics = self.mechanics.solver_settings() if self.mechanics is not None and self.mechanics.enabled else None
         return solver.Problem(
             grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
             params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
-            numerics=self.numerics.solver_numerics(), mechanics=mechanics, name=self.name)
+            numerics=self.numerics.solver_settings(), mechanics=mechanics, name=self.name)
 
     def substratum_face(self) -> str:
         """The substratum: the face the scene names, else the face the initial biofilm rests on
@@ -334,6 +270,7 @@ class Scene(BaseModel):
 
 
 SCENE_KEYS = frozenset(all_keys(Scene))
+SHAPE_TAGS = union_tags(Scene)  # the shapes each list of regions takes, as errors leave them out of keys
 
 
 def key_info(key: str) -> tuple[str, str]:
@@ -357,7 +294,7 @@ def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None
     try:
         return Scene.model_validate(data, context={"base": file.parent, "runs_here": runs_here})
     except ValidationError as error:
-        raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS), origins) from None
+        raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS, tags=SHAPE_TAGS), origins) from None
 
 
 def read_scene_data(path: str | Path) -> dict:

@@ -12,25 +12,34 @@ from __future__ import annotations
 
 import numpy as np
 
+from solver.problem import AXES, FACES
+
 from ..errors import InvalidAt
 
-AXES = "xyz"  # x is the last array axis
+
+def normal_axis(face: str, ndim: int) -> int:
+    """The axis normal to a face ("x-" ... "z+") of an array in the solver's (z, y, x) / (y, x) order (x last)."""
+    return ndim - 1 - AXES.index(face[0])
+
+
+def default_face(ndim: int) -> str:
+    """The substratum when a scene names none and the biofilm touches no face: the bottom, z- in 3-D, y- in 2-D."""
+    return {3: "z-", 2: "y-"}[ndim]
 
 
 def first_layer(cells: np.ndarray, face: str) -> np.ndarray:
     """The cells next to a face ("x-" ... "z+") of an array in the solver's (z, y, x) / (y, x) order."""
-    axis = cells.ndim - 1 - AXES.index(face[0])
-    return np.take(cells, 0 if face[1] == "-" else -1, axis=axis)
+    return np.take(cells, 0 if face[1] == "-" else -1, axis=normal_axis(face, cells.ndim))
 
 
 def resting_face(biofilm: np.ndarray, held: tuple[str, ...]) -> str:
     """The face whose first layer the boolean `biofilm` covers most (module docstring); `held`: the faces where
     the nutrient is held.  InvalidAt at ``substratum.face`` when no rule decides."""
-    faces = [f"{axis}{side}" for axis in AXES[:biofilm.ndim] for side in "-+"]
+    faces = FACES[: 2 * biofilm.ndim]
     covered = {face: float(first_layer(biofilm, face).mean()) for face in faces}
     most = max(covered.values())
     if most == 0:
-        return "z-" if biofilm.ndim == 3 else "y-"
+        return default_face(biofilm.ndim)
     tied = [face for face in faces if covered[face] == most]
     if len(tied) > 1:
         tied = [face for face in tied if face in held] or tied

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from ..inputs.substratum_face import normal_axis
 from .substratum import THRESHOLD, on_substratum, substratum_area
 
 
@@ -35,7 +36,7 @@ def connected(phi: np.ndarray, face: str, threshold: float = THRESHOLD) -> np.nd
     kept = np.where(floating, 0.0, field)
     if face[1] == "+":
         kept = kept[::-1]
-    return np.where(np.isnan(phi), np.nan, np.moveaxis(kept, 0, phi.ndim - 1 - "xyz".index(face[0])))
+    return np.where(np.isnan(phi), np.nan, np.moveaxis(kept, 0, normal_axis(face, phi.ndim)))
 
 
 def _columns(voxels: np.ndarray, h: float) -> np.ndarray:

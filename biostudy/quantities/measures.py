@@ -15,9 +15,9 @@
   `height` (the highest point of phi >= 0.5 along an axis, sub-cell), `reach`
   (the largest distance of a phi >= 0.5 cell centre from an axis through the
   initial colony) and `nutrient_minimum` (where c is lowest, and phi there).
-* Run summaries, per output time: `field_mean` (over open cells), `front_advance`
-  (the front position's gain since the start) and `stress_extremes` (the
-  largest compression and tension of p).  `biostudy.observables` names them.
+* Run summaries, per output time: `front_advance` (the front position's gain
+  since the start) and `stress_extremes` (the largest compression and tension
+  of p).  `biostudy.observables` names them.
 * `observed_order`: the slope of log(error) against log(h or dt).
 """
 from __future__ import annotations
@@ -26,7 +26,8 @@ import numpy as np
 import xarray as xr
 from scipy.ndimage import map_coordinates
 
-from solver.output import BIOFILM_THRESHOLD, on_output_times
+from solver.output import on_output_times
+from solver.series import BIOFILM_THRESHOLD
 
 THRESHOLD = BIOFILM_THRESHOLD  # the biofilm's extent, as the run's own biofilm_volume counts it
 DENSE = 0.8
@@ -183,11 +184,6 @@ def nutrient_minimum(ds: xr.Dataset) -> dict[str, np.ndarray]:
         out["c"].append(float(c[index]))
         out["phi"].append(float(phi[index]))
     return {k: np.array(v) for k, v in out.items()}
-
-
-def field_mean(ds: xr.Dataset, name: str) -> np.ndarray:
-    """Mean of a cell field over open cells (obstacle cells are NaN), per output time."""
-    return ds[name].mean(_cell_dims(ds), skipna=True).values
 
 
 def front_advance(ds: xr.Dataset) -> np.ndarray:

@@ -1,7 +1,9 @@
 """Observables: named scalar quantities of a run at every output time, defined once.
 
 Each has a name, units and a long_name, and is computed from a run's fields
-by `biostudy.measures` (one definition per quantity).  `show` prints them,
+by `biostudy.measures` (one definition per quantity); the three a run records
+itself as it goes (phi_mean, c_mean, biofilm_volume) are defined in
+`solver.series`, and measured here by that definition.  `show` prints them,
 `plot` draws them against the swept or sampled parameters, `convergence`
 measures their errors, `analyze` their sensitivity to the parameters, and
 `study.nc` carries them per case and time.
@@ -45,12 +47,13 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
+from solver.series import PER_THICKNESS, SERIES, Series, cell_volume
+
 from ..inputs.resources import BLOCK_BYTES
 from . import comstat, measures, substratum
 from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
-TWO_D = " (2-D: per µm of thickness)"
 
 
 @dataclass(frozen=True)
@@ -67,7 +70,7 @@ class Observable:
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
         volume = self.units == "um3" and ds is not None and "z" not in ds.dims
-        return {"units": self.units, "long_name": self.long_name + (TWO_D if volume else "")}
+        return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if volume else "")}
 
 
 def _vertical(ds: xr.Dataset) -> str:
@@ -83,9 +86,17 @@ def _height(axis: str | None) -> Observable:
 SUBSTRATUM_ATTRS = ("substratum_face", "substratum_threshold")
 
 
-def _one_cell(h: float, ndim: int) -> float:
-    """What a cell count moves by: one cell's volume (2-D: per µm of thickness)."""
-    return h**ndim
+def _recorded(series: Series) -> Observable:
+    """A series the run itself records (`solver.series`: one definition), measured the same way on a dataset's
+    fields, whose obstacle cells are NaN."""
+    def compute(ds: xr.Dataset) -> np.ndarray:
+        fields = ds[series.field].transpose("time", *(d for d in CELL_DIMS if d in ds.dims)).values
+        volume = cell_volume(measures.spacing(ds), fields.ndim - 1)
+        return np.array([series.measure(field, np.isfinite(field), volume) for field in fields])
+
+    counts = series.units == "um3"  # a volume of cells: it moves by one cell's volume
+    return Observable(series.name, series.units, series.long_name, compute, (series.field,),
+                      granularity=cell_volume if counts else None)
 
 
 def _on_substratum(quantity: substratum.Quantity) -> Observable:
@@ -105,15 +116,13 @@ def _on_substratum(quantity: substratum.Quantity) -> Observable:
     return Observable(quantity.name, quantity.units, quantity.long_name, compute, ("phi",), SUBSTRATUM_ATTRS)
 
 
+RECORDED = {series.name: _recorded(series) for series in SERIES}  # phi_mean, c_mean, biofilm_volume
 REGISTRY: dict[str, Observable] = {o.name: o for o in (
-    Observable("biofilm_volume", "um3", "volume of cells with phi >= 0.5",
-               lambda ds: measures.volume(ds, measures.THRESHOLD), granularity=_one_cell),
-    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=_one_cell),
-    Observable("phi_mean", "1", "mean biofilm density over non-obstacle cells",
-               lambda ds: measures.field_mean(ds, "phi")),
+    RECORDED["biofilm_volume"],
+    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=cell_volume),
+    RECORDED["phi_mean"],
     Observable("phi_max", "1", "largest biofilm density", measures.phi_max),
-    Observable("c_mean", "1", "mean nutrient concentration over non-obstacle cells",
-               lambda ds: measures.field_mean(ds, "c"), ("c",)),
+    RECORDED["c_mean"],
     Observable("nutrient_minimum", "1", "smallest nutrient concentration",
                lambda ds: measures.nutrient_minimum(ds)["c"], ("c", "phi")),
     _height(None),

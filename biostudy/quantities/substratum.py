@@ -66,13 +66,10 @@ from typing import Callable
 import numpy as np
 from skimage.measure import find_contours, marching_cubes
 
-THRESHOLD = 0.5  # biofilm is phi >= 0.5, the value of solver.output.BIOFILM_THRESHOLD
-FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
+from solver.problem import face_problem
+from solver.series import BIOFILM_THRESHOLD as THRESHOLD  # biofilm is phi >= 0.5, as the run's own biofilm_volume
 
-
-def default_face(ndim: int) -> str:
-    """The substratum when a scene names none and holds no nutrient face: the bottom, z- in 3-D, y- in 2-D."""
-    return {3: "z-", 2: "y-"}[ndim]
+from ..inputs.substratum_face import normal_axis
 
 
 def on_substratum(phi: np.ndarray, face: str) -> np.ndarray:
@@ -82,12 +79,10 @@ def on_substratum(phi: np.ndarray, face: str) -> np.ndarray:
     phi = np.asarray(phi, dtype=float)
     if phi.ndim not in (2, 3):
         raise ValueError(f"phi must be a 2-D or 3-D field, not {phi.ndim}-D")
-    if face not in FACES:
-        raise ValueError(f"unknown substratum face {face!r}; faces are {', '.join(FACES)}")
-    axis = phi.ndim - 1 - "xyz".index(face[0])  # x is the last axis
-    if axis < 0:
-        raise ValueError(f"a {phi.ndim}-D field has no face {face!r}")
-    field = np.moveaxis(np.nan_to_num(phi, nan=0.0), axis, 0)
+    problem = face_problem(face, phi.ndim)
+    if problem:
+        raise ValueError(problem)
+    field = np.moveaxis(np.nan_to_num(phi, nan=0.0), normal_axis(face, phi.ndim), 0)
     return field[::-1] if face[1] == "+" else field
 
 

@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..problem import AXES
+from ..problem import AXES, face_problem
 from .mesh import StructuredMesh
 
 
@@ -80,9 +80,10 @@ def boundary_held(mesh: StructuredMesh, clamp=(), slide=()) -> np.ndarray:
     d = mesh.ndim
     constrained = np.zeros((mesh.n_nodes, d), bool)
     for face in (*clamp, *slide):
+        problem = face_problem(face, d)
+        if problem:
+            raise ValueError(problem)
         axis = AXES.index(face[0])
-        if axis >= d:
-            raise ValueError(f"face {face!r} does not exist in a {d}-D grid")
         nodes = _face_nodes(mesh, axis, face[1])
         if face in clamp:
             constrained[nodes, :] = True
