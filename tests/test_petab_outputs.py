@@ -136,21 +136,6 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def test_a_users_simulation_table_is_refused_before_anything_runs(tmp_path):
-    """--force or not (without, a folder no biostudy run owned is refused as before; the last test refuses
-    without --force in a folder biostudy owns)."""
-    path = calibration(tmp_path, table("observableId\ttime\tmeasurement\tnoiseParameters\n",
-                                       [("biomass", 0.05, 3.1, 0.2)]), "[estimate]\nr = [50.0, 150.0]\n")
-    out = tmp_path / "out"
-    out.mkdir()
-    (out / "simulation.tsv").write_text("observableId\tsimulationConditionId\ttime\tsimulation\nmine\t\t1\t2\n")
-    before = _sha(out / "simulation.tsv")
-    line = one_line(invoke("calibrate", path, "-o", out, "-q", "--force"),
-                    "simulation.tsv: exists and is not a file biostudy wrote")
-    assert "refusing to overwrite it" in line
-    assert _sha(out / "simulation.tsv") == before and not (out / "cases").exists()
-
-
 def test_biostudys_simulation_table_is_replaced_and_an_edited_one_kept(tmp_path):
     """Its own file (the sha256 calibration.nc records) is replaced, also the one a run stopped between
     writing calibration.nc and simulation.tsv leaves (the one that calibration.nc replaced); the file a user
@@ -183,8 +168,25 @@ def test_biostudys_simulation_table_is_replaced_and_an_edited_one_kept(tmp_path)
 
     with written.open("a") as handle:
         handle.write("biomass\t\t0.2\t4.0\t0.2\td1\tA\tmine\n")
-    edited = _sha(written)
+    edited = _sha(written)  # refused before anything runs in a folder biostudy owns too (test_foreign_outputs)
     for force in ([], ["--force"]):
         one_line(invoke("calibrate", path, "-o", out, "-q", *force),
                  "simulation.tsv: exists and is not a file biostudy wrote")
         assert _sha(written) == edited
+
+
+def test_a_users_simulation_table_that_appears_while_a_calibration_computes_is_not_replaced(tmp_path):
+    """The last guard: the writer itself refuses a file whose sha256 the summary does not record (one put there
+    after the calibration's check), and replaces one it records."""
+    from biostudy.data import claims
+    from biostudy.errors import BadInput
+
+    path = tmp_path / "simulation.tsv"
+    path.write_text("observableId\tsimulation\nmine\t1\n")
+    users = path.read_bytes()
+    for attrs in (None, {}, claims.digested("simulation.tsv", "another text\n", "0" * 64)):
+        with pytest.raises(BadInput, match="refusing to overwrite"):
+            claims.write_digested(path, "observableId\tsimulation\nours\t2\n", attrs, "calibration.nc")
+        assert path.read_bytes() == users
+    claims.write_digested(path, "ours\n", claims.digested("simulation.tsv", users.decode()), "calibration.nc")
+    assert path.read_text() == "ours\n"
