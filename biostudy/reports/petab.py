@@ -4,12 +4,14 @@
   `replicate`, `datapoint` (PEtab's `datasetId`, `replicateId`, `datapointId`,
   empty where the table has none) and its attribute `measurement_columns` (the
   table's PEtab columns, in its order, comma-separated).
-* `datasets_text`: calibration.md's table of the datasets and replicates per
-  observable and condition, with what each adds to chi² (a misfit dataset or
-  replicate stands out there, not in the total).
+* `datasets_text`: calibration.md's table of the datasets per observable and
+  condition, their replicates, and what each adds to chi² (a misfit dataset
+  stands out there, not in the total).
 * `simulation_table`: PEtab's simulation table (simulation.tsv, docs/calibrate.md):
-  "the same format as the measurement table, but with model simulations" (PEtab
-  v1), its `measurement` column named `simulation`; one row per row of the
+  PEtab's optional simulation file has the measurement table's format with
+  model simulations in it, the value column named `simulation` as PEtab's
+  tools read it (libpetab's visualisation; the specification left the name
+  open until PEtab issue #628); one row per row of the
   measurement table, in its order, the model at the estimate (calibration.nc's
   `fitted`), times in the table's own unit, the optional columns the measurement
   table had (`preequilibrationConditionId` and `observableParameters` empty, as
