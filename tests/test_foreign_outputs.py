@@ -1,6 +1,7 @@
 """No report or picture replaces a file biostudy cannot prove it wrote, whatever the command (issue 25): a user's
-calibration.md, analysis.md or picture in the output folder keeps its bytes, --force or not; what biostudy wrote
-carries its mark (`data.claims`) and is replaced by the next run."""
+calibration.md, analysis.md, simulation.tsv or picture in the output folder keeps its bytes, --force or not; what
+biostudy wrote carries its mark (`data.claims`; simulation.tsv, which cannot, the sha256 calibration.nc records:
+tests/test_petab_outputs.py) and is replaced by the next run."""
 from __future__ import annotations
 
 import hashlib
@@ -46,8 +47,9 @@ def refused_one_line(result, name: str) -> str:
     return lines[0]
 
 
-@pytest.mark.parametrize("name, content", [("calibration.md", USERS), ("calibration_fit.png", PNG)],
-                         ids=["report", "picture"])
+@pytest.mark.parametrize("name, content", [("calibration.md", USERS), ("calibration_fit.png", PNG),
+                                           ("simulation.tsv", b"observableId\tsimulation\nmine\t1\n")],
+                         ids=["report", "picture", "PEtab simulation table"])
 def test_calibrate_keeps_a_users_report_or_picture_force_or_not(tiny_scene, write_toml, tmp_path, name, content):
     (tmp_path / "table.tsv").write_text(TABLE)
     calibration = write_toml("cal.toml", CALIBRATION)

@@ -371,8 +371,9 @@ def calibrate(
                                                                          "data, the keys to estimate, the method), "
                                                                          "or the name of a bundled one")],
     output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="DIR",
-                                                   help="directory for cases/, calibration.nc, calibration.md and "
-                                                        "the pictures (default: the calibration's name)")] = None,
+                                                   help="directory for cases/, calibration.nc, calibration.md, "
+                                                        "the pictures and simulation.tsv (default: the "
+                                                        "calibration's name)")] = None,
     workers: Workers = None,
     scheduler: Scheduler = None,
     scheduler_file: SchedulerFile = None,

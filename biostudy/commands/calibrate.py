@@ -4,7 +4,9 @@ The calibration's `[method]` is a `fitting.methods` method; it sees the simulati
 `Objective` of an `execution.evaluator.Evaluator` (points of the unit cube -> weighted residuals, every
 simulation a case file under DIR/cases/, reused by its fingerprint, so a re-run or a resumed calibration never
 repeats one).  The method's one `Result` becomes DIR/calibration.nc and calibration.md (`reports.calibration`)
-and the pictures (`plots.calibration`).  DIR belongs to this calibration (`targets.owned`: locked, owned).
+and the pictures (`plots.calibration`), and PEtab's simulation table simulation.tsv (`reports.petab`: a TSV
+carries no mark, so calibration.nc records its sha256, `claims.digested`).  DIR belongs to this calibration
+(`targets.owned`: locked, owned).
 `load` and `Calibrate.run` take keyword-only options, so a Python API can wrap them.
 """
 from __future__ import annotations
@@ -29,9 +31,11 @@ from ..plots.calibration import corner_figure, fit_figure, profiles_figure
 from ..plots.style import save
 from ..quantities import alerts
 from ..reports.calibration import dataset, table_text
+from ..reports.petab import simulation_table
 from .finished import Finished
 
 PICTURES = {"profiles": "calibration_profiles.png", "posterior": "calibration_corner.png"}  # per method product
+SIMULATIONS = "simulation.tsv"  # PEtab's simulation table
 
 
 @dataclass
@@ -56,13 +60,15 @@ class Calibrate:
         return ("calibration.md", "calibration_fit.png", *(PICTURES[p] for p in products))
 
     def run(self, execution: Execution = Execution()) -> Finished:
-        """Fit, write DIR/calibration.nc, calibration.md and the pictures; the table is the result's summary."""
+        """Fit, write DIR/calibration.nc, calibration.md, the pictures and simulation.tsv; the table is the
+        result's summary."""
         began = time.perf_counter()
         method = self.plan.spec.method.method()
         said = calibration_cost.note(self.plan)
         if said and execution.notify is not None:
             execution.notify("note", "", said)
-        with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports()):
+        with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports(),
+                   digested=(SIMULATIONS,)):
             backend = _backend(execution)
             runs = Evaluator(self.plan, self.directory, execution, backend)
             try:
@@ -75,15 +81,20 @@ class Calibrate:
                     backend.end()
             ds = dataset(self.plan, result, runs.model_at(result.estimate.best.x), self._cost(runs, result, began),
                          runs.failed, runs.raised)
-            table = table_text(ds)
+            table, simulations = table_text(ds), simulation_table(ds)
+            before = store.attributes(self.directory / "calibration.nc")  # what proves simulation.tsv biostudy's
+            present = claims.sha256(self.directory / SIMULATIONS)
+            ds.attrs.update(claims.digested(SIMULATIONS, simulations,
+                                            present if present in claims.recorded(before, SIMULATIONS) else ""))
             store.write_atomic(ds, self.directory / "calibration.nc")
             claims.write_report(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
             pictures = {"profiles": profiles_figure, "posterior": corner_figure}
             for product in method.products:
                 save(pictures[product](ds), self.directory / PICTURES[product])
+            claims.write_digested(self.directory / SIMULATIONS, simulations, before, "calibration.nc")
         summary = (f"{len(runs.ran)} simulations run, {len(runs.reused)} reused (finished before); "
-                   f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}")
+                   f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}, {SIMULATIONS}")
         return Finished(summary, {}, len(runs.ran) + len(runs.reused), table, self.noun, _warnings(runs, result),
                         result=ds)
 

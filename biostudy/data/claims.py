@@ -14,11 +14,16 @@ comment closing a Markdown report, an XML comment in a VTU), not in a record
 beside it: it survives copying and moving a folder, needs no bookkeeping
 that a crash or a user's edit could leave out of step, and holds for a
 picture written anywhere (`plot -o`), not only in a directory a run owns.
+A file that cannot carry a mark (PEtab's simulation.tsv: a TSV whose readers
+take every line for a row) is proven by a digest instead: the dataset written
+with it records its sha256 (`digested`), and it is replaced only while its
+bytes are those (`write_digested`); a user's edit makes it the user's.
 """
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import threading
 import weakref
@@ -70,6 +75,53 @@ def write_report(path: str | Path, text: str) -> Path:
     Markdown is rendered); refused (`foreign`) where a file biostudy cannot prove it wrote is."""
     foreign([path], "a report")
     return write_text(path, f"{text.rstrip()}\n\n<!-- {mark()} -->\n")
+
+
+def _digest_attribute(name: str) -> str:
+    return f"{name.replace('.', '_')}_sha256"  # simulation.tsv -> simulation_tsv_sha256
+
+
+def sha256(path: str | Path) -> str | None:
+    """The sha256 of a file's bytes, None if there is no regular file there or it cannot be read."""
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                digest.update(block)
+    except OSError:  # absent, a directory, unreadable
+        return None
+    return digest.hexdigest()
+
+
+def digested(name: str, text: str, replaced: str = "") -> dict[str, str]:
+    """The attributes a dataset written with the text file `name` records of it: the sha256 of `text`, and
+    that of the file of the same name it replaces (`replaced`, a digest already proven; "" if none), so that a
+    run stopped between writing the dataset and the file still proves the file it left."""
+    attribute = _digest_attribute(name)
+    return {attribute: hashlib.sha256(text.encode("utf-8")).hexdigest(), f"{attribute}_replaced": replaced}
+
+
+def recorded(attrs: dict | None, name: str) -> set[str]:
+    """The digests of file `name` a dataset's attributes record (`digested`; none for a dataset without)."""
+    attribute = _digest_attribute(name)
+    return {str(attrs[key]) for key in (attribute, f"{attribute}_replaced") if attrs and attrs.get(key)}
+
+
+def undigested(paths: Iterable[str | Path], attrs: dict | None, summary: str) -> list[BadInput]:
+    """A `BadInput` for each of `paths` that exists and whose sha256 the `summary` file's attributes (`attrs`)
+    do not record, --force or not."""
+    return [BadInput(f"exists and is not a file biostudy wrote (its sha256 is not one {summary} records); "
+                     "refusing to overwrite it (choose another output, or remove the file first)", path)
+            for path in paths if os.path.lexists(path) and sha256(path) not in recorded(attrs, Path(path).name)]
+
+
+def write_digested(path: str | Path, text: str, attrs: dict | None, summary: str) -> Path:
+    """A text file that cannot carry the `mark`, written atomically; refused (`undigested`) where a file is
+    whose sha256 `attrs` (the summary's before this run replaced it) do not record."""
+    found = undigested([path], attrs, summary)
+    if found:
+        raise found[0]
+    return write_text(path, text)
 
 
 def _identity(path: Path) -> tuple | None:

@@ -21,18 +21,25 @@ from . import ownership
 
 @contextlib.contextmanager
 def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool = False,
-          shared: bool = False, reports: tuple[str, ...] = ()) -> Iterator[Path]:
+          shared: bool = False, reports: tuple[str, ...] = (), digested: tuple[str, ...] = ()) -> Iterator[Path]:
     """Claim a sweep's directory for `owner` (`ownership.claimed`; `shared`: an array task) and check, before
     anything runs or is recorded there, that its summary file (study.nc, ...) may be replaced, that its
     `reports` (the names of the Markdown reports and pictures it writes) are absent or biostudy's
-    (`claims.unproven`), and, in a directory no biostudy run owned before (taken with `force`), that every file
-    in cases/ is a dataset biostudy wrote: a file biostudy cannot prove it wrote is never replaced, `force` or
-    not."""
+    (`claims.unproven`), that its `digested` files (which cannot carry a mark: simulation.tsv) are absent or
+    have the sha256 the summary records (`claims.undigested`), and, in a directory no biostudy run owned before
+    (taken with `force`), that every file in cases/ is a dataset biostudy wrote: a file biostudy cannot prove
+    it wrote is never replaced, `force` or not."""
     def check(directory: Path, biostudys: bool) -> None:
         problems = claims.unproven([directory / name for name in reports], "a report or picture")
-        for path in [directory / summary, *([] if biostudys else sorted(directory.glob("cases/*.nc")))]:
+        attrs = None
+        try:
+            attrs = store.replaceable(directory / summary, damaged_ok=biostudys)
+        except BadInput as error:
+            problems.append(error)
+        problems += claims.undigested([directory / name for name in digested], attrs, summary)
+        for path in [] if biostudys else sorted(directory.glob("cases/*.nc")):
             try:
-                store.replaceable(path, damaged_ok=biostudys)
+                store.replaceable(path)
             except BadInput as error:
                 problems.append(error)
         if problems:

@@ -14,7 +14,7 @@ measurement's standard deviation σ (a number > 0: PEtab also allows a
 parameter's name there, which is not supported), `simulationConditionId`
 names one of the calibration's `[conditions]` (empty or absent without them).
 PEtab's optional `datasetId`, `replicateId` and `datapointId` are read and
-kept (calibration.nc and simulation.tsv carry them); its
+kept (calibration.nc, calibration.md and simulation.tsv carry them); its
 `preequilibrationConditionId` and `observableParameters` are accepted empty
 (a value there is refused: nothing here pre-equilibrates, and the observables
 have no parameters); any other column is refused rather than ignored.  The delimiter is whichever of tab,
@@ -36,7 +36,7 @@ import csv
 import math
 import re
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import BadInput
@@ -57,7 +57,9 @@ _LINE_BREAK = re.compile(r"\r\n|\r|\n")
 
 @dataclass(frozen=True)
 class Measurement:
-    """One row of the table: `line` is its line in the file (for messages), `time` in the table's own unit."""
+    """One row of the table: `line` is its line in the file (for messages), `time` in the table's own unit;
+    `columns`: the PEtab columns its table has, in the table's order (one tuple shared by every row; what
+    simulation.tsv repeats)."""
 
     line: int
     observable: str
@@ -68,6 +70,7 @@ class Measurement:
     dataset: str = ""
     replicate: str = ""
     datapoint: str = ""
+    columns: tuple[str, ...] = field(default=(), compare=False, repr=False)
 
 
 def _delimiter(path: Path, header: str) -> str:
@@ -178,6 +181,7 @@ def read_measurements(path: str | Path) -> list[Measurement]:
     if problems:
         raise refusal(problems, path)
     decimals = _decimals(delimiter, header, table, first + 2)
+    columns = tuple(header)
     rows = []
     for offset, cells in enumerate(table):
         line = first + 2 + offset
@@ -197,7 +201,7 @@ def read_measurements(path: str | Path) -> list[Measurement]:
         if None not in (time, value, sigma) and row["observableId"]:
             rows.append(Measurement(line, row["observableId"], time, value, sigma,
                                     row.get("simulationConditionId", ""), row.get("datasetId", ""),
-                                    row.get("replicateId", ""), row.get("datapointId", "")))
+                                    row.get("replicateId", ""), row.get("datapointId", ""), columns))
     if not problems and not rows:
         problems.append(BadInput("has a header but no measurements", path))
     if problems:

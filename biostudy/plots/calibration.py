@@ -2,7 +2,11 @@
 
 * `fit_figure`: one panel per observable and condition: the measurements with
   error bars (± sigma) at their times (the table's own unit), the fitted model
-  at the data times joined by a line, and its 95 % band (Jacobian covariance).
+  at the data times joined by a line, and its 95 % band (Jacobian covariance);
+  a table with PEtab's `datasetId` or `replicateId` has its datasets drawn in
+  their own colours and its replicates with their own open markers, each named
+  in the panel's legend (replicates measured at the same time are told apart by
+  their markers).
 * `profiles_figure`: one panel per parameter: chi² above its minimum along the
   profile (the others re-optimised), the 95 % threshold 3.84, the estimate and
   the interval; a log axis for a log parameter; the panel spans the profile (its
@@ -31,8 +35,33 @@ def _grid(count: int) -> tuple[int, int]:
     return math.ceil(count / columns), columns
 
 
+MARKERS = "osD^v<>PX*"
+COLOURS = ("C0", "C3", "C4", "C5", "C6", "C7", "C8", "C9")  # C1 is the fit, C2 the posterior band
+
+
+def _measured(ax, ds: xr.Dataset, at: np.ndarray) -> bool:
+    """The measurements `at` with error bars; a colour per dataset and a marker per replicate (PEtab's ids; the
+    colour per replicate in a panel of one dataset) when the table names them.  Whether any was named (the panel
+    then needs its own legend)."""
+    ids = [(str(ds["dataset"].values[i]), str(ds["replicate"].values[i])) for i in at]
+    groups = list(dict.fromkeys(ids))
+    datasets = list(dict.fromkeys(d for d, _ in groups))
+    replicates = list(dict.fromkeys(r for _, r in groups))
+    for group in groups:
+        where = at[[k for k, named in enumerate(ids) if named == group]]
+        label = ", ".join(["measured ± σ"] + [f"{what} {name}" for what, name in zip(("dataset", "replicate"), group)
+                                               if name])
+        named = group != ("", "")
+        colour = datasets.index(group[0]) if len(datasets) > 1 else replicates.index(group[1])
+        ax.errorbar(ds.time_measured.values[where], ds.measured.values[where], yerr=ds.sigma.values[where],
+                    fmt=MARKERS[replicates.index(group[1]) % len(MARKERS)], ms=4.5 if named else 3.5,
+                    color=COLOURS[colour % len(COLOURS)], mfc="none" if named else None, capsize=2, label=label)
+    return groups != [("", "")]
+
+
 def fit_figure(ds: xr.Dataset):
-    """Measurements with error bars against the fitted model and its band, per observable and condition."""
+    """Measurements with error bars against the fitted model and its band, per observable and condition (and
+    per dataset and replicate, `_measured`)."""
     pairs = list(dict.fromkeys(zip(ds.observable.values, ds.condition.values)))
     rows, columns = _grid(len(pairs))
     fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.3 * rows), squeeze=False)
@@ -47,8 +76,8 @@ def fit_figure(ds: xr.Dataset):
             ax.fill_between(t, ds.posterior_band_lower.values[at], ds.posterior_band_upper.values[at], color="C2",
                             alpha=0.3, lw=0, label="95 % posterior band")
         ax.plot(t, ds.fitted.values[at], "-", color="C1", label="fitted model")
-        ax.errorbar(t, ds.measured.values[at], yerr=ds.sigma.values[at], fmt="o", ms=3.5, color="C0", capsize=2,
-                    label="measured ± σ")
+        if _measured(ax, ds, at):
+            ax.legend(fontsize=7)
         shown = units_text(str(ds.measurement_units.values[at[0]]))
         ax.set_xlabel(f"time ({unit})")
         ax.set_ylabel(f"{observable}" + (f" ({shown})" if shown else ""))

@@ -12,11 +12,13 @@ calibration.nc (docs/calibrate.md):
 * dimension `measurement` (the table's rows, in order): `observable`, `condition`,
   `time` (T*), `time_measured` (the table's own unit), `measured`, `sigma`,
   `fitted`, `band_lower`, `band_upper` (the 95 % band of the fitted model from
-  the Jacobian's covariance), `residual`; `measurement_units`;
+  the Jacobian's covariance), `residual`; `measurement_units`; PEtab's `dataset`,
+  `replicate`, `datapoint` (`reports.petab`: text, empty where the table has none);
 * dimension `start`: where each start began and ended, its chi², whether it was
   stopped because it joined another;
 * attributes: chi2, dof, chi2_minimum (profiles included), simulations run and
-  reused, rounds, wall time and where it went, the statements of `statements`;
+  reused, rounds, wall time and where it went, the statements of `statements`,
+  the table's PEtab columns (`measurement_columns`);
 * a posterior (`posterior_variables`): dimension `sample` with `posterior_<name>`
   per parameter; per parameter `posterior_median`, `posterior_lower`,
   `posterior_upper` (2.5 %, 97.5 %), `autocorrelation_time`, `effective_samples`,
@@ -50,6 +52,7 @@ from ..formatting import number
 from ..inputs.scene import key_info
 from ..quantities import alerts, observables
 from .parameter_units import MIXED, clock_of, model_units, real_rows, scalar_variables, shown
+from .petab import datasets_text, id_variables
 from .posterior import posterior_variables
 
 if TYPE_CHECKING:
@@ -278,11 +281,13 @@ def dataset(plan: CalibrationPlan, result: Result, model: np.ndarray, cost: dict
     data, estimate, lower, upper = _parameter_variables(plan, found)
     data.update(_measurement_variables(plan, found, model))
     data.update(_start_variables(plan, result))
+    ids, columns = id_variables(plan)
+    data.update(ids)
     data.update(scalar_variables([p.name for p in params], [p.key for p in params], {
         "estimate": (estimate, "estimated value"), "lower": (lower, "lower end of the 95 % profile interval"),
         "upper": (upper, "upper end of the 95 % profile interval")}, clock_of(plan)))
     coords = _coordinates(plan, result, units, data["profile_value"][1].shape[1])
-    attrs = _attributes(plan, found, cost, failed, raised)
+    attrs = {**_attributes(plan, found, cost, failed, raised), **columns}
     if result.posterior is not None:
         extra, extra_coords, extra_attrs = posterior_variables(plan, result.posterior, units)
         data.update(extra)
@@ -315,7 +320,8 @@ def _interval(ds: xr.Dataset, j: int) -> str:
 
 
 def table_text(ds: xr.Dataset) -> str:
-    """Markdown: the parameters, the fit's chi², the statements, the correlations, what it cost."""
+    """Markdown: the parameters, the fit's chi², the statements, the datasets and replicates, the correlations,
+    what it cost."""
     lines = ["| parameter | estimate | standard error | 95 % profile interval | identifiable | bounds |",
              "|---|---|---|---|---|---|"]
     for j, name in enumerate(ds.parameter.values):
@@ -356,6 +362,7 @@ def table_text(ds: xr.Dataset) -> str:
                   f"{number(attrs['wall_time'], 3)} s ({number(attrs['wall_time_simulations'], 3)} s in the rounds)"]
     for said in filter(None, str(attrs.get("statements", "")).split("; ")):
         lines += ["", f"**{said[0].upper() + said[1:]}.**"]
+    lines += datasets_text(ds)
     if ds.sizes["parameter"] > 1:
         names = list(ds.parameter.values)
         lines += ["", "correlations (Jacobian at the optimum):", "", "| | " + " | ".join(names) + " |",
