@@ -17,7 +17,7 @@ from typing import Any, Mapping, Sequence
 
 import xarray as xr
 
-from .data import netcdf, store
+from .data import netcdf, reading
 from .errors import BadInput
 from .execution import worker
 from .inputs.tomltext import literal
@@ -122,7 +122,7 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
         warnings.warn(said, stacklevel=2)
     if finished.failures:
         warnings.warn(finished.failure_line(), stacklevel=2)
-    return store.open_dataset(Path(directory) / "study.nc")
+    return reading.open_dataset(Path(directory) / "study.nc")
 
 
 def calibrate(calibration: str | Path, directory: str | Path | None = None, *, workers: int | None = None,
@@ -148,12 +148,12 @@ def calibrate(calibration: str | Path, directory: str | Path | None = None, *, w
     log.info(finished.summary)
     for said in finished.warnings:
         warnings.warn(said, stacklevel=2)
-    return store.open_dataset(job.directory / "calibration.nc")
+    return reading.open_dataset(job.directory / "calibration.nc")
 
 
 def open_result(path: str | Path) -> xr.Dataset:
     """A dataset biostudy wrote, loaded into memory: a run, a case file (as one run), a study's study.nc (or its
     directory), a convergence or stability summary.  `BadInput` for anything else."""
     path = Path(path)
-    return store.open_result(path / "study.nc" if path.is_dir() else path, ("run", "study", "failed", "summary"),
+    return reading.open_result(path / "study.nc" if path.is_dir() else path, ("run", "study", "failed", "summary"),
                              "biostudy.open reads runs, cases, studies and summaries")

@@ -176,7 +176,7 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
         return
     if len(paths) > 1:
         with guarded():
-            from ..data.store import open_result  # lazily (module docstring)
+            from ..data.reading import open_result  # lazily (module docstring)
             from ..reports.compare import show_compared  # lazily (module docstring)
 
             runs = [open_result(p, ("run",), "show of several files sets runs side by side") for p in paths]
@@ -195,7 +195,7 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
         if at_a_glance is not None:
             progress.out().print(at_a_glance)
             return
-        from ..data.store import open_result  # lazily (module docstring)
+        from ..data.reading import open_result  # lazily (module docstring)
         from ..reports.show import summarize  # lazily
 
         summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
@@ -224,8 +224,8 @@ def plot(
 ):
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with guarded():
+        from ..data.reading import open_result
         from ..data.real_time import t_star  # lazily (module docstring)
-        from ..data.store import open_result
         from ..plots import plot as draw
 
         source = path / "study.nc" if path.is_dir() else path
@@ -277,7 +277,7 @@ def export(
 ):
     """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
     with guarded():
-        from ..data.store import open_result  # lazily (module docstring)
+        from ..data.reading import open_result  # lazily (module docstring)
 
         ds = open_result(path, ("run",), "export writes one run's fields")
         try:

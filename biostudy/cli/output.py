@@ -29,7 +29,7 @@ def shown(path: Path) -> dict:
     found = glance.read(path) if path.is_file() else None
     if found is not None:
         return records.run_record(*found)
-    from ..data.store import open_result  # lazily
+    from ..data.reading import open_result  # lazily
     from ..reports.show import run_series  # lazily
 
     ds = open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and study.nc")
@@ -54,7 +54,7 @@ def finished(job, result) -> dict:
         return records.dataset_record(result)
     study = result if isinstance(result, Path) else getattr(result, "study", None)
     if getattr(job, "share", None) is None and study is not None:
-        from ..data.store import open_dataset  # lazily
+        from ..data.reading import open_dataset  # lazily
 
         return records.study_record(open_dataset(study))
     return {"kind": "cases", "ran": list(result.ran), "skipped": list(result.skipped), "failed": dict(result.failed)}
@@ -62,7 +62,7 @@ def finished(job, result) -> dict:
 
 def written(summary: Path) -> dict:
     """A summary dataset a command wrote (analysis.nc): the numbers of its table."""
-    from ..data.store import open_dataset  # lazily
+    from ..data.reading import open_dataset  # lazily
     from ..reports.records import dataset_record  # lazily
 
     return dataset_record(open_dataset(summary))

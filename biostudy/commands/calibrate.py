@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-from ..data import claims, store
+from ..data import case_files, claims, reading, writing
 from ..errors import BadInput, Failed
 from ..execution.backends import Kept
 from ..execution.jobs import Execution, Job, run_jobs
@@ -124,7 +124,7 @@ class Simulations:
         if failure is not None:
             self.failed[job.id] = failure
             return None
-        ds = store.open_dataset(store.case_file(self.directory, job.id))
+        ds = reading.open_dataset(case_files.case_file(self.directory, job.id))
         ds.attrs.update(job.scene.substratum_attrs())  # as the scene says now
         condition = str(job.attrs["condition"])
         rows = self.rows[condition]
@@ -221,7 +221,7 @@ class Calibrate:
             ds = dataset(self.plan, found, design, simulations.model_at(found.best.x), cost, simulations.failed,
                          simulations.raised, sampled)
             table = table_text(ds)
-            store.write_atomic(ds, self.directory / "calibration.nc")
+            writing.write_atomic(ds, self.directory / "calibration.nc")
             claims.write_report(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
             if method.profiles:
