@@ -26,10 +26,11 @@ if TYPE_CHECKING:
 RUNS_AND_STUDIES = "show reads runs, cases and study.nc"
 
 
-@dataclass
+@dataclass(repr=False)
 class Shown:
     """What `show` says: the `view` a terminal prints (plain text for a scene file's needs), the numbers of
-    ``--json`` (`record`; None for a scene file), and for several runs their `comparison`."""
+    ``--json`` (`record`; None for a scene file), and for several runs their `comparison`.  A notebook shows
+    it as the command prints it."""
 
     view: RenderableType
     record: dict | list | None = None
@@ -48,6 +49,8 @@ class Shown:
 
     def __str__(self) -> str:
         return self.text()
+
+    __repr__ = __str__
 
 
 def _is_scene_file(path: Path) -> bool:
