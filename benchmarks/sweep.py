@@ -40,7 +40,7 @@ import psutil  # noqa: E402
 import xarray as xr  # noqa: E402
 
 from biostudy.commands.sweep import run_study  # noqa: E402
-from biostudy.data import combine, store  # noqa: E402
+from biostudy.data import case_files, combine, reading, writing  # noqa: E402
 from biostudy.execution.jobs import Execution, fingerprint  # noqa: E402
 from biostudy.inputs import bundled  # noqa: E402
 from biostudy.plans.study import load_study  # noqa: E402
@@ -117,9 +117,9 @@ def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
     compile_ = time.perf_counter() - began
     began = time.perf_counter()
     for case in plan.cases:
-        path = store.case_file(out, case.id)
-        ds = store.open_dataset(path)
-        store.write_atomic(ds, path)
+        path = case_files.case_file(out, case.id)
+        ds = reading.open_dataset(path)
+        writing.write_atomic(ds, path)
     write = time.perf_counter() - began
     began = time.perf_counter()
     combine.write_study(plan, out)

@@ -17,9 +17,12 @@ From Python (a notebook, a script; docs/results.md):
     study = biostudy.sweep("directional-sweep", "sweep", workers=2)
     same = biostudy.open("sweep/cases/g=1e+08_r=50.nc")
     fit = biostudy.calibrate("calibrate-agar", "fit", workers=2)
+    pictures = biostudy.plot("sweep")                       # the files written
+    print(biostudy.show("sweep/cases/g=1e+08_r=50.nc"))     # what `biostudy show` prints
 
-`run`, `sweep`, `calibrate` and `open` (`biostudy.api`) are imported when first used, so
-``import biostudy`` (which the command line does) costs nothing.
+Every command is a function here (`biostudy.api`, docs/scripting.md): `run`, `sweep`, `calibrate`,
+`convergence`, `stability`, `analyze`, `plot`, `export`, `show`, `scenes` and `open`, imported when first used,
+so ``import biostudy`` (which the command line does) costs nothing.
 """
 from __future__ import annotations
 
@@ -30,9 +33,10 @@ import logging
 # (docs/scripting.md).  The command line puts its own handler here (`cli.logs`).
 logging.getLogger("biostudy").addHandler(logging.NullHandler())
 
-__all__ = ["run", "sweep", "open", "calibrate", "BadInput", "Failed"]
-
-_API = {"run": "run", "sweep": "sweep", "calibrate": "calibrate", "open": "open_result"}
+_API = {"run": "run", "sweep": "sweep", "calibrate": "calibrate", "convergence": "convergence",
+        "stability": "stability", "analyze": "analyze", "plot": "plot", "export": "export", "show": "show",
+        "scenes": "scenes", "open": "open_result"}
+__all__ = [*_API, "BadInput", "Failed"]
 
 
 def __getattr__(name: str):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import re
 
+UNCUT = 100_000  # the width of a table printed where no terminal is (a pipe, a file, a log): its content's, uncut
 SHOWN_UNITS = {"1": "", "um": "µm", "um2": "µm²", "um3": "µm³", "um-1": "µm⁻¹", "um2/T*": "µm²/T*", "um/T*": "µm/T*"}
 _EXPONENT = re.compile(r"e([+-])0*(\d)")
 

@@ -218,10 +218,10 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
 def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
     """A case file read as one run (show, plot, export) is squeezed; an old run's steps_bisections is
     steps_bisected; combine reads both."""
-    from biostudy.data import combine, netcdf, store
+    from biostudy.data import combine, netcdf, reading, writing
     from biostudy.plans.study import load_study
 
-    case = store.open_dataset(made / "grid" / "cases" / "g=1e+08_r=50.nc")
+    case = reading.open_dataset(made / "grid" / "cases" / "g=1e+08_r=50.nc")
     assert case.phi.dims == ("time", "y", "x") and float(case.g) == 1e8 and case.status.item() == "done"
     old = xr.load_dataset(made / "run2d.nc").rename(steps_bisected="steps_bisections")
     assert "steps_bisected" in netcdf.as_run(old) and "steps_bisections" not in netcdf.as_run(old)
@@ -230,7 +230,7 @@ def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
         with xr.open_dataset(path) as ds:
             before = combine._as_run(ds.load(), {}).rename(steps_bisected="steps_bisections")
         before.attrs.pop(netcdf.CASE_DIMENSIONS)
-        store.write_atomic(before, tmp_path / "cases" / path.name)
+        writing.write_atomic(before, tmp_path / "cases" / path.name)
     with contextlib.ExitStack() as opened:
         study = combine.combine(plan, tmp_path, opened).load()
     assert study.steps_bisected.dims == ("g", "r", "time") and (study.status == "done").all()

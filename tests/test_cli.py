@@ -14,7 +14,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from biostudy.data import store
+from biostudy.data import reading
 
 runner = CliRunner()
 
@@ -33,7 +33,7 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
     assert ds.attrs["g"] == 1e9 and dict(ds.sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert ds.phi.dims == ("time", "y", "x") and ds.g.dims == () and float(ds.g) == 1e9
     assert ds.grid_shape.item() == "18x16" and ds.mechanics_enabled.item() == 0
-    assert dict(store.open_dataset(out).sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
+    assert dict(reading.open_dataset(out).sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
 

@@ -76,7 +76,7 @@ def test_show_of_a_run_reads_it_at_a_glance(two_runs):
     assert shown.splitlines()[0] == "0 []", shown
     from rich.console import Console
 
-    from biostudy.data.store import open_result
+    from biostudy.data.reading import open_result
     from biostudy.reports.show import run_summary
 
     console = Console(width=200, record=True)

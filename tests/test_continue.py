@@ -7,7 +7,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from biostudy.data import store
+from biostudy.data import case_files, reading, writing
 from biostudy.inputs.scene import load_scene
 from solver import simulate
 from solver.restart import joined, start_state
@@ -87,7 +87,7 @@ def test_run_continue_writes_the_whole_history_and_says_so(runs, tmp_path):
     result = _run(scene, "--continue", tmp_path / "grow.nc", *(a for s in LATER for a in ("--set", s)))
     assert result.exit_code == 0, result.output
     written = tmp_path / "grow-t0.4.nc"  # the default: beside the run, never over it
-    ds = store.open_dataset(written)
+    ds = reading.open_dataset(written)
     np.testing.assert_allclose(ds.time.values, [0, 0.1, 0.2, 0.3, 0.4])
     off = simulate(load_scene(scene, LATER).problem())
     assert float(np.nanmax(np.abs(ds.phi - off.phi))) < AGREE
@@ -106,9 +106,9 @@ def test_continue_refuses_what_it_cannot_go_on_from(runs, tmp_path, write_toml):
     scene.write_text(SCENE.replace("every = 2", "enabled = false"))
     run = tmp_path / "grow.nc"
     assert _run(scene, "-o", run).exit_code == 0
-    cut = store.open_dataset(run).isel(time=slice(0, 2))  # as if it had stopped at T* = 0.1 of its 0.2
-    store.write_atomic(cut, tmp_path / "cut.nc")
-    store.write_atomic(store.failure_record("worker died", 1.0, "grow", "", scene, ""), tmp_path / "failed.nc")
+    cut = reading.open_dataset(run).isel(time=slice(0, 2))  # as if it had stopped at T* = 0.1 of its 0.2
+    writing.write_atomic(cut, tmp_path / "cut.nc")
+    writing.write_atomic(case_files.failure_record("worker died", 1.0, "grow", "", scene, ""), tmp_path / "failed.nc")
     cases = {
         "another scene": (["--continue", run, "--set", "g=1e9", "--set", "time.t_end=1"],
                           "a run of another scene (1 key differs besides [time]: params.g: 1e9 here, 1e8 in the run)"),
@@ -147,7 +147,7 @@ def test_run_continue_goes_on_from_a_sweeps_case_file(tmp_path, monkeypatch):
     later = [a for s in ["g=1e8", *LATER] for a in ("--set", s)]
     result = _run(scene, "--continue", case, *later, "-o", tmp_path / "on.nc")
     assert result.exit_code == 0, result.output
-    ds = store.open_dataset(tmp_path / "on.nc")
+    ds = reading.open_dataset(tmp_path / "on.nc")
     off = simulate(load_scene(scene, ["g=1e8", *LATER]).problem())
     np.testing.assert_allclose(ds.time.values, off.time.values)
     assert float(np.nanmax(np.abs(ds.phi - off.phi))) < AGREE
@@ -156,8 +156,8 @@ def test_run_continue_goes_on_from_a_sweeps_case_file(tmp_path, monkeypatch):
     assert ds.attrs["steps_taken"] == 40
 
     # what the continuation could not join is refused before anything is computed
-    edited = store.open_dataset(case).drop_vars("c_mean")
-    store.write_atomic(edited, tmp_path / "edited.nc")
+    edited = reading.open_dataset(case).drop_vars("c_mean")
+    writing.write_atomic(edited, tmp_path / "edited.nc")
 
     def simulate_refused(*args, **kwargs):
         raise AssertionError("simulated before the run continued was checked")

@@ -30,7 +30,7 @@ from typer.testing import CliRunner
 import solver
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
-from biostudy.data import netcdf_io, provenance, store
+from biostudy.data import case_files, netcdf_io, provenance, reading, writing
 from biostudy.execution import backends, ownership, pool
 from biostudy.execution import jobs as runner
 from biostudy.execution.jobs import Execution
@@ -216,21 +216,21 @@ def test_a_case_file_corrupted_in_place_is_computed_again(tiny_study, tmp_path):
     out = tmp_path / "out"
     plan = load_study(tiny_study)
     sweep(plan, out)
-    path = store.case_file(out, "g=1e+09_r=50")
-    good = store.open_dataset(path).phi.values
+    path = case_files.case_file(out, "g=1e+09_r=50")
+    good = reading.open_dataset(path).phi.values
     raw = bytearray(path.read_bytes())
     at, length = _stored_chunk(bytes(raw), good[-1])  # the last snapshot of phi, as stored (compressed)
     assert at > 0 and length > 128
     damaged = min(1024, length - 64)
     raw[at + 64:at + 64 + damaged] = b"\x7f" * damaged  # garbage inside the chunk, the size unchanged
     path.write_bytes(raw)
-    assert not netcdf_io.intact(path) and store.recorded(path)["status"] == "done"
+    assert not netcdf_io.intact(path) and case_files.recorded(path)["status"] == "done"
     assert "damaged: it cannot be read whole" in one_line_error(invoke("show", path))
     study_nc = (out / "study.nc").read_bytes()
     (out / "study.nc").write_bytes(study_nc[:8] + b"\0" * (len(study_nc) - 8))  # beyond reading: replaced
     report = sweep(plan, out)
     assert report.damaged == report.ran == ["g=1e+09_r=50"] and len(report.skipped) == 3
-    np.testing.assert_array_equal(store.open_dataset(path).phi.values, good)
+    np.testing.assert_array_equal(reading.open_dataset(path).phi.values, good)
     study = xr.open_dataset(out / "study.nc")
     np.testing.assert_array_equal(study.phi.sel(g=1e9, r=50).values, good)
     assert float(study.alpha.max()) < 1
@@ -242,7 +242,7 @@ def test_resuming_while_this_process_holds_a_case_file_open(tiny_study, tmp_path
     out = tmp_path / "out"
     plan = load_study(tiny_study)
     sweep(plan, out)
-    held = xr.open_dataset(store.case_file(out, "g=1e+09_r=50"))
+    held = xr.open_dataset(case_files.case_file(out, "g=1e+09_r=50"))
     assert held.status.item() == "done"
     for _ in range(3):
         assert len(sweep(plan, out).skipped) == 4
@@ -294,7 +294,7 @@ def test_a_long_case_id_gets_a_bounded_file_name_and_keeps_its_id(write_toml, ti
     out = tmp_path / "out"
     assert invoke("sweep", study, "-o", out, "-q").exit_code == 0
     names = sorted(p.name for p in (out / "cases").iterdir())
-    assert names[0] == "description=short.nc" and len(names[1].encode()) <= store.CASE_NAME_BYTES + 3
+    assert names[0] == "description=short.nc" and len(names[1].encode()) <= case_files.CASE_NAME_BYTES + 3
     assert xr.open_dataset(out / "cases" / names[1]).attrs["case_id"] == f"description={long}"
     assert (xr.open_dataset(out / "study.nc").status.values == "done").all()
 
@@ -455,9 +455,9 @@ def results(tiny_scene, tmp_path):
     assert invoke("run", tiny_scene, "-o", run, "-q").exit_code == 0
     foreign = tmp_path / "foreign.nc"
     xr.Dataset({"temperature": ("t", [1.0, 2.0])}).to_netcdf(foreign)
-    empty = store.write_atomic(store.stamp(xr.Dataset(), "", tiny_scene, ""), tmp_path / "empty.nc")
-    failed = store.write_atomic(store.failure_record("t = 0.1: it broke", 1.0, "tiny", "", tiny_scene, ""),
-                                tmp_path / "failed.nc")
+    empty = writing.write_atomic(provenance.stamp(xr.Dataset(), "", tiny_scene, ""), tmp_path / "empty.nc")
+    failed = writing.write_atomic(case_files.failure_record("t = 0.1: it broke", 1.0, "tiny", "", tiny_scene, ""),
+                                  tmp_path / "failed.nc")
     return {"run": run, "foreign": foreign, "empty": empty, "failed": failed}
 
 
@@ -585,7 +585,7 @@ def test_cases_of_another_version_are_reported_and_rerun_on_request(tiny_study, 
 
     out = tmp_path / "out"
     assert invoke("sweep", tiny_study, "-o", out, "-q").exit_code == 0
-    with netCDF4.Dataset(store.case_file(out, "g=1e+08_r=50"), "a") as nc:
+    with netCDF4.Dataset(case_files.case_file(out, "g=1e+08_r=50"), "a") as nc:
         nc.setncattr("biostudy_version", "0.0.1")
         nc.setncattr("version_scipy", "1.0.0")
     again = invoke("sweep", tiny_study, "-o", out, "-q")
@@ -595,6 +595,6 @@ def test_cases_of_another_version_are_reported_and_rerun_on_request(tiny_study, 
             "every case again") in again.stderr
     rerun = invoke("sweep", tiny_study, "-o", out, "-q", "--rerun-all")
     assert rerun.exit_code == 0 and "4 cases run, 0 skipped" in rerun.stderr and "warning" not in rerun.stderr
-    assert xr.open_dataset(store.case_file(out, "g=1e+08_r=50")).attrs["biostudy_version"] == provenance.version()
+    assert xr.open_dataset(case_files.case_file(out, "g=1e+08_r=50")).attrs["biostudy_version"] == provenance.version()
 
 

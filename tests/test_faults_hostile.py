@@ -32,7 +32,7 @@ import solver
 from biostudy.cli import app
 from biostudy.commands.analyze import current
 from biostudy.commands.sweep import run_study
-from biostudy.data import combine, netcdf_io, store
+from biostudy.data import case_files, combine, netcdf_io, reading
 from biostudy.execution import backends, dask, pool
 from biostudy.execution.jobs import Execution
 from biostudy.inputs import files, resources
@@ -112,8 +112,8 @@ def slow_scene(directory: Path, name: str, steps: int) -> Path:
 
 def test_a_case_header_changed_in_place_is_damaged_to_every_command_and_computed_again(finished, tmp_path):
     out = copied(finished, tmp_path)
-    path = store.case_file(out, CASE)
-    good = store.open_dataset(path).phi.values
+    path = case_files.case_file(out, CASE)
+    good = reading.open_dataset(path).phi.values
     raw = bytearray(path.read_bytes())
     at = raw.index(b"radius = 3.0")  # 3 bytes inside the scene attribute: radius 3 -> 9, the size unchanged
     raw[at + 9:at + 12] = b"9.0"
@@ -128,14 +128,14 @@ def test_a_case_header_changed_in_place_is_damaged_to_every_command_and_computed
     assert result.exit_code == 0, result.output
     assert f"warning: 1 case file was damaged (could not be read whole: header, attributes or data) and computed " \
            f"again: {CASE}" in result.stderr
-    np.testing.assert_array_equal(store.open_dataset(path).phi.values, good)
+    np.testing.assert_array_equal(reading.open_dataset(path).phi.values, good)
     assert netcdf_io.intact(out / "study.nc")
 
 
 def test_truncated_case_files_are_named_and_computed_again(finished, tmp_path):
     out = copied(finished, tmp_path)
     plan = load_study(finished["study"])
-    cut, emptied = store.case_file(out, "g=1e+08_r=50"), store.case_file(out, "g=1e+09_r=100")
+    cut, emptied = case_files.case_file(out, "g=1e+08_r=50"), case_files.case_file(out, "g=1e+09_r=100")
     cut.write_bytes(cut.read_bytes()[:60_000])
     emptied.write_bytes(b"")
     report = run_study(plan, out)
@@ -147,7 +147,7 @@ def test_truncated_case_files_are_named_and_computed_again(finished, tmp_path):
 def test_combine_names_the_truncated_and_the_damaged_case_files_it_cannot_read(finished, tmp_path):
     out = copied(finished, tmp_path)
     study_nc = (out / "study.nc").read_bytes()
-    cut, damaged = store.case_file(out, "g=1e+08_r=50"), store.case_file(out, "g=1e+09_r=100")
+    cut, damaged = case_files.case_file(out, "g=1e+08_r=50"), case_files.case_file(out, "g=1e+09_r=100")
     cut.write_bytes(cut.read_bytes()[:60_000])
     raw = bytearray(damaged.read_bytes())
     half = slice(len(raw) // 4, 3 * len(raw) // 4)
@@ -268,10 +268,10 @@ def test_a_damaged_or_foreign_netcdf_is_never_replaced_force_or_not(finished, tm
     assert (folder / "cases" / "g=1e+08_r=50.nc").read_bytes() == case
     # in a sweep's own directory, a case file that is not biostudy's stops the sweep before anything runs
     out = copied(finished, tmp_path)
-    planted = _foreign_netcdf(store.case_file(out, CASE), truncated=False)
+    planted = _foreign_netcdf(case_files.case_file(out, CASE), truncated=False)
     line = one_line(invoke("sweep", finished["study"], "-o", out, "-q", "--rerun-all"))
-    assert line.startswith(f"error: {store.case_file(out, CASE)}: exists and is not a dataset biostudy wrote")
-    assert store.case_file(out, CASE).read_bytes() == planted
+    assert line.startswith(f"error: {case_files.case_file(out, CASE)}: exists and is not a dataset biostudy wrote")
+    assert case_files.case_file(out, CASE).read_bytes() == planted
 
 
 # ---------------------------------------------------------------------------------------------
@@ -481,7 +481,7 @@ def test_a_disk_full_during_a_case_or_study_nc_is_one_line_and_keeps_the_cases(f
 
     monkeypatch.setattr(backends, "solve", second_fills)
     line = one_line(invoke("sweep", finished["study"], "-o", disk / "a", "-q"), 1)
-    second = store.case_file(disk / "a", "g=1e+08_r=100")
+    second = case_files.case_file(disk / "a", "g=1e+08_r=100")
     assert line == (f"error: cannot write {second}: {_full(disk)}; the cases recorded before are kept, run the same "
                     "command again to resume once there is room")
     assert [p.name for p in (disk / "a" / "cases").iterdir()] == ["g=1e+08_r=50.nc"]
@@ -557,7 +557,7 @@ def test_a_study_sweeping_a_text_key_is_analysed_with_the_key_coded_in_its_order
     study.write_text(f'scene = "{finished["scene"]}"\n[sweep]\n"model.consumption" = ["zero-order", "first-order"]\n'
                      'g = [1e8, 1e10]\n')
     run_study(load_study(study), tmp_path / "out")
-    ds = store.open_dataset(tmp_path / "out" / "study.nc")
+    ds = reading.open_dataset(tmp_path / "out" / "study.nc")
     result = indices(ds, ["c_mean"])
     volume = ds.c_mean.isel(time=-1).transpose("model_consumption", "g").values.ravel()
     law = np.repeat([0.0, 1.0], 2)  # zero-order first, as the study lists them
@@ -569,7 +569,7 @@ def test_a_study_sweeping_a_text_key_is_analysed_with_the_key_coded_in_its_order
 
 def test_analyze_rebuilds_a_damaged_study_nc_from_the_cases(finished, tmp_path):
     out = copied(finished, tmp_path)
-    good = store.open_dataset(out / "study.nc")
+    good = reading.open_dataset(out / "study.nc")
     raw = (out / "study.nc").read_bytes()
     (out / "study.nc").write_bytes(raw[:len(raw) // 2])  # truncated, and newer than every case
     rebuilt = current(out / "study.nc")

@@ -25,7 +25,7 @@ def umask(request):
 def test_every_output_follows_the_umask(umask, tiny_scene, write_toml, tmp_path):
     """A run, its pictures, its exports, a sweep of two cases: netCDF (through a claim and through temporaries),
     PNG, VTU/PVD, TIFF, the owner record and the lock; a report is written as the owner record is
-    (`store.write_text`)."""
+    (`writing.write_text`)."""
     study = write_toml("two.toml", 'scene = "tiny.toml"\n[sweep]\nr = [50.0, 60.0]\n')
     given = {p.name for p in tmp_path.iterdir()}
     steps = ["--set", "time.steps=2"]

@@ -8,7 +8,7 @@ from PIL import Image as Picture
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from biostudy.data import store
+from biostudy.data import writing
 from biostudy.inputs import images
 from biostudy.inputs.scene import load_scene
 
@@ -125,7 +125,7 @@ def test_bad_images_are_one_line_exit_2(tmp_path):
 def test_export_tiff_is_read_back_at_scale(tiny_run, tmp_path):
     for shape, spacing in (((6, 5, 4), 2.0), ((8, 6), 0.5)):
         ds = tiny_run(shape, spacing)
-        written = store.write_atomic(ds.assign_attrs(biostudy_version="0"), tmp_path / "run.nc")
+        written = writing.write_atomic(ds.assign_attrs(biostudy_version="0"), tmp_path / "run.nc")
         out = tmp_path / f"tiff{len(shape)}"
         result = cli.invoke(app, ["export", str(written), str(out), "--format", "tiff"])
         assert result.exit_code == 0, result.output

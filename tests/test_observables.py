@@ -111,7 +111,7 @@ def test_a_height_at_the_top_of_the_box_is_marked_saturated(tmp_path):
     from typer.testing import CliRunner
 
     from biostudy.cli import app
-    from biostudy.data import store
+    from biostudy.data import netcdf, writing
     from biostudy.quantities.saturation import SATURATION, saturated
 
     ds = sphere_dataset()
@@ -122,7 +122,7 @@ def test_a_height_at_the_top_of_the_box_is_marked_saturated(tmp_path):
     assert not saturated([9 * H - 0.01 * H], 9 * H).any() and not saturated([1.0], None).any()
     run = ds.assign(nutrient_source=(("z", "y", "x"), np.zeros((9, 9, 9), np.int8)))
     run.attrs.update(biostudy_version="0", grid_spacing=H, grid_shape=[9, 9, 9], scene='name = "column"')
-    path = store.write_atomic(store.with_observables(run), tmp_path / "column.nc")
+    path = writing.write_atomic(netcdf.with_observables(run), tmp_path / "column.nc")
     shown = CliRunner().invoke(app, ["show", str(path)], env={"COLUMNS": "200"})
     row = next(line for line in shown.stdout.splitlines() if line.strip().startswith("height "))
     assert shown.exit_code == 0 and "4.5 (top: saturated)" in row

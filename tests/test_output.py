@@ -113,7 +113,7 @@ def test_mechanics_has_its_own_time_coordinate():
 def test_the_dataset_says_which_pressure_it_holds(tmp_path):
     """p's attributes and the dataset's name the pressure: recovered by default, the paper's element
     pressure on request; both survive the netCDF file."""
-    from biostudy.data import store
+    from biostudy.data import writing
 
     base = small_problem(shape=(4, 3), obstacle=False)
     uniform = replace(base, phi0=np.ones(base.grid.cells_shape), params=Parameters(k_alpha=0.5),
@@ -125,7 +125,7 @@ def test_the_dataset_says_which_pressure_it_holds(tmp_path):
     assert "checkerboard" in element.p.attrs["comment"]
     assert np.isfinite(recovered.p.values[-1]).all() and np.isfinite(element.p.values[-1]).all()
     assert element.p.dims[0] == "time_mechanics"
-    back = xr.open_dataset(store.write_atomic(element, tmp_path / "element.nc"), engine="netcdf4")
+    back = xr.open_dataset(writing.write_atomic(element, tmp_path / "element.nc"), engine="netcdf4")
     assert back.p.attrs["pressure"] == back.attrs["mechanics_pressure"] == "element"
     assert back.p.attrs["comment"] == back.attrs["mechanics_pressure_comment"] == element.p.attrs["comment"]
     back.close()

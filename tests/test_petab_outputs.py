@@ -59,12 +59,12 @@ def table(header: str = HEADER, rows=ROWS) -> str:
 
 
 def test_dataset_and_replicate_ids_reach_calibration_nc_its_table_and_its_picture(tmp_path):
-    from biostudy.data import store
+    from biostudy.data import writing
     from biostudy.plots.calibration import fit_figure
     from biostudy.reports.calibration import table_text
 
     ds = fit(tmp_path, table())
-    store.write_atomic(ds, tmp_path / "calibration.nc")
+    writing.write_atomic(ds, tmp_path / "calibration.nc")
     with xr.open_dataset(tmp_path / "calibration.nc") as back:
         for name, column, at in (("dataset", "datasetId", 4), ("replicate", "replicateId", 5),
                                  ("datapoint", "datapointId", 6)):

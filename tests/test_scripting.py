@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from biostudy.cli import app
-from biostudy.data import store
+from biostudy.data import reading
 from biostudy.formatting import number
 
 runner = CliRunner()  # stdout and stderr are not terminals here, as in a pipe or a batch log
@@ -56,7 +56,7 @@ def test_show_json_of_a_run_has_every_observable_with_the_tables_numbers(tiny_sc
     shown, table = invoke("show", "--json", out), invoke("show", out)
     assert shown.exit_code == 0 and table.exit_code == 0, shown.output + table.output
     record = _strict(shown.stdout)  # stdout is the JSON and nothing else
-    ds = store.open_dataset(out)
+    ds = reading.open_dataset(out)
     names = [n.strip() for n in ds.attrs["observables"].split(",")]
     assert list(record["observables"]) == names and record["time"] == ds.time.values.tolist()
     rows = _rows(table.stdout, "observable")

@@ -66,9 +66,9 @@ def test_a_symbolic_link_loop_is_named_as_such(tiny_scene, tiny_study, tmp_path,
     for args in (["run", loop], ["run", tiny_scene, "-o", loop], ["sweep", tiny_study, "-o", loop],
                  ["run", tiny_scene, "--continue", loop, "--set", "time.t_end=1"]):
         assert lines_of(invoke(*args)) == [f"error: {said}"], args
-    from biostudy.data import store
+    from biostudy.data import writing
 
-    run = store.write_atomic(tiny_run((8, 8)).assign_attrs(biostudy_version="0"), tmp_path / "run.nc")
+    run = writing.write_atomic(tiny_run((8, 8)).assign_attrs(biostudy_version="0"), tmp_path / "run.nc")
     for kind in ("vtu", "tiff"):
         [line] = lines_of(invoke("export", run, loop, "--format", kind))
         assert f"{loop} is a symbolic link loop (it leads back to itself)" in line, line

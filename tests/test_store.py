@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 from conftest import CUBE_SCENE
 
-from biostudy.data import provenance, store
+from biostudy.data import provenance, writing
 from biostudy.inputs.scene import load_scene
 from solver import simulate
 
@@ -22,8 +22,8 @@ def test_legal_attrs_has_no_none_bool_or_nested_dict():
 
 def test_write_atomic_replaces_the_file_and_leaves_nothing_else(tmp_path):
     path = tmp_path / "out.nc"
-    store.write_atomic(xr.Dataset({"v": ("t", [1.0, 2.0])}), path)
-    store.write_atomic(xr.Dataset({"v": ("t", [3.0])}), path)
+    writing.write_atomic(xr.Dataset({"v": ("t", [1.0, 2.0])}), path)
+    writing.write_atomic(xr.Dataset({"v": ("t", [3.0])}), path)
     assert xr.open_dataset(path).v.values.tolist() == [3.0]
     assert os.listdir(tmp_path) == ["out.nc"]
 
@@ -31,20 +31,20 @@ def test_write_atomic_replaces_the_file_and_leaves_nothing_else(tmp_path):
 @pytest.mark.parametrize("interruption", [KeyboardInterrupt, OSError])
 def test_an_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch, interruption):
     path = tmp_path / "out.nc"
-    store.write_atomic(xr.Dataset({"v": ("t", [1.0])}), path)
+    writing.write_atomic(xr.Dataset({"v": ("t", [1.0])}), path)
 
     def fail(fd):
         raise interruption("stopped while writing")
 
-    monkeypatch.setattr(store.os, "fsync", fail)  # the temporary is fully written, not yet renamed
+    monkeypatch.setattr(writing.os, "fsync", fail)  # the temporary is fully written, not yet renamed
     with pytest.raises(interruption):
-        store.write_atomic(xr.Dataset({"v": ("t", [9.0, 9.0])}), path)
+        writing.write_atomic(xr.Dataset({"v": ("t", [9.0, 9.0])}), path)
     assert os.listdir(tmp_path) == ["out.nc"]
     assert xr.open_dataset(path).v.values.tolist() == [1.0]
     monkeypatch.undo()
     with pytest.raises(interruption):
-        monkeypatch.setattr(store.os, "fsync", fail)
-        store.write_atomic(xr.Dataset({"v": ("t", [9.0])}), tmp_path / "new.nc")
+        monkeypatch.setattr(writing.os, "fsync", fail)
+        writing.write_atomic(xr.Dataset({"v": ("t", [9.0])}), tmp_path / "new.nc")
     assert not (tmp_path / "new.nc").exists()
 
 
@@ -55,7 +55,7 @@ def test_remove_temporaries_touches_only_temporaries_of_writers_that_are_gone(tm
     (tmp_path / f".b.nc.{os.getppid()}.0123abcd.tmp").write_text("in flight")  # its writer is running
     (tmp_path / ".draft.tmp").write_text("a user's")
     (tmp_path / "a.nc").write_text("kept")
-    removed = store.remove_temporaries(tmp_path)
+    removed = writing.remove_temporaries(tmp_path)
     assert [p.name for p in removed] == [f".a.nc.{dead.pid}.0123abcd.tmp"]
     assert sorted(os.listdir(tmp_path)) == [f".b.nc.{os.getppid()}.0123abcd.tmp", ".draft.tmp", "a.nc"]
 
@@ -67,7 +67,7 @@ def test_dataset_layout_after_a_netcdf_round_trip(write_toml, tmp_path):
     scene = load_scene(path, ["params.g=2e8"])
     ds = simulate(scene.problem())
     out = tmp_path / "cube.nc"
-    store.write_atomic(store.stamp(ds, scene.to_toml(), path, '"params.g" = 2e+08'), out)
+    writing.write_atomic(provenance.stamp(ds, scene.to_toml(), path, '"params.g" = 2e+08'), out)
     back = xr.open_dataset(out, engine="netcdf4")
 
     assert dict(back.sizes) == {"time": 3, "z": 8, "y": 9, "x": 10, "bounds": 2}

@@ -11,7 +11,7 @@ import pytest
 
 import solver
 from biostudy.commands import run as command
-from biostudy.data import store
+from biostudy.data import reading, writing
 from biostudy.quantities import observables
 
 VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds", "cpu_time_loop", "cpu_time_first"}  # timings
@@ -37,10 +37,10 @@ def test_a_streamed_run_writes_the_file_the_dataset_held_in_memory_writes(tiny_s
     streamed = tmp_path / "streamed.nc"
     command.compute(command.load(tiny_scene, overrides=overrides, output=streamed))
     held = command._simulated(command.load(tiny_scene, overrides=overrides, write=False), None)
-    store.write_atomic(held, tmp_path / "held.nc")
+    writing.write_atomic(held, tmp_path / "held.nc")
 
     assert _layout(streamed) == _layout(tmp_path / "held.nc")
-    a, b = store.open_dataset(streamed), store.open_dataset(tmp_path / "held.nc")
+    a, b = reading.open_dataset(streamed), reading.open_dataset(tmp_path / "held.nc")
     assert a.sizes["time_mechanics"] == 3
     for name in a.variables:
         if name != "elapsed":  # wall time

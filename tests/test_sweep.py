@@ -12,7 +12,8 @@ from typer.testing import CliRunner
 
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
-from biostudy.data import combine, store
+from biostudy.data import combine
+from biostudy.data.case_files import recorded
 from biostudy.execution import dask
 from biostudy.execution.jobs import Execution, fingerprint
 from biostudy.inputs import bundled
@@ -229,7 +230,7 @@ def test_a_killed_sweep_leaves_only_complete_files_and_resumes(slow_study, tmp_p
     finished = list((out / "cases").glob("*.nc"))
     assert 1 <= len(finished) < 4 and not (out / "study.nc").exists()
     for path in finished:
-        assert store.recorded(path)["status"] == "done"  # complete, readable files only
+        assert recorded(path)["status"] == "done"  # complete, readable files only
     report = sweep(load_study(study), out)
     assert len(report.skipped) == len(finished) and len(report.ran) == 4 - len(finished)
     assert not list((out / "cases").glob(".*"))

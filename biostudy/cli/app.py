@@ -17,9 +17,7 @@ from typing import Annotated, List, Optional
 
 import typer
 
-from ..errors import BadInput
 from ..execution import worker
-from ..inputs import bundled
 from . import logs, output, progress
 from .guard import OneLineErrors, guarded
 from .jobs import job_command
@@ -145,19 +143,10 @@ def sweep(
 @app.command()
 def scenes(as_json: Json = False):
     """List the bundled scenes and studies with their descriptions."""
-    from rich.table import Table
+    from ..commands import scenes as command  # lazily (module docstring)
 
-    directory = bundled.studies_dir()
-    if as_json:
-        output.emit(output.scenes(directory))
-        return
-    table = Table(title=f"bundled scenes and studies in {directory}", show_edge=False)
-    table.add_column("file", no_wrap=True)
-    table.add_column("kind", no_wrap=True)
-    table.add_column("description")
-    for entry in bundled.entries(directory):
-        table.add_row(entry.path.name, entry.kind, entry.description)
-    progress.out().print(table)
+    listed = command.scenes()
+    output.emit(listed) if as_json else progress.out().print(command.table(listed))
 
 
 @app.command()
@@ -169,37 +158,14 @@ def show(paths: Annotated[List[Path], typer.Argument(metavar="FILE...", help="da
     """Print a readable summary: scene, parameters, run time, final averages; for a scene or study file what
     running it needs (memory, disk); for several runs, how they differ (scenes, parameters, observables at their
     common times, the largest field differences)."""
-    if as_json:
-        with guarded():
-            records = [output.shown(p) for p in paths]
-            output.emit(records[0] if len(paths) == 1 else records)
-        return
-    if len(paths) > 1:
-        with guarded():
-            from ..data.store import open_result  # lazily (module docstring)
-            from ..reports.compare import show_compared  # lazily (module docstring)
-
-            runs = [open_result(p, ("run",), "show of several files sets runs side by side") for p in paths]
-            show_compared(runs, paths, progress.out())
-        return
-    path = paths[0]
     with guarded():
-        if path.suffix == ".toml" or (not path.exists() and not path.suffix):
-            from ..reports.needs import needs  # lazily (module docstring)
+        from ..commands import show as command  # lazily (module docstring)
 
-            typer.echo(needs(bundled.resolve(path)))
+        if as_json:
+            output.emit(command.records(paths))
             return
-        from ..reports.glance import glance  # lazily (module docstring)
-
-        at_a_glance = glance(path) if path.is_file() else None  # a run's file: netCDF4 alone, no xarray
-        if at_a_glance is not None:
-            progress.out().print(at_a_glance)
-            return
-        from ..data.store import open_result  # lazily (module docstring)
-        from ..reports.show import summarize  # lazily
-
-        summarize(open_result(path / "study.nc" if path.is_dir() else path, doing="show reads runs, cases and "
-                              "study.nc"), progress.out())
+        shown, _ = command.view(paths)
+        typer.echo(shown) if isinstance(shown, str) else progress.out().print(shown)
 
 
 @app.command()
@@ -224,18 +190,9 @@ def plot(
 ):
     """Draw the pictures of a run or a sweep: time series, cuts, isosurfaces, maps, sweep outputs."""
     with guarded():
-        from ..data.real_time import t_star  # lazily (module docstring)
-        from ..data.store import open_result
-        from ..plots import plot as draw
+        from ..commands.plot import plot as command  # lazily (module docstring)
 
-        source = path / "study.nc" if path.is_dir() else path
-        ds = open_result(source, ("run", "study"), "nothing to plot")
-        try:
-            at = None if time is None else t_star(ds, time)
-            written = draw(ds, output or source.with_suffix(".png"), variable=variable, time=at, cut=cut, warp=warp)
-        except ValueError as error:
-            raise BadInput(str(error), source) from None
-        for picture in written:
+        for picture in command(path, output=output, variable=variable, time=time, cut=cut, warp=warp):
             progress.out().print(f"wrote {picture}")
 
 
@@ -277,23 +234,10 @@ def export(
 ):
     """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
     with guarded():
-        from ..data.store import open_result  # lazily (module docstring)
+        from ..commands import export as command  # lazily (module docstring)
 
-        ds = open_result(path, ("run",), "export writes one run's fields")
-        try:
-            if format is ExportFormat.tiff:
-                from ..data.tiff import export_tiff  # lazily (module docstring)
-
-                written = export_tiff(ds, directory, str(path))
-            else:
-                from ..data.export import export as write  # lazily (module docstring)
-
-                written = write(ds, directory)
-        except ValueError as error:
-            raise BadInput(str(error), path) from None
-        opened = "in Fiji (File > Open: at scale, in µm)" if format is ExportFormat.tiff else \
-            f"{directory / 'series.pvd'} in ParaView"
-        progress.out().print(f"wrote {len(written)} files to {directory} (open {opened})")
+        written = command.export(path, directory, format=format.value)
+        progress.out().print(command.said(written, directory, format.value))
 
 
 @app.command()

@@ -14,6 +14,7 @@ import time as clock
 from functools import lru_cache
 from typing import TYPE_CHECKING
 
+from ..formatting import UNCUT
 from . import logs
 from .pace import Lumps, Mark, time_left
 
@@ -23,7 +24,6 @@ if TYPE_CHECKING:
     from rich.console import Console
 
 
-UNCUT = 100_000  # the width of a console that is not a terminal: what fits the content, nothing cut
 
 
 @lru_cache(maxsize=None)

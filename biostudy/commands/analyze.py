@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 import xarray as xr
 
-from ..data import claims, combine, netcdf_io, real_time, store
+from ..data import case_files, claims, combine, netcdf_io, reading, real_time, targets, writing
 from ..errors import BadInput
 from ..inputs.keys import key_parts
 from ..inputs.tomltext import literal
@@ -40,18 +40,18 @@ def current(source: Path) -> xr.Dataset:
     cases = sorted(source.parent.joinpath("cases").glob("*.nc"), key=lambda p: p.stat().st_mtime)
     if not cases or (source.is_file() and source.stat().st_mtime >= cases[-1].stat().st_mtime):
         try:
-            return store.open_dataset(source)
+            return reading.open_dataset(source)
         except BadInput:
             if not cases:
                 raise
     records = [source, *reversed(cases)] if source.is_file() else list(reversed(cases))
-    record, attrs = next(((r, a) for r in records if (a := store.attributes(r)) is not None), (None, {}))
+    record, attrs = next(((r, a) for r in records if (a := reading.attributes(r)) is not None), (None, {}))
     study_file = attrs.get("study_file")
     if not study_file or not os.path.isfile(study_file):
-        return store.open_dataset(source)
+        return reading.open_dataset(source)
     plan = load_study(study_file, _common(attrs, record == source, study_file))
     damaged = [BadInput("damaged: it cannot be read whole; run the sweep again to compute it again", path)
-               for path in (store.case_file(source.parent, case.id) for case in plan.cases)
+               for path in (case_files.case_file(source.parent, case.id) for case in plan.cases)
                if path.exists() and not netcdf_io.intact(path)]
     if damaged:
         raise BadInput.every(damaged)
@@ -84,8 +84,8 @@ def analyze(source: str | Path, *, outputs: list[str] | None = None,
     except ValueError as error:
         raise BadInput(str(error), source, "--output" if "output" in str(error) else None) from None
     text = table_text(result)
-    written = [store.write_atomic(result, directory / "analysis.nc"), claims.write_report(directory / REPORTS[0], text),
-               save(indices_figure(result), directory / REPORTS[1])]
+    written = [writing.write_atomic(result, directory / "analysis.nc"),
+               claims.write_report(directory / REPORTS[0], text), save(indices_figure(result), directory / REPORTS[1])]
     names = list(result.output.values)
     index = time_indices(ds, asked or None)[-1]
     if "sample_method" in ds.attrs and all(n in ds for n in names):
@@ -107,7 +107,7 @@ def _replaceable(directory: Path) -> None:
     """`BadInput` (every one at once) unless analysis.nc and the reports may be replaced: absent, or biostudy's."""
     problems = claims.unproven([directory / name for name in REPORTS], "a report or picture")
     try:
-        store.replaceable(directory / "analysis.nc")
+        targets.replaceable(directory / "analysis.nc")
     except BadInput as error:
         problems.insert(0, error)
     if problems:

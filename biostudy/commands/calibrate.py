@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..data import claims, store
+from ..data import claims, reading, writing
 from ..errors import BadInput, Failed
 from ..execution.backends import Kept
 from ..execution.evaluator import Evaluator
@@ -82,11 +82,11 @@ class Calibrate:
             ds = dataset(self.plan, result, runs.model_at(result.estimate.best.x), self._cost(runs, result, began),
                          runs.failed, runs.raised)
             table, simulations = table_text(ds), simulation_table(ds)
-            before = store.attributes(self.directory / "calibration.nc")  # what proves simulation.tsv biostudy's
+            before = reading.attributes(self.directory / "calibration.nc")  # what proves simulation.tsv biostudy's
             present = claims.sha256(self.directory / SIMULATIONS)
             ds.attrs.update(claims.digested(SIMULATIONS, simulations,
                                             present if present in claims.recorded(before, SIMULATIONS) else ""))
-            store.write_atomic(ds, self.directory / "calibration.nc")
+            writing.write_atomic(ds, self.directory / "calibration.nc")
             claims.write_report(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
             pictures = {"profiles": profiles_figure, "posterior": corner_figure}

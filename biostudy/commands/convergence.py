@@ -13,7 +13,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..data import claims, provenance, store
+from ..data import claims, provenance, writing
 from ..errors import BadInput
 from ..execution.jobs import Execution, Job, SweepReport, run_jobs
 from ..execution.ownership import Owner
@@ -75,7 +75,7 @@ class Convergence:
                 ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()} (T* = {given['time']:g})"
             ds.attrs = provenance.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
                                               "scene_file": str(self.path.resolve()), "overrides": text})
-            store.write_atomic(ds, self.directory / "convergence.nc")
+            writing.write_atomic(ds, self.directory / "convergence.nc")
         return ds, report
 
 

@@ -26,7 +26,8 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import claims, combine, continuation, netcdf_io, store
+from ..data import claims, combine, continuation, netcdf, netcdf_io, writing
+from ..data.provenance import stamp
 from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
@@ -131,9 +132,9 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
     clock = loaded.scene.real_time_attrs()  # the warnings say their times in real time too
-    ds = store.stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-                     **loaded.scene.substratum_attrs(), **clock)
-    ds = store.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
+    ds = stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
+               **loaded.scene.substratum_attrs(), **clock)
+    ds = netcdf.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     ds.attrs.update(alerts.attrs(ds))  # from the volumes just measured
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")
@@ -157,8 +158,8 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
                 if loaded.claim is not None:
                     loaded.claim.write_dataset(ds)
                 else:
-                    store.write_atomic(ds, loaded.target)
-            except OSError as error:  # e.g. the disk filled up while it ran (`store.NotWritten`)
+                    writing.write_atomic(ds, loaded.target)
+            except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
                 kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
             ds = netcdf_io.open_dataset(loaded.target)

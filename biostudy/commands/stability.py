@@ -10,7 +10,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..data import claims, provenance, store
+from ..data import claims, provenance, writing
 from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
@@ -32,7 +32,7 @@ def run_catalogue(plan: Plan, directory: Path, execution: Execution = Execution(
             "Conventions": "CF-1.10", "title": f"stability catalogue: {plan.spec.name}",
             "catalogue": plan.file.read_text(encoding="utf-8"), "catalogue_file": str(plan.file.resolve()),
             "scene_file": str(plan.scene_file.resolve()), "cases": len(jobs), "cases_ok": int(ds["ok"].sum())})
-        store.write_atomic(ds, Path(directory) / "stability.nc")
+        writing.write_atomic(ds, Path(directory) / "stability.nc")
     return ds, report
 
 

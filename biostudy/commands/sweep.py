@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..data import combine, netcdf_io, store
+from ..data import case_files, combine, netcdf_io
 from ..errors import BadInput
 from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
@@ -90,7 +90,7 @@ def write_study(plan: Plan, directory: Path) -> Path:
     """DIR/study.nc from the case files; a write that fails (a full disk) says the case files are kept."""
     try:
         return combine.write_study(plan, directory)
-    except OSError as error:  # `store.NotWritten`, e.g. a full disk
+    except OSError as error:  # `writing.NotWritten`, e.g. a full disk
         raise SweepError(f"{error}; the case files in {directory / 'cases'} are kept: run the same command again "
                          "to write study.nc (nothing is computed again)") from None
 
@@ -106,7 +106,7 @@ def combine_study(plan: Plan, directory: str | Path, force: bool = False) -> Pat
     with owned(directory, plan_owner(plan, "study"), "study.nc", force):
         damaged = [BadInput("damaged or truncated: it cannot be read whole (header, attributes or data); "
                             f"`biostudy sweep {plan.file} -o {directory}` without --combine computes it again", path)
-                   for path in (store.case_file(directory, case.id) for case in plan.cases)
+                   for path in (case_files.case_file(directory, case.id) for case in plan.cases)
                    if path.exists() and not netcdf_io.intact(path)]
         if damaged:
             raise BadInput.every(damaged)

@@ -1,7 +1,7 @@
 """Outputs claimed by one writer, and files told apart as biostudy's.
 
 A `Claim` reserves one run's output (`claim`) from before it computes until
-its result is written: its temporary (`store.temporary_name`) is made at
+its result is written: its temporary (`writing.temporary_name`) is made at
 once and tells other biostudy runs that the output is being computed; the
 result is renamed over the output only if the output is still the file it
 was when claimed, so a result is never silently replaced by another written
@@ -32,7 +32,7 @@ from typing import Iterable
 
 from ..errors import BadInput, Failed
 from .provenance import version
-from .store import remove_temporaries, temporaries, temporary_name, write_atomic, write_text
+from .writing import remove_temporaries, temporaries, temporary_name, write_atomic, write_text
 
 HELD: set[Path] = set()  # outputs claimed in this process: its threads share its pid, which the temporary names
 HOLDING = threading.Lock()
@@ -159,7 +159,7 @@ class Claim:
         self._release = weakref.finalize(self, _give_up, temporary, made, held)
 
     def write_dataset(self, ds) -> Path:
-        """The result, written into the claimed output (`store.write_atomic`, renamed by `replace`)."""
+        """The result, written into the claimed output (`writing.write_atomic`, renamed by `replace`)."""
         return write_atomic(ds, self.target, self.temporary, self.replace)
 
     def release(self) -> None:

@@ -38,7 +38,7 @@ from solver.output import cf_units
 from ..inputs.keys import dimension, id_text
 from ..inputs.scene import key_info, overrides_text
 from ..quantities import observables
-from . import netcdf, netcdf_io, provenance, store
+from . import case_files, netcdf, netcdf_io, provenance, writing
 
 if TYPE_CHECKING:
     from ..plans.cases import Plan
@@ -199,7 +199,7 @@ def _scalars(status: str, message: str, attrs: dict) -> dict:
 def write_study(plan: Plan, out_dir: str | Path) -> Path:
     """Combine the case files under DIR/cases/ into DIR/study.nc (atomically), case by case in memory."""
     with contextlib.ExitStack() as opened:
-        return store.write_atomic(combine(plan, out_dir, opened), Path(out_dir) / "study.nc")
+        return writing.write_atomic(combine(plan, out_dir, opened), Path(out_dir) / "study.nc")
 
 
 def _measured_as_now(ds: xr.Dataset, now: dict) -> xr.Dataset:
@@ -250,8 +250,8 @@ def _read_cases(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack,
     it, measured as its scene measures now, with every observable its fields give (those it has are kept)."""
     records, datasets = {}, {}
     for case in plan.cases:
-        path = store.case_file(out_dir, case.id)
-        record = store.recorded(path) or {}
+        path = case_files.case_file(out_dir, case.id)
+        record = case_files.recorded(path) or {}
         status = str(record.get("status", "missing"))
         if status == "done":
             ds = _as_run(opened.enter_context(netcdf_io.open_dataset(path, chunks={})), coords)

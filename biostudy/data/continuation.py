@@ -29,7 +29,7 @@ from ..errors import BadInput
 from ..formatting import value_text
 from ..inputs.keys import flatten
 from ..inputs.scene import Scene
-from . import store
+from . import reading
 
 FREE = ("name", "description")  # besides [time]: what a continuation may change
 FIELDS = ("phi", "c", "alpha")  # on time and the cells: the state a continuation starts from
@@ -73,7 +73,7 @@ def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
     """The finished run of `scene` that a continuation starts from; `BadInput` (naming RUN.nc) for anything
     else: not a run, a failed case, an unfinished run, a run of another scene, a t_end not after its end."""
     path = Path(path)
-    ds = store.open_result(path, ("run",), "--continue starts from a finished run's last state")
+    ds = reading.open_result(path, ("run",), "--continue starts from a finished run's last state")
     attrs = ds.attrs
     last = float(ds["time"].values[-1])
     if str(attrs.get("status", "done")) != "done" or last < float(attrs.get("t_end", last)) * (1 - 1e-12):

@@ -43,7 +43,7 @@ from solver.problem import AXES
 from ..inputs.files import no_directory
 from .claims import foreign, mark, marked
 from .real_time import clock
-from .store import atomic
+from .writing import atomic
 
 CELL_FIELDS = ("phi", "c", "alpha", "p")
 MECHANICS_TIME = "time_mechanics"

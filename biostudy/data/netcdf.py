@@ -1,6 +1,6 @@
 """How datasets are laid out in their netCDF files: compression, chunks, history; a case file read as a run.
 
-* `encoding`: what `store.write_atomic` passes to ``to_netcdf``.  Fields are
+* `encoding`: what `writing.write_atomic` passes to ``to_netcdf``.  Fields are
   zlib-compressed with the shuffle filter, one snapshot per chunk (length 1
   along time, time_mechanics and a study's dimensions, whole along x, y, z and
   the nodes), so reading one time of one case reads one chunk; masks and bounds
@@ -17,6 +17,9 @@
   Unidata/netcdf-c#2510).  Measured in docs/results.md.
 * `history`: the CF ``history`` attribute, the command line that made the file
   (or the Python call, inside `called`: the API's, not a notebook kernel's argv).
+* `with_observables`: a run's dataset with every observable as a variable,
+  listed in its ``observables`` attribute, so that `show` reads them from the
+  file without computing anything (`reports.glance`).
 * `as_run`: a sweep's case file carries its place in the study as dimensions of
   length 1 (`combine.CaseLayout`, so that ``xr.open_mfdataset`` combines the
   cases by itself); read as one run, they are squeezed to scalar coordinates.
@@ -102,3 +105,15 @@ def as_run(ds: xr.Dataset) -> xr.Dataset:
     dims = [d.strip() for d in str(ds.attrs.get(CASE_DIMENSIONS, "")).split(",") if d.strip()]
     dims = [d for d in dims if ds.sizes.get(d) == 1]
     return ds.squeeze(dims) if dims else ds
+
+
+def with_observables(ds: xr.Dataset) -> xr.Dataset:
+    """A run's dataset with every observable its fields give as a variable (those it has are kept), listed in
+    its ``observables`` attribute in the registry's order (`quantities.observables`): the file says what it
+    holds, and `show` reads them without computing anything (`reports.glance`)."""
+    from ..quantities import observables  # lazily: scipy and xarray only where a run's dataset is made
+
+    found = observables.variables(ds)
+    ds = ds.assign({name: values for name, values in found.items() if name not in ds})
+    ds.attrs[OBSERVABLES] = ", ".join(found)
+    return ds

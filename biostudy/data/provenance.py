@@ -1,13 +1,17 @@
 """What every file biostudy writes says about itself: the version that made it, when, and how (its `history`),
-in attributes netCDF can store."""
+in attributes netCDF can store; a run's dataset with the scene that produced it (`stamp`)."""
 from __future__ import annotations
 
 import datetime as _dt
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import netcdf
+
+if TYPE_CHECKING:
+    import xarray as xr  # imported where a dataset is made: `show` of a run's file needs none
 
 
 def version() -> str:
@@ -46,3 +50,15 @@ def legal_attrs(attrs: dict) -> dict:
         else:
             legal[name] = value
     return legal
+
+
+def stamp(ds: xr.Dataset, scene: str, scene_file: str | Path, overrides: str, **extra: Any) -> xr.Dataset:
+    """The run's dataset with what produced it: the scene as TOML text, its file, the overrides (a ``t_ref``
+    among `extra`: the real-time coordinates, `real_time`)."""
+    from . import real_time  # lazily, as xarray
+
+    ds = ds.copy()
+    ds.attrs = with_provenance({**ds.attrs, "scene": scene, "scene_file": str(Path(scene_file).resolve())
+                                if scene_file else "",
+                                "overrides": overrides, **extra})
+    return real_time.with_real_time(ds)  # a scene's t_ref: the real-time coordinates

@@ -2,7 +2,7 @@
 
 `solver.simulate` hands every output's fields to its sink at once
 (`solver.sink`); `Spool` appends them to a hidden netCDF file beside the
-target (`store.temporary_name`: a killed run's spool is a temporary like
+target (`writing.temporary_name`: a killed run's spool is a temporary like
 any other, removed by the next run into that output or sweep there) and gives them back at the
 end as lazy arrays, read one output at a time.  The dataset is then made,
 measured (`quantities.observables` in blocks of outputs) and written to the
@@ -20,7 +20,7 @@ from typing import Any
 from solver.sink import CELL_FIELDS, MECHANICS_FIELDS
 
 from . import netcdf_io
-from .store import temporary_name
+from .writing import temporary_name
 
 SPOOL_COMPRESSION = {"zlib": True, "complevel": 1, "shuffle": True}
 

@@ -24,7 +24,7 @@ import xarray as xr
 from ..errors import BadInput
 from ..inputs.files import no_directory
 from .real_time import clock, shown
-from .store import atomic
+from .writing import atomic
 
 FIELDS = ("phi", "c")
 SIGNATURE = "biostudy export"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import store
+from ..data import case_files, reading
 from ..fitting.objective import Objective
 from ..inputs.keys import id_text
 from ..inputs.scene import overrides_text
@@ -104,7 +104,7 @@ class Evaluator:
         if failure is not None:
             self.failed[job.id] = failure
             return None
-        ds = store.open_dataset(store.case_file(self.directory, job.id))
+        ds = reading.open_dataset(case_files.case_file(self.directory, job.id))
         ds.attrs.update(job.scene.substratum_attrs())  # as the scene says now
         condition = str(job.attrs["condition"])
         rows = self.rows[condition]

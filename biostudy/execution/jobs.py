@@ -7,7 +7,7 @@ its failure); what is recorded is reused by its fingerprint (`identity`).
 
 Workers only simulate: they receive a compiled `solver.Problem` (plain
 arrays, no files) and send back the dataset or the reason it failed.  This
-process alone writes files, each atomically (`store.write_atomic`), so a
+process alone writes files, each atomically (`writing.write_atomic`), so a
 cluster needs no shared filesystem and an interruption (Ctrl-C, SIGTERM, a
 kill) never leaves a half-written file under a final name.
 
@@ -31,7 +31,7 @@ from typing import Callable
 
 from solver.output import versions
 
-from ..data import combine, netcdf_io, provenance, store
+from ..data import case_files, combine, netcdf, netcdf_io, provenance, writing
 from ..errors import BadInput, Failed
 from ..inputs import resources
 from ..inputs.scene import Scene, overrides_text
@@ -181,7 +181,7 @@ def _started(out_dir: Path, tidy: bool) -> SweepReport:
     cases_dir.mkdir(parents=True, exist_ok=True)
     report = SweepReport(out_dir / "study.nc")
     if tidy:
-        report.removed = store.remove_temporaries(cases_dir) + store.remove_temporaries(out_dir)
+        report.removed = writing.remove_temporaries(cases_dir) + writing.remove_temporaries(out_dir)
     return report
 
 
@@ -194,8 +194,8 @@ def _sorted_out(jobs: list[Job], out_dir: Path, execution: Execution,
     for job in jobs:
         problem = job.scene.problem()
         prints[job.id] = fingerprint(problem)
-        path = store.case_file(out_dir, job.id)
-        record = store.recorded(path)
+        path = case_files.case_file(out_dir, job.id)
+        record = case_files.recorded(path)
         if record is not None and "biostudy_version" not in record:
             foreign.append(BadInput("exists and is not a dataset biostudy wrote; refusing to overwrite it, --force "
                                     "or not (move it away, or give another -o)", path))
@@ -275,15 +275,16 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict
     if outcome.status == "done":
         said = alerts.attrs(outcome.dataset.assign_attrs(job.scene.real_time_attrs()))
         extra.update(said)
-        ds = store.with_observables(store.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides,
-                                                status="done", message="", **extra))  # the substratum's: stamped
+        ds = provenance.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
+                              message="", **extra)
+        ds = netcdf.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     else:
-        ds = store.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
-                                  job.scene_file, job.overrides, error=outcome.error, **extra)
-    path = store.case_file(out_dir, job.id)
+        ds = case_files.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
+                                       job.scene_file, job.overrides, error=outcome.error, **extra)
+    path = case_files.case_file(out_dir, job.id)
     try:
-        store.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
-    except OSError as error:  # `store.NotWritten`: a full disk says which
+        writing.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
+    except OSError as error:  # `writing.NotWritten`: a full disk says which
         resume = "run the same command again to resume" + (" once there is room" if error.errno == errno.ENOSPC
                                                            else "")
         raise SweepError(f"{error}; the cases recorded before are kept, {resume}") from None

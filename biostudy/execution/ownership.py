@@ -42,7 +42,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
-from ..data import store
+from ..data import writing
 from ..errors import BadInput
 from ..inputs.files import no_directory
 from ..inputs.tomltext import dumps as toml_dumps
@@ -167,7 +167,7 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False,
             check(directory, bool(recorded and "fingerprint" in recorded))
         record = toml_dumps({"owner": owner.describe(), "fingerprint": owner.fingerprint, **asdict(owner),
                              "keys": list(owner.keys)})
-        store.write_text(directory / OWNER, record)
+        writing.write_text(directory / OWNER, record)
         yield directory
     except BadInput:  # refused: the directory as it was found, unless cases were recorded meanwhile
         if _names(directory / "cases") - cases:
@@ -175,7 +175,7 @@ def claimed(directory: str | Path, owner: Owner, force: bool = False,
         if previous is None:
             (directory / OWNER).unlink(missing_ok=True)
         else:
-            store.atomic(directory / OWNER, lambda temporary: temporary.write_bytes(previous))
+            writing.atomic(directory / OWNER, lambda temporary: temporary.write_bytes(previous))
         if not had["cases"]:
             _remove_empty([directory / "cases"])
         if not had[LOCK] and not shared:  # (array tasks beside this one may hold it too)

@@ -12,7 +12,8 @@ import contextlib
 from pathlib import Path
 from typing import Iterator
 
-from ..data import claims, store
+from ..data import claims
+from ..data.targets import replaceable, writable
 from ..errors import BadInput
 from ..inputs import resources
 from ..inputs.scene import Scene
@@ -33,13 +34,13 @@ def owned(out_dir: str | Path, owner: ownership.Owner, summary: str, force: bool
         problems = claims.unproven([directory / name for name in reports], "a report or picture")
         attrs = None
         try:
-            attrs = store.replaceable(directory / summary, damaged_ok=biostudys)
+            attrs = replaceable(directory / summary, damaged_ok=biostudys)
         except BadInput as error:
             problems.append(error)
         problems += claims.undigested([directory / name for name in digested], attrs, summary)
         for path in [] if biostudys else sorted(directory.glob("cases/*.nc")):
             try:
-                store.replaceable(path)
+                replaceable(path)
             except BadInput as error:
                 problems.append(error)
         if problems:
@@ -63,10 +64,10 @@ def check_run(scene: Scene, scene_file: Path | None, target: Path, force: bool =
     continues) nor a file biostudy did not write; an earlier result of the same scene is replaced, anything
     else biostudy wrote (another scene's result, a sweep's file) only with `force`.
     """
-    store.writable(target)
+    writable(target)
     masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
              if getattr(r, "shape", None) in ("mask", "image")]
-    previous = store.replaceable(target, [p for p in (scene_file, *masks, *inputs) if p])
+    previous = replaceable(target, [p for p in (scene_file, *masks, *inputs) if p])
     too_big = resources.run_problem({scene.name: resources.estimate(scene, streamed=True)}, 1, target)
     if too_big:
         raise BadInput(too_big, scene_file)

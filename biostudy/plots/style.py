@@ -21,7 +21,7 @@ import xarray as xr
 
 from ..data import real_time
 from ..data.claims import foreign, mark
-from ..data.store import atomic
+from ..data.writing import atomic
 from ..formatting import number, shown_units
 
 OBSTACLE_GREY = "0.6"

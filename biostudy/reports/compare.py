@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from rich.console import Console, Group
+from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
@@ -120,8 +120,28 @@ def _shown(value) -> str:
     return "(absent)" if not isinstance(value, (int, float, str, bool, list)) else value_text(value)
 
 
-def compare(runs: list[xr.Dataset], paths: list[Path]) -> Group:
-    """The side-by-side summary of two or more runs (module docstring)."""
+@dataclass(frozen=True)
+class Comparison:
+    """How two or more runs differ (module docstring): the scene keys (key -> value in each run), the output
+    times all share, the largest field differences from the first run, and why a run's fields were not
+    compared."""
+
+    scenes: dict[str, list]
+    times: np.ndarray
+    fields: list[Difference]
+    skipped: list[str]
+
+
+def comparison(runs: list[xr.Dataset]) -> Comparison:
+    """What `compare` shows of `runs`, as numbers."""
+    times = common_times(runs)
+    found, skipped = field_differences(runs, times) if times.size else ([], [])
+    return Comparison(scene_differences(runs), times, found, skipped)
+
+
+def compare(runs: list[xr.Dataset], paths: list[Path], found: Comparison | None = None) -> Group:
+    """The side-by-side summary of two or more runs (module docstring); `found`: their `comparison`, if made."""
+    found = found or comparison(runs)
     columns = [f"run {i + 1}" for i in range(len(runs))]
     head = Table(show_edge=False, title="runs")
     head.add_column("")
@@ -135,7 +155,7 @@ def compare(runs: list[xr.Dataset], paths: list[Path]) -> Group:
                      number(ds.attrs.get("steps_taken")))
     parts = [head]
 
-    differences = scene_differences(runs)
+    differences = found.scenes
     table = Table(show_edge=False, title="scene keys that differ")
     table.add_column("key")
     for label in columns:
@@ -154,7 +174,7 @@ def compare(runs: list[xr.Dataset], paths: list[Path]) -> Group:
         params.add_row(f"{info.name} ({units_text(info.units) or '1'})", *(number(v, 6) for v in values), style=style)
     parts.append(params)
 
-    times = common_times(runs)
+    times = found.times
     if times.size:
         picks = sorted({0, times.size // 2, times.size - 1})[:SHOWN_TIMES]
         shown = times[picks]
@@ -171,19 +191,14 @@ def compare(runs: list[xr.Dataset], paths: list[Path]) -> Group:
             values = [number(s[name].values[_at(ds, np.array([t]))[0]]) for t in shown for s, ds in zip(series, runs)]
             obs.add_row(name, units_text(series[0][name].attrs["units"]), *values)
         parts.append(obs)
-        found, skipped = field_differences(runs, times)
         fields = Table(show_edge=False, title="largest field differences from run 1")
         for column in ("field", "run", "largest |difference|", "units", "at T*", "cell (µm)"):
             fields.add_column(column, justify="right" if column in ("largest |difference|", "at T*") else "left")
-        for d in found:
+        for d in found.fields:
             fields.add_row(d.field, columns[d.run], number(d.largest, exponent=True), units_text(d.units) or "1",
                            number(d.time), ", ".join(f"{k} = {number(v)}" for k, v in reversed(d.cell.items())))
         parts.append(fields)
-        parts.extend(Text(line) for line in skipped)
+        parts.extend(Text(line) for line in found.skipped)
     else:
         parts.append(Text("the runs share no output time: observables and fields not compared"))
     return Group(*parts)
-
-
-def show_compared(runs: list[xr.Dataset], paths: list[Path], console: Console) -> None:
-    console.print(compare(runs, paths))

@@ -31,7 +31,7 @@ import xarray as xr
 from solver.counters import MEANINGS
 from solver.output import FIELDS, on_output_times
 
-from ..data import provenance, store
+from ..data import case_files, provenance, reading
 from ..errors import BadInput
 from ..formatting import number
 from ..inputs.scene import Scene
@@ -78,10 +78,10 @@ QUANTITIES = tuple(c.name for c in COMPARED)
 def _final(path: Path, time: float | None = None) -> dict | None:
     """What a level contributes: fields and scalars at the last output (or the one nearest `time`), or None if
     it did not finish."""
-    record = store.recorded(path)
+    record = case_files.recorded(path)
     if not record or record.get("status") != "done":
         return None
-    return final_state(store.open_dataset(path), time)
+    return final_state(reading.open_dataset(path), time)
 
 
 def final_state(ds: xr.Dataset, time: float | None = None) -> dict:
@@ -128,7 +128,7 @@ def _factor(reference: dict, coarse_h: float) -> int | None:
 
 def load_reference(path: Path, base: Scene, time: float | None) -> dict:
     """A reference run for `measure`: the same domain as the scene, and an output at the compared time."""
-    ds = store.open_dataset(path)
+    ds = reading.open_dataset(path)
     if "phi" not in ds:
         raise BadInput("is not a run's dataset (no phi)", path, "--reference")
     dimensions = sum(axis in ds["phi"].dims for axis in ("x", "y", "z"))
@@ -161,7 +161,7 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
             given: dict | None = None, time: float | None = None) -> xr.Dataset:
     """convergence.nc from the finished levels: dimensions (series, level).  `given`: a reference run's
     `final_state` that every level is measured against instead of its series' finest level."""
-    results = {level.job_id: _final(store.case_file(out_dir, level.job_id), time) for level in wanted}
+    results = {level.job_id: _final(case_files.case_file(out_dir, level.job_id), time) for level in wanted}
     shape = (len(series), levels)
     table = {name: np.full(shape, np.nan) for name in ("cells", "h", "dt", "tolerance", "wall_time", "steps_taken",
                                                       *COSTS)}

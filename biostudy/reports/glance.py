@@ -1,7 +1,7 @@
 """`biostudy show FILE` of one run at a glance: read with netCDF4 alone, no xarray, no solver.
 
 A run's file (and a sweep's case file) holds its observables and lists them
-in its ``observables`` attribute (`store.with_observables`), so its summary
+in its ``observables`` attribute (`netcdf.with_observables`), so its summary
 needs only the attributes and those time series: `show` of a small file
 starts and ends in a fraction of a second.  The file is still read whole
 first, checksums verified (`netcdf_io.intact`): a damaged file goes to the full

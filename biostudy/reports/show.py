@@ -9,7 +9,7 @@ import tomllib
 from typing import TYPE_CHECKING
 
 import numpy as np
-from rich.console import Console, Group
+from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
@@ -194,5 +194,6 @@ def case_columns(ds: xr.Dataset, names) -> dict[str, np.ndarray]:
     return {v: flat(v) for v in names if v in ds}
 
 
-def summarize(ds: xr.Dataset, console: Console) -> None:
-    console.print(study_summary(ds) if "sweep_mode" in ds.attrs else run_summary(ds))
+def summary(ds: xr.Dataset) -> Group:
+    """What `show` prints of a dataset read whole: a study.nc's summary, or a run's."""
+    return study_summary(ds) if "sweep_mode" in ds.attrs else run_summary(ds)

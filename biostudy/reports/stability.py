@@ -37,7 +37,7 @@ from solver.output import FIELDS, cf_attrs, on_output_times
 from solver.problem import parameter_infos
 from solver.transport.bounds import ROUNDOFF
 
-from ..data import store
+from ..data import case_files, reading
 from ..execution.jobs import Job
 from ..formatting import number
 
@@ -82,8 +82,8 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
     """stability.nc: one entry per case with its verdict, counters, extremes and parameters."""
     rows = []
     for job in jobs:
-        path = store.case_file(out_dir, job.id)
-        record = store.recorded(path) or {}
+        path = case_files.case_file(out_dir, job.id)
+        record = case_files.recorded(path) or {}
         mechanics = job.scene.mechanics is not None and job.scene.mechanics.enabled
         row = {"name": job.attrs["case_id"], "why": job.attrs["case_why"], "mechanics": int(mechanics),
                "cells": int(np.prod(job.scene.grid.shape)), "steps_nominal": job.scene.time.steps,
@@ -91,7 +91,7 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
                **{p.name: float(getattr(job.scene.params, p.name)) for p in parameter_infos()}}
         status = record.get("status", "missing")
         if status == "done":
-            ds = store.open_dataset(path)
+            ds = reading.open_dataset(path)
             facts = examine(ds)
             row.update({k: v for k, v in facts.items() if k != "broken"})
             row.update(wall_time=float(ds.attrs["wall_time"]), steps_taken=int(ds.attrs["steps_taken"]),
