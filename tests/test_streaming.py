@@ -64,6 +64,31 @@ def test_observables_measured_in_blocks_of_outputs_equal_those_measured_at_once(
             assert blocked[name].equals(whole[name]) and blocked[name].attrs == whole[name].attrs, name
 
 
+def test_a_lazy_run_is_measured_in_the_calling_thread_alone(tiny_scene, tmp_path, monkeypatch):
+    """HDF5 is not thread-safe: a sweep's lazily opened case files are read in the thread that measures them, never
+    in dask's thread pool while another thread (a notebook's garbage collector) closes a file."""
+    import threading
+
+    from xarray.backends.netCDF4_ import NetCDF4ArrayWrapper
+
+    from biostudy.data import netcdf_io
+
+    path = tmp_path / "run.nc"
+    command.compute(command.load(tiny_scene, overrides=("time.outputs=5",), output=path))
+    threads = set()
+    read = NetCDF4ArrayWrapper.__getitem__
+
+    def reading_in(self, key):
+        threads.add(threading.get_ident())
+        return read(self, key)
+
+    monkeypatch.setattr(NetCDF4ArrayWrapper, "__getitem__", reading_in)
+    with netcdf_io.open_dataset(path, chunks={}) as ds:
+        for block in (1e12, ds["phi"].isel(time=0).nbytes):
+            observables.variables(ds, block_bytes=block)
+    assert threads == {threading.get_ident()}
+
+
 class Counting:
     """An output sink that keeps nothing but weak references to the fields it is given, and counts at each
     output how many fields of earlier outputs are still alive somewhere."""

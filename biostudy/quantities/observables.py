@@ -184,17 +184,19 @@ def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES) -> dict[str, xr.
     The fields are read once, at most `block_bytes` of them at a time (`_blocks`): a run whose fields stay
     on disk (`data.spool`) is measured without holding every output."""
     fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})]
+    # lazy fields (a sweep's case files, a streamed run) are read in this thread: the HDF5 library is not
+    # thread-safe, and a dataset a notebook left open may be closed by the garbage collector at any moment
     names = [n for n, o in REGISTRY.items() if available(ds, o)]
     blocks = _blocks(fields, block_bytes)
     if len(blocks) == 1:
-        fields = fields.load()
+        fields = fields.load(scheduler="synchronous")
         return {n: evaluate(fields, n) for n in names}
     parts: dict[str, list[xr.DataArray]] = {n: [] for n in names}
     for block in blocks:
         chosen = fields.isel(time=[0, *block] if block[0] else block)  # the first output: where fronts start
         if "time_mechanics" in chosen.dims:
             chosen = chosen.sel(time_mechanics=chosen["time_mechanics"].isin(chosen["time"].values))
-        chosen = chosen.load()
+        chosen = chosen.load(scheduler="synchronous")
         for n in names:
             parts[n].append(evaluate(chosen, n).isel(time=slice(1 if block[0] else 0, None)))
     return {n: xr.concat(p, "time").assign_attrs(p[0].attrs) for n, p in parts.items()}
