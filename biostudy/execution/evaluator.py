@@ -1,11 +1,12 @@
 """A calibration's simulations as the fit sees them: points of the unit cube in, weighted residuals out.
 
 Every point is one job per condition (`execution.jobs.run_jobs`): a case file under DIR/cases/ named by its
-condition and parameter values, reused by its fingerprint, so a re-run or a resumed calibration never repeats
-one; a batch of points is one call of `run_jobs`, which hands its new jobs to the workers or the Dask cluster at
-once.  A failed simulation, or an observable that is NaN where it is measured, is recorded and answered with
-None (a penalty in the fit).  `Evaluator.noise` is the observables' own resolution in residual units, which the
-finite-difference steps are chosen against (`fitting.least_squares`).
+condition and parameter values, reused by its fingerprint, so a re-run or a resumed calibration never repeats one;
+a batch of points is one call of `run_jobs`, which hands its new jobs to the workers or the Dask cluster at once.  A
+failed simulation, or an observable that is NaN where it is measured, is recorded and answered with None (a penalty
+in the fit).  Rows whose σ is estimated are divided by a fixed scale instead of σ (`plans.calibration_noise`; the
+objective's likelihood profiles σ out).  `Evaluator.noise` is the observables' own resolution in residual units,
+which the finite-difference steps are chosen against (`fitting.least_squares`).
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from ..fitting.objective import Objective
 from ..inputs.keys import id_text
 from ..inputs.scene import overrides_text
 from ..plans.calibration import SCENE, CalibrationPlan, label
+from ..plans.calibration_noise import divisors, likelihood
 from ..quantities import observables, substratum
 from .backends import Kept
 from .jobs import Execution, Job, run_jobs
@@ -52,7 +54,7 @@ class Evaluator:
     def __post_init__(self):
         rows = self.plan.measurements
         self.data = np.array([m.value for m in rows])
-        self.sigma = np.array([m.sigma for m in rows])
+        self.sigma = divisors(rows, self.plan.noise)  # σ, or a fixed scale where σ is estimated
         self.rows = {c: [i for i, m in enumerate(rows) if (m.condition or SCENE) == c] for c in self.plan.conditions}
 
     def job(self, condition: str, values: dict[str, float]) -> Job:
@@ -150,7 +152,7 @@ class Evaluator:
         """The fit's view of these simulations (`fitting.objective`)."""
         workers = self.backend.backend.capacity if self.backend is not None else 1
         return Objective(self.evaluate, len(self.data), self.noise(), tuple(p.name for p in self.plan.parameters),
-                         workers)
+                         workers, likelihood=likelihood(self.plan.noise))
 
     def cost(self) -> dict[str, float]:
         """What the simulations cost: counts and wall times (calibration.nc's attributes)."""

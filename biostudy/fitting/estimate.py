@@ -1,5 +1,6 @@
 """Least squares with profiles, end to end on the unit cube: the starts, the best fit, its local uncertainty and the
-profile likelihoods, every simulation asked for in rounds (`rounds.run`).
+profile likelihoods, every simulation asked for in rounds (`rounds.run`); the estimated σs and their intervals
+(`likelihood`).
 
 The starts run side by side, one round each at a time; a start whose best point comes within `MERGE` of
 another's (in every coordinate of the unit cube) with a higher chi² is stopped: it is heading for the same
@@ -17,6 +18,7 @@ from scipy.stats import qmc
 
 from . import rounds
 from .least_squares import STEP, Fit, Problem, fit
+from .likelihood import Sigma, sigma_intervals
 from .objective import Objective, key
 from .profiles import Branch, Profile, branch, profile
 from .rounds import Stopped
@@ -39,6 +41,7 @@ class Estimate:
     minimum: float = float("nan")  # the lowest chi² found, profiles included
     lowest: np.ndarray | None = None  # where
     starts_chi2: float | None = None  # the starts' best chi², when the profiles found lower and the fit was repeated
+    sigmas: list[Sigma] = field(default_factory=list)  # the estimated σs (`likelihood`), one per group
 
 
 def starts(k: int, n: int, seed: int) -> np.ndarray:
@@ -72,14 +75,15 @@ def _joined(problem: Problem, n: int, k: int) -> Fit | None:
     found = _best_point(problem)
     if found is None:
         return None
-    return Fit(found[0], found[1], problem.known[key(found[0])], np.zeros((n, k)), problem.steps,
-               len(problem.path), "stopped: joined another start", problem.failed, True)
+    return problem.ended(found[0], problem.known[key(found[0])], np.zeros((n, k)), len(problem.path),
+                         "stopped: joined another start", stopped=True)
 
 
 def _from_starts(design: np.ndarray, objective: Objective) -> list[Fit | None]:
     """Every start's fit, side by side in rounds; a start heading for another's minimum is stopped (`_merge`)."""
     k = design.shape[1]
-    problems = {f"start{i}": Problem(objective.n, objective.noise, np.full(k, STEP)) for i in range(len(design))}
+    problems = {f"start{i}": Problem(objective.n, objective.noise, np.full(k, STEP), objective.likelihood)
+                for i in range(len(design))}
     outcome = rounds.run({name: fit(start, problems[name]) for name, start in zip(problems, design)},
                          objective.evaluate, lambda waiting: _merge(problems, waiting), objective.workers)
     return [_joined(problems[name], objective.n, k) if isinstance(outcome[name], Stopped) else outcome[name]
@@ -91,7 +95,8 @@ def _profiles(estimate: Estimate, objective: Objective) -> None:
     `REFIT` below it; the profiles' intervals against the lowest chi² found."""
     best = estimate.best
     names = {f"profile{j}{'-+'[d > 0]}": (j, d) for j in range(objective.k) for d in (-1, 1)}
-    outcome = rounds.run({name: branch(best, j, d, objective.noise, float(estimate.local.standard_error[j]))
+    outcome = rounds.run({name: branch(best, j, d, objective.noise, float(estimate.local.standard_error[j]),
+                                       objective.likelihood)
                           for name, (j, d) in names.items()}, objective.evaluate, workers=objective.workers)
     estimate.branches = [outcome[name] for name in names]  # type: ignore[misc]
     for b in estimate.branches:
@@ -99,7 +104,8 @@ def _profiles(estimate: Estimate, objective: Objective) -> None:
             if value < estimate.minimum:
                 estimate.minimum, estimate.lowest = value, point
     if estimate.minimum < best.chi2 - REFIT:
-        again = rounds.run({"refit": fit(estimate.lowest, Problem(objective.n, objective.noise, best.steps))},
+        again = rounds.run({"refit": fit(estimate.lowest, Problem(objective.n, objective.noise, best.steps,
+                                                                  objective.likelihood))},
                            objective.evaluate, workers=objective.workers)["refit"]
         assert isinstance(again, Fit)
         if again.chi2 < best.chi2:
@@ -117,4 +123,7 @@ def least_squares(design: np.ndarray, objective: Objective, with_profiles: bool 
     estimate = Estimate(fits, best, local(best.jacobian), minimum=best.chi2, lowest=best.x)
     if with_profiles:
         _profiles(estimate, objective)
+    best = estimate.best  # its residuals and Jacobian are in units of its σ̂
+    estimate.sigmas = sigma_intervals(objective.likelihood.in_units_of(best.sigma), best.residuals, best.jacobian,
+                                      (best.x > 0.0) & (best.x < 1.0))
     return estimate

@@ -1,15 +1,17 @@
 """Weighted least squares in the unit cube of the bounds, with finite-difference Jacobians asked for in rounds.
 
-The parameters are mapped onto [0, 1] each (log10 for log bounds: `plans.designs.Range`), so one step size and
-one tolerance fit every parameter. The residuals are r_i = (model_i - measurement_i) / sigma_i; chi² = sum r_i².
-`fit` minimises it by Levenberg-Marquardt (damping relative to the diagonal of J^T J, a coordinate at a bound
-that the gradient pushes against held there, steps cut back into the cube), and ends when the undamped Gauss-
-Newton step would lower chi² by less than `TOLERANCE` (absolute: what matters beside the 3.84 of a 95 % interval;
-judged on the damped step, a few rejected steps would end it anywhere). scipy's bounded `trf` ended on the size
-of its steps, which the model's small jumps shrink: on the tiny agar twin it stopped at chi² 19 where 3.5 was to
-be had. The Jacobian is forward differences (backward at an upper bound), their k runs asked for at once, and
-offered with the point itself (`rounds.Ask.soon`: k + 1 runs in one round, taken only when workers would otherwise
-wait; the path is the same either way).  `fit` is a generator: it yields what it needs (`rounds`).
+The parameters are mapped onto [0, 1] each (log10 for log bounds: `plans.designs.Range`), so one step size and one
+tolerance fit every parameter. The residuals are r_i = (model_i - measurement_i) / sigma_i; chi² = sum r_i². `fit`
+minimises it by Levenberg-Marquardt (damping relative to the diagonal of J^T J, a coordinate at a bound that the
+gradient pushes against held there, steps cut back into the cube), and ends when the undamped Gauss-Newton step
+would lower chi² by less than `TOLERANCE` (absolute: what matters beside the 3.84 of a 95 % interval; judged on the
+damped step, a few rejected steps would end it anywhere). scipy's bounded `trf` ended on the size of its steps,
+which the model's small jumps shrink: on the tiny agar twin it stopped at chi² 19 where 3.5 was to be had. With σ
+estimated (`likelihood`) chi² is -2 log L with σ profiled out (F): the steps come from the weighted least squares
+that has F's gradient and Gauss-Newton Hessian, and are accepted, and convergence judged, on F (without: chi², the
+same numbers). The Jacobian is forward differences (backward at an upper bound), their k runs asked for at once,
+and offered with the point itself (`rounds.Ask.soon`: k + 1 runs in one round, taken only when workers would
+otherwise wait; the path is the same either way).  `fit` is a generator: it yields what it needs (`rounds`).
 
 The step is chosen against the observables' own resolution (`noise`: per measurement the smallest change
 of the model that is not noise, in residual units): a column whose largest change is less than `SIGNAL`
@@ -28,26 +30,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .likelihood import PENALTY, Likelihood
 from .objective import key
 from .rounds import Ask, Asking
 
 STEP = 0.01  # the smallest finite-difference step, in units of the range (unit cube)
 MAX_STEP = 0.05
 SIGNAL = 10.0  # a Jacobian column must move some residual by this many times its noise (else a larger step)
-PENALTY = 1e3  # each residual of a failed simulation
 TOLERANCE = 0.01  # converged when a step would lower chi² by less (a 95 % interval is chi²_min + 3.84)
 DAMPING = 1e-3  # the first Levenberg-Marquardt damping, relative to the diagonal of J^T J
 MAX_ITERATIONS = 25
 
 
-def chi2(residuals: np.ndarray) -> float:
-    return float(np.sum(np.square(residuals)))
-
-
 @dataclass
 class Fit:
-    """Where one minimisation ended: the point (unit cube), chi², residuals, the Jacobian there (free columns; the
-    fixed ones zero), the steps used, what it cost and why it ended."""
+    """Where one minimisation ended: the point (unit cube), chi² (F: -2 log L with σ profiled out, when σ is
+    estimated: `likelihood`), the residuals and the Jacobian there (free columns; the fixed ones zero) in units
+    of σ (σ̂ where it is estimated), the steps used, what it cost and why it ended."""
 
     x: np.ndarray
     chi2: float
@@ -59,14 +58,15 @@ class Fit:
     failed: int = 0  # evaluations that were failed simulations (penalties)
     stopped: bool = False  # ended early: it joined another start
     path: list = field(default_factory=list)  # (point, chi²) of every evaluated point, in order
+    sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))  # σ̂ per estimated group (measurement units)
 
 
 class Problem:
     """The residuals of one fit, remembered per point (`objective.key`), with finite-difference Jacobians; its
     methods are generators that yield an `Ask` when they need residuals not yet known (`rounds`)."""
 
-    def __init__(self, n: int, noise: np.ndarray, steps: np.ndarray):
-        self.n, self.noise = n, np.asarray(noise, float)
+    def __init__(self, n: int, noise: np.ndarray, steps: np.ndarray, likelihood: Likelihood = Likelihood()):
+        self.n, self.noise, self.likelihood = n, np.asarray(noise, float), likelihood
         self.steps = np.array(steps, dtype=float)
         self.known: dict[tuple, np.ndarray] = {}
         self.failed = 0
@@ -80,7 +80,17 @@ class Problem:
                 self.failed += 1
                 result = np.full(self.n, PENALTY)
             self.known[key(point)] = np.asarray(result, dtype=float)
-            self.path.append((np.array(point), chi2(self.known[key(point)])))
+            self.path.append((np.array(point), self.value(self.known[key(point)])))
+
+    def value(self, residuals: np.ndarray) -> float:
+        """chi², or F with σ estimated (`likelihood`)."""
+        return self.likelihood.value(residuals)
+
+    def ended(self, x: np.ndarray, residuals: np.ndarray, jacobian: np.ndarray, evaluations: int, message: str,
+              stopped: bool = False) -> Fit:
+        """A `Fit` at `x` (residuals and Jacobian as evaluated: it weights them by the σ̂ there)."""
+        return Fit(x, self.value(residuals), *self.likelihood.weighted(residuals, jacobian), self.steps.copy(),
+                   evaluations, message, self.failed, stopped, self.path, self.likelihood.sigmas(residuals))
 
     def residuals(self, points: list[np.ndarray], soon: tuple[np.ndarray, ...] = ()) -> Asking[list[np.ndarray]]:
         """The residuals at `points`, asked for if not known (with `soon`, which the round may take too)."""
@@ -130,9 +140,9 @@ class Problem:
 
 def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = None, tolerance: float = TOLERANCE,
         max_iterations: int = MAX_ITERATIONS, final_jacobian: bool = True) -> Asking[Fit]:
-    """Minimise chi² from `start` inside the unit cube, the coordinates in `fixed` held at their values:
-    Levenberg-Marquardt (module docstring); `final_jacobian`: the Jacobian at the end too (for the covariance;
-    a profile's points need none).  A generator (`rounds`): it yields the points it needs."""
+    """Minimise chi² (F with σ estimated) from `start` inside the unit cube, the coordinates in `fixed` held at
+    their values: Levenberg-Marquardt (module docstring); `final_jacobian`: the Jacobian at the end too (for the
+    covariance; a profile's points need none).  A generator (`rounds`): it yields the points it needs."""
     fixed = fixed or {}
     k = len(start)
     free = [j for j in range(k) if j not in fixed]
@@ -141,23 +151,24 @@ def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = No
         x[j] = value
     r = yield from problem.at(x, free)
     if not free:
-        return Fit(x, chi2(r), r, np.zeros((problem.n, k)), problem.steps.copy(), 1, "nothing free",
-                      problem.failed, path=problem.path)
+        return problem.ended(x, r, np.zeros((problem.n, k)), 1, "nothing free")
     jacobian = yield from problem.jacobian(x, free)
     damping, evaluations, message = DAMPING, 1, f"stopped after {max_iterations} iterations"
     for _ in range(max_iterations):
         # converged when even the undamped Gauss-Newton step would gain less than the tolerance: judged on the
         # full step, not on a damped one (which a few rejected steps make small wherever it is)
-        full = _step(x, r, jacobian, free, 0.0)
-        if chi2(r) - chi2(r + jacobian @ full) < tolerance:
+        current = problem.value(r)
+        weighted = problem.likelihood.weighted(r, jacobian)
+        full = _step(x, *weighted, free, 0.0)
+        if current - problem.value(r + jacobian @ full) < tolerance:
             message = f"converged: a Gauss-Newton step would lower chi² by less than {tolerance:g}"
             break
-        step = _step(x, r, jacobian, free, damping)
-        predicted = chi2(r) - chi2(r + jacobian @ step)
+        step = _step(x, *weighted, free, damping)
+        predicted = current - problem.value(r + jacobian @ step)
         trial = x + step
         r_trial = yield from problem.at(trial, free)
         evaluations += 1
-        if chi2(r) - chi2(r_trial) > 0.25 * predicted:
+        if current - problem.value(r_trial) > 0.25 * predicted:
             x, r = trial, r_trial
             jacobian = yield from problem.jacobian(x, free)
             damping = max(damping / 4, 1e-9)
@@ -168,8 +179,7 @@ def fit(start: np.ndarray, problem: Problem, fixed: dict[int, float] | None = No
                 break
     if final_jacobian:
         jacobian = yield from problem.jacobian(x, free)
-    return Fit(x, chi2(r), r, jacobian, problem.steps.copy(), evaluations, message, problem.failed,
-                  path=problem.path)
+    return problem.ended(x, r, jacobian, evaluations, message)
 
 
 def _step(x: np.ndarray, r: np.ndarray, jacobian: np.ndarray, free: list[int], damping: float) -> np.ndarray:

@@ -11,7 +11,8 @@ the bound; a point more than `OVERSHOOT` past the threshold is followed by one h
 below it, so that the crossing is bracketed closely. The interval's end is where the profile crosses the
 threshold, interpolated linearly between the two points around it. A branch that reaches its bound still below
 the threshold leaves the interval open there: the data do not determine the parameter on that side (practical
-non-identifiability; flat everywhere: structural)."""
+non-identifiability; flat everywhere: structural). With σ estimated, chi² is F, -2 log L with σ profiled out
+(`likelihood`): every point re-estimates σ too."""
 from __future__ import annotations
 
 import math
@@ -20,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .least_squares import Fit, Problem, fit
+from .likelihood import THRESHOLD, Likelihood
 from .rounds import Asking
 
-THRESHOLD = 3.841458820694124  # chi²(1) at 95 %
 MAX_POINTS = 12  # per branch
 FIRST, SMALLEST, LARGEST = 0.05, 0.005, 0.25  # steps along the profiled coordinate (unit cube)
 INNER_TOLERANCE = 0.1  # chi²: the re-optimisations need less than the optimum
@@ -39,11 +40,12 @@ class Branch:
     evaluations: int = 0
 
 
-def branch(best: Fit, j: int, direction: int, noise: np.ndarray, standard_error: float) -> Asking[Branch]:
+def branch(best: Fit, j: int, direction: int, noise: np.ndarray, standard_error: float,
+           likelihood: Likelihood = Likelihood()) -> Asking[Branch]:
     """Step the profile of coordinate j from the optimum `best` toward one bound (see the module); a generator
     (`rounds`)."""
     out = Branch(j, direction)
-    problem = Problem(len(best.residuals), noise, best.steps)
+    problem = Problem(len(best.residuals), noise, best.steps, likelihood)
     # one standard error first (chi² + 1 where the profile is quadratic), then about twice that (+ 4: past 3.84)
     step = FIRST if not math.isfinite(standard_error) else float(np.clip(standard_error, SMALLEST, 2 * FIRST))
     here, previous, floor = best.x.copy(), best.chi2, best.chi2

@@ -10,8 +10,9 @@ One row per measurement: `observableId` names an observable of the registry
 (`biostudy.quantities.observables`: biomass, mean_thickness, max_thickness, ...),
 `time` is in the calibration file's `time_unit`, `measurement` is in the
 observable's units (biomass in µm³/µm² = µm), `noiseParameters` is the
-measurement's standard deviation σ (a number > 0: PEtab also allows a
-parameter's name there, which is not supported), `simulationConditionId`
+measurement's standard deviation σ: a number > 0, or the name of a noise
+parameter (PEtab's parameter ids, `NOISE_NAME`: σ estimated, one per name;
+`plans.calibration_noise`), `simulationConditionId`
 names one of the calibration's `[conditions]` (empty or absent without them).
 PEtab's optional `datasetId`, `replicateId` and `datapointId` are read and
 kept (calibration.nc, calibration.md and simulation.tsv carry them); its
@@ -53,6 +54,7 @@ SHOWN_PROBLEMS = 20  # lines a refused table prints; the others are counted
 _NUMBER = {mark: re.compile(rf"[+-]?([0-9]+\{mark}?[0-9]*|\{mark}[0-9]+)([eE][+-]?[0-9]+)?") for mark in ".,"}
 _NOT_FINITE = re.compile(r"[+-]?(inf|infinity|nan)", re.IGNORECASE)
 _LINE_BREAK = re.compile(r"\r\n|\r|\n")
+NOISE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # a noise parameter's name (PEtab's parameter ids)
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,7 @@ class Measurement:
     dataset: str = ""
     replicate: str = ""
     datapoint: str = ""
+    noise: str = ""  # the noise parameter naming σ, which is then estimated (`sigma` NaN)
     columns: tuple[str, ...] = field(default=(), compare=False, repr=False)
 
 
@@ -127,18 +130,27 @@ def _number(text: str, column: str, line: int, path: Path, problems: list[BadInp
             positive: bool = False):
     where = f"line {line}: {column}"
     if not text:
-        what = "the standard deviation sigma of the measurement" if column == "noiseParameters" else "a number"
+        what = ("the standard deviation sigma of the measurement, or a noise parameter's name"
+                if column == "noiseParameters" else "a number")
         problems.append(BadInput(f"missing ({what})", path, where))
         return None
     value = decimals.value(text)
     if value is None or not math.isfinite(value):
         refused = decimals.refusal(text) if value is None else f"must be a finite number (got {text!r})"
+        if positive and refused.startswith("not a number ("):  # noiseParameters
+            refused = (f"neither a number nor a noise parameter's name (got {text!r}; a name is letters, digits "
+                       "and _, not starting with a digit)")
         problems.append(BadInput(refused, path, where))
         return None
     if positive and value <= 0:
         problems.append(BadInput(f"the standard deviation must be > 0 (got {text})", path, where))
         return None
     return value
+
+
+def _named(text: str) -> bool:
+    """Whether a noiseParameters cell names a noise parameter (not inf or nan, which are refused numbers)."""
+    return bool(NOISE_NAME.fullmatch(text)) and not _NOT_FINITE.fullmatch(text)
 
 
 def refusal(problems: list[BadInput], path: str | Path) -> BadInput:
@@ -197,11 +209,14 @@ def read_measurements(path: str | Path) -> list[Measurement]:
                      for name, why in EMPTY_ONLY.items() if row.get(name)]
         time = _number(row["time"], "time", line, path, problems, decimals)
         value = _number(row["measurement"], "measurement", line, path, problems, decimals)
-        sigma = _number(row["noiseParameters"], "noiseParameters", line, path, problems, decimals, positive=True)
+        noise = row["noiseParameters"] if _named(row["noiseParameters"]) else ""
+        sigma = math.nan if noise else _number(row["noiseParameters"], "noiseParameters", line, path, problems,
+                                               decimals, positive=True)
         if None not in (time, value, sigma) and row["observableId"]:
             rows.append(Measurement(line, row["observableId"], time, value, sigma,
                                     row.get("simulationConditionId", ""), row.get("datasetId", ""),
-                                    row.get("replicateId", ""), row.get("datapointId", ""), columns))
+                                    row.get("replicateId", ""), row.get("datapointId", ""), noise=noise,
+                                    columns=columns))
     if not problems and not rows:
         problems.append(BadInput("has a header but no measurements", path))
     if problems:

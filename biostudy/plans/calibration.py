@@ -22,13 +22,14 @@
     profiles = true                  # a profile likelihood per parameter (95 % intervals)
 
 Without `[conditions]` every measurement is of the scene itself (an empty
-`simulationConditionId`).  An estimated key is shared by every condition
-unless a condition estimates it itself, then that condition has its own
-parameter (named ``r[half]``).  Everything is checked before anything runs:
-both ends of every bound by the scene's own schema (as a study's sample
-ranges, `designs.check_ends`), each condition's scene, every row of the table
-(its observable, its condition, its time within the run), each problem one
-line (`BadInput`).  `CalibrationPlan.scene_at` makes the scene of one
+`simulationConditionId`).  An estimated key is shared by every condition unless
+a condition estimates it itself, then that condition has its own parameter
+(named ``r[half]``).  Everything is checked before anything runs: both ends of
+every bound by the scene's own schema (as a study's sample ranges,
+`designs.check_ends`), each condition's scene, every row of the table (its
+observable, its condition, its time within the run), each problem one line
+(`BadInput`); σ named in `noiseParameters` is estimated
+(`calibration_noise`).  `CalibrationPlan.scene_at` makes the scene of one
 simulation: a condition at given parameter values, its outputs at that
 condition's measurement times.
 """
@@ -53,7 +54,8 @@ from ..inputs.real_time import apart, check_agree, exact
 from ..inputs.scene import SCENE_KEYS, Scene, scene_from_data
 from ..quantities import observables
 from .calibration_method import MethodSpec
-from .calibration_table import DataSpec, extreme_numbers
+from .calibration_noise import NoiseParameter, noise_parameters, noise_problems
+from .calibration_table import DataSpec, extreme_numbers, unknown_observable
 from .cases import Case, OnScene, base_scene, case_scene, compile_cases, not_varied, origins_of, read_spec
 from .designs import Range, check_ends, parse_range
 
@@ -252,6 +254,11 @@ class CalibrationPlan:
     def conditions(self) -> list[str]:
         return self.spec.condition_names()
 
+    @functools.cached_property
+    def noise(self) -> list[NoiseParameter]:
+        """The σs the table names to estimate (`calibration_noise`)."""
+        return noise_parameters(self.measurements)
+
     def output_times(self, condition: str) -> list[float]:
         """The outputs of a condition's runs: its measurement times (T*)."""
         return sorted({float(t) for m, t in zip(self.measurements, self.times) if _condition(m) == condition})
@@ -290,15 +297,6 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     return found
 
 
-@functools.lru_cache(maxsize=64)
-def _unknown_observable(name: str) -> str:
-    """Why `name` is no observable, with the closest one; cached: a table may misspell one name on every row
-    (difflib took 16 s for 100,000 rows)."""
-    close = difflib.get_close_matches(name, list(observables.REGISTRY), n=1)
-    return f"unknown observable {name!r}" + (f" (did you mean '{close[0]}'?)" if close else
-                                             f"; observables are {', '.join(observables.REGISTRY)}")
-
-
 def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
                   path: Path) -> tuple[Path, list[Measurement], np.ndarray]:
     """The table, read and checked against the conditions' scenes; every problem at once."""
@@ -331,7 +329,7 @@ def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
         try:
             observable = observables.get(m.observable)
         except ValueError:
-            problems.append(BadInput(_unknown_observable(m.observable), data_file, f"line {m.line}: observableId"))
+            problems.append(BadInput(unknown_observable(m.observable), data_file, f"line {m.line}: observableId"))
             continue
         if "p" in observable.needs and scene.mechanics is None:
             problems.append(BadInput(f"{m.observable} needs the mechanics, which the scene leaves out", data_file,
@@ -344,6 +342,7 @@ def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
             problems.append(BadInput(f"{told}, {when}: the scene runs over T* = 0 to {exact(t_end)} "
                                      "(time.t_end)", data_file, f"line {m.line}: time"))
     problems += _runs_too_short(spec, rows, times, data_file, path)
+    problems += noise_problems(rows, spec.method.name, spec.parameter_names(), data_file, path)
     named = {m.condition for m in rows}
     problems += [BadInput("no row of the measurement table names it (simulationConditionId): nothing to fit", path,
                           f"conditions.{name}") for name in spec.conditions if name not in named]

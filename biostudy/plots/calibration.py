@@ -85,8 +85,9 @@ def fit_figure(ds: xr.Dataset):
     for ax in list(axes.flat)[len(pairs):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=8)
-    fig.suptitle(f"{ds.attrs.get('title', 'calibration')}: chi² = {number(ds.attrs['chi2'], 3)} for "
-                 f"{ds.attrs['dof']} degrees of freedom", fontsize=11)
+    fit = (f"-2 log L = {number(ds.attrs['chi2'], 3)}, σ estimated" if "objective" in ds.attrs else
+           f"chi² = {number(ds.attrs['chi2'], 3)} for {ds.attrs['dof']} degrees of freedom")
+    fig.suptitle(f"{ds.attrs.get('title', 'calibration')}: {fit}", fontsize=11)
     fig.tight_layout()
     return fig
 
@@ -111,7 +112,7 @@ def profiles_figure(ds: xr.Dataset):
         ax.set_ylim(bottom=-0.2)
         shown = parameter_units.shown(ds, j)
         ax.set_xlabel(f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else ""))
-        ax.set_ylabel("chi² - minimum")
+        ax.set_ylabel(f"{ds.attrs.get('objective', 'chi²')} - minimum")
         verdict = "" if bool(ds.identifiable[j]) else " (not determined)"
         ax.set_title(f"{ds.parameter.values[j]}: [{number(ds.lower[j], 3)}, {number(ds.upper[j], 3)}]{verdict}",
                      fontsize=10)

@@ -24,7 +24,9 @@ calibration.nc (docs/calibrate.md):
   `posterior_upper` (2.5 %, 97.5 %), `autocorrelation_time`, `effective_samples`,
   the surrogate's box; per measurement `surrogate_error` (held out, units of
   sigma), `sigma_likelihood`, `posterior_band_lower`, `posterior_band_upper`;
-  the sampler's and the surrogate's counts and `posterior_statements` as attributes.
+  the sampler's and the surrogate's counts and `posterior_statements` as attributes;
+* estimated σs (`noise_variables`): dimension `noise_parameter`, `noise_name` per
+  measurement, `sigma` σ̂ there; then chi2 is -2 log L (`objective`), no p-value.
 
 Values of different observables have different units: each such variable's
 `units` is "1" and `measurement_units` says each one's.  Parameters: see
@@ -51,6 +53,7 @@ from ..fitting.uncertainty import band, natural
 from ..formatting import number
 from ..inputs.scene import key_info
 from ..quantities import alerts, observables
+from .noise import estimated, fit_line, noise_text, noise_variables, sigma_used
 from .parameter_units import MIXED, clock_of, model_units, real_rows, scalar_variables, shown
 from .petab import datasets_text, id_variables
 from .posterior import posterior_variables
@@ -110,7 +113,7 @@ def _no_fit(plan: CalibrationPlan, model: np.ndarray, failed: dict[str, str]) ->
                 "files under cases/ say why")
     rows = plan.measurements
     residual = (model - np.array([m.value for m in rows])) / np.array([m.sigma for m in rows])
-    i = int(np.argmax(np.abs(residual)))
+    i = int(np.nanargmax(np.abs(residual)))  # a row whose σ is estimated (NaN) is no evidence of a unit
     m = rows[i]
     return (f"the best fit lies {abs(residual[i]):.3g} σ from the measurement of line {m.line} ({m.observable} "
             f"{number(m.value)} ± {number(m.sigma)}, the model {number(model[i])}), though its simulations "
@@ -174,7 +177,7 @@ def _measurement_variables(plan: CalibrationPlan, found: Estimate, model: np.nda
     """Per row of the table: what was measured, its sigma, the fitted model, its band and the residual."""
     rows = plan.measurements
     measured = np.array([m.value for m in rows])
-    sigma = np.array([m.sigma for m in rows])
+    sigma = sigma_used(plan, found)
     half = band(found.best.jacobian, found.local.covariance, sigma)
     mapped = {"units": "1", "comment": "each in its observable's units: see measurement_units"}
     return {
@@ -240,7 +243,7 @@ def _attributes(plan: CalibrationPlan, found: Estimate, cost: dict, failed: dict
     """chi² and what it says, what the calibration cost, its statements, and where its inputs are."""
     params = plan.parameters
     n, k = len(plan.measurements), len(params)
-    dof = n - k
+    dof = n - k - len(plan.noise)
     profiled = bool(found.profiles)
     clock = clock_of(plan)
     return {
@@ -249,7 +252,8 @@ def _attributes(plan: CalibrationPlan, found: Estimate, cost: dict, failed: dict
         "method": "weighted least squares (Levenberg-Marquardt, bounded), multi-start, finite-difference Jacobian"
                   + (", profile likelihoods (95 %: chi² + 3.84)" if profiled else ""),
         "chi2": found.best.chi2, "dof": dof,
-        "chi2_p_value": float(chi2_distribution.sf(found.best.chi2, dof)) if dof > 0 else float("nan"),
+        "chi2_p_value": float(chi2_distribution.sf(found.best.chi2, dof)) if dof > 0 and not plan.noise
+        else float("nan"),
         "chi2_minimum": found.minimum,
         "profiles": int(profiled),
         **cost,
@@ -295,6 +299,8 @@ def dataset(plan: CalibrationPlan, result: Result, model: np.ndarray, cost: dict
         attrs.update(extra_attrs)
         attrs["method"] += ("; posterior: emcee on a Gaussian-process surrogate of the residuals, its held-out "
                             "error added to sigma² (docs/calibration.md)")
+    for part, noise in zip((data, coords, attrs), noise_variables(plan, found)):
+        part.update(noise)
     return xr.Dataset(data, coords=coords, attrs=provenance.with_provenance(attrs))
 
 
@@ -333,7 +339,7 @@ def table_text(ds: xr.Dataset) -> str:
                      f"{_interval(ds, j)} | {'yes' if bool(ds.identifiable[j]) else 'no'} | "
                      f"[{number(ds.low[j])}, {number(ds.high[j])}]{' log' if str(ds.scale.values[j]) == 'log' else ''}"
                      " |")
-    lines += real_rows(ds)
+    lines += real_rows(ds) + noise_text(ds)
     attrs = ds.attrs
     if "posterior_median" in ds:
         lines += ["", "| parameter | posterior median | 95 % credible interval (2.5-97.5 %) | autocorrelation "
@@ -357,7 +363,8 @@ def table_text(ds: xr.Dataset) -> str:
             lines += ["", f"**{said[0].upper() + said[1:]}.**"]
     fit = (f"for {attrs['dof']} degrees of freedom (p = {number(attrs['chi2_p_value'], 2)})" if attrs["dof"] > 0
            else "(no degree of freedom left)")
-    lines += ["", f"chi² = {number(attrs['chi2'], 4)} {fit}; {attrs['simulations']} simulations run, "
+    fit = fit_line(ds) if estimated(ds) else f"chi² = {number(attrs['chi2'], 4)} {fit}"
+    lines += ["", f"{fit}; {attrs['simulations']} simulations run, "
                   f"{attrs['simulations_reused']} reused, in {attrs['rounds']} rounds; wall time "
                   f"{number(attrs['wall_time'], 3)} s ({number(attrs['wall_time_simulations'], 3)} s in the rounds)"]
     for said in filter(None, str(attrs.get("statements", "")).split("; ")):

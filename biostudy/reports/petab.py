@@ -77,6 +77,12 @@ def _number(value: float) -> str:
     return "NaN" if np.isnan(value) else repr(float(value))
 
 
+def _noise(ds: xr.Dataset) -> list[str]:
+    """noiseParameters as the table gave it: σ, or the name of a σ the calibration estimated."""
+    names = ds.noise_name.values.astype(str) if "noise_name" in ds else [""] * ds.sizes["measurement"]
+    return [name or _number(s) for name, s in zip(names, ds.sigma.values)]
+
+
 def simulation_table(ds: xr.Dataset) -> str:
     """PEtab's simulation table of calibration.nc's `ds` (module docstring), as the text of a TSV file."""
     had = set(str(ds.attrs.get("measurement_columns", "")).split(", "))
@@ -85,7 +91,7 @@ def simulation_table(ds: xr.Dataset) -> str:
               "simulationConditionId": ds.condition.values.astype(str),
               "time": [_number(t) for t in ds.time_measured.values],
               "simulation": [_number(v) for v in ds.fitted.values],
-              "noiseParameters": [_number(s) for s in ds.sigma.values],
+              "noiseParameters": _noise(ds),
               **{column: ds[name].values.astype(str) for name, column in IDS.items()}}
     empty = [""] * ds.sizes["measurement"]
     text = io.StringIO()
