@@ -49,6 +49,7 @@ class Progress:
     mechanics_seconds: float = 0.0  # wall time of the mechanics solves so far: their cost is not in proportion
     mechanics_solves: int = 0  # to simulated time (they come at outputs), so a time-left estimate counts them
     mechanics_left: int = 0  # apart: how many are done and how many are still to come
+    outputs: int = 0  # how many outputs this run makes: the dataset made of them at the end takes time too
 
 
 class _Rejected(Exception):
@@ -96,7 +97,7 @@ class Clock:
         self.dt = min(problem.first_step or self.nominal, self.nominal)  # a continuation goes on with its step
         self.steps = self.bisections = self.rejected = 0
         self.largest_error = 0.0
-        self.mechanics_solves = self.mechanics_left = 0  # kept by `Simulation`, told in `Progress`
+        self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
         self.cpu = CpuTime()
 
     def counters(self) -> Counters:
@@ -133,7 +134,7 @@ class Clock:
             if self.progress is not None:
                 self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected,
                                        self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
-                                       self.mechanics_left))
+                                       self.mechanics_left, self.outputs))
         return state
 
     def _check_smallest(self, state: State, dt: float, cause: str, where: str):
@@ -193,6 +194,7 @@ class Simulation:
         first = 0 if problem.start_time == 0 else int(np.searchsorted(
             problem.output_times, problem.start_time * (1 + 1e-12) + 1e-12 * problem.t_end, side="right"))
         solved_at = [i for i in range(first, last + 1) if self._solves_mechanics(i, last)]
+        clock.outputs = last + 1 - first
         for index, when in enumerate(problem.output_times):
             if index < first:
                 continue

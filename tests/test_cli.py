@@ -243,7 +243,7 @@ def test_an_incomplete_scene_tells_every_problem_one_line_each(write_toml, tmp_p
 
 
 PROGRESS = re.compile(r"tiny: T\* = [\d.e-]+ / 0\.2 \((\d+)%\), steps \d+, bisections \d+, elapsed [\d.]+ s"
-                      r"(, left ~[\d.]+ s)?")
+                      r"(, left (~[\d.]+|<1) s)?")
 
 
 def test_progress_without_a_terminal_is_plain_lines(tiny_scene, tiny_study, tmp_path):

@@ -163,3 +163,21 @@ def test_without_pardiso_the_scipy_fallback_gives_the_same_answer(monkeypatch):
         assert "pardiso" not in result.info["linear_solver"]
         assert method == "multigrid" or "superlu" in result.info["linear_solver"]
         np.testing.assert_allclose(result.p, reference.p, atol=1e-6 * np.abs(reference.p).max())
+
+
+def test_the_environment_is_searched_for_pardiso_once(monkeypatch):
+    """Making a PARDISO handle searches the environment's directories for MKL's library unless
+    PYPARDISO_MKL_RT names it (a second or more in a large environment): the first factoriser names what it
+    found there, and the next makes no search."""
+    wrapper = pytest.importorskip("pypardiso.pardiso_wrapper")
+    from solver.mechanics import preconditioners
+
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    preconditioners.Factoriser()
+
+    def searched(*args, **kwargs):
+        raise AssertionError("searched again")
+
+    monkeypatch.setattr(wrapper, "find_library", searched)
+    monkeypatch.setattr(wrapper.glob, "glob", searched)
+    preconditioners.Factoriser()

@@ -1,5 +1,5 @@
 """Progress lines for logs (`biostudy.cli.progress.Lines`) and their time-left estimate (`cli.pace`), on
-synthetic timelines (a fake clock): a start-up cost, steady steps, mechanics solves in lumps."""
+synthetic runs with a fake clock: a start-up cost, steady steps, mechanics solves at outputs, the finish."""
 from __future__ import annotations
 
 import re
@@ -9,58 +9,82 @@ import pytest
 from biostudy.cli import pace, progress
 
 
-def _lines_of(monkeypatch, capsys, timeline) -> list[tuple[int, str]]:
-    """Feed (wall time, done of 100, lumps) to `Lines`; the printed lines with their percentage."""
-    now = [0.0]
-    monkeypatch.setattr(progress.clock, "monotonic", lambda: now[0])
-    lines = progress.Lines("synthetic", 100.0, "mechanics solves")
-    for when, done, lumps in timeline:
-        now[0] = when
-        lines.update(done, f"step {done:g}", "", lumps=lumps)
-    printed = capsys.readouterr().err.splitlines()
-    return [(int(re.search(r"\((\d+)%\)", line)[1]), line) for line in printed]
+def synthetic_run(step: float, solve: float, steps: int = 100, every: int = 10, start: float = 5.0):
+    """(mark, seconds truly left) at every step of a run timed by a fake clock: `start` s before the first step,
+    steps of `step` s, an output after every `every`-th step with a mechanics solve of `solve` s, one more
+    (next to free) at the start, and the finish at the end at `pace.FINISH_STEPS` steps per output."""
+    outputs = steps // every + 1
+    now, solved, solves_done, solves_left = start, 0.01, 1, outputs - 1
+    marks = []
+    for taken in range(1, steps + 1):
+        now += step
+        marks.append(pace.Mark(now, float(taken), pace.Work(taken, solved, solves_done, solves_left, outputs)))
+        if taken % every == 0:
+            now += solve
+            solved, solves_done, solves_left = solved + solve, solves_done + 1, solves_left - 1
+    end = now + pace.FINISH_STEPS * outputs * step
+    return [(mark, end - mark.time) for mark in marks]
 
 
-def _estimate(line: str) -> float:
-    return float(re.search(r"left ~([\d.]+) s", line)[1])
+def test_solves_at_outputs_are_priced_by_what_they_cost():
+    """Output steps whose solve costs 10 plain steps: once one solve after the start has been timed, every
+    estimate is the time truly left: steps, solves and finish (the estimate before this one left the finish
+    out: 3.0 s at 90 % of 8.5 s left)."""
+    run = synthetic_run(step=0.1, solve=1.0)
+    for mark, truly_left in run[10:]:  # from the step after the first solve on
+        assert pace.time_left(run[0][0], mark, 100.0) == pytest.approx(truly_left), mark
 
 
-@pytest.mark.parametrize("start_cost", [0.0, 10.0, 60.0])
-def test_time_left_at_a_tenth_is_within_half_of_the_truth(start_cost, monkeypatch, capsys):
-    """A fixed start-up cost (imports, assembly) before steady steps of 0.1 s: the estimate printed at 10 %
-    or just after is within 50 % of the time really left (pacing from the start said 11x too long with 10 s)."""
-    timeline = [(start_cost + 0.1 * step, float(step), (0.0, 0, 0)) for step in range(1, 21)]
-    done, line = next((d, line) for d, line in _lines_of(monkeypatch, capsys, timeline) if d >= 10)
-    truly_left = 0.1 * (100 - done)
-    assert abs(_estimate(line) - truly_left) <= 0.5 * truly_left, line
+def test_solves_not_timed_yet_are_priced_in_steps():
+    """Before the first solve after the start, those to come cost `SOLVE_STEPS` steps each: a run whose
+    solves cost that is priced exactly from the first estimate on (the estimate before this one said 9.0 s
+    and named the 10 solves, of 94.5 s left at 10 %)."""
+    run = synthetic_run(step=0.1, solve=0.1 * pace.SOLVE_STEPS)
+    for mark, truly_left in run[1:]:
+        assert pace.time_left(run[0][0], mark, 100.0) == pytest.approx(truly_left), mark
 
 
-def test_time_left_counts_the_mechanics_solves_to_come(monkeypatch, capsys):
-    """Steps of 0.1 s, a solve of 1 s after every 5th step, the one at the start next to free: at a tenth done
-    the solves to come are most of the time left (the steps' pace alone said 9 s of 27 s)."""
-    timeline, now, solved = [], 5.01, (0.01, 1, 20)
-    for step in range(1, 21):
-        now += 0.1
-        timeline.append((now, float(step), solved))
-        if step % 5 == 0:
-            now += 1.0
-            solved = (solved[0] + 1.0, solved[1] + 1, solved[2] - 1)
-    done, line = next((d, line) for d, line in _lines_of(monkeypatch, capsys, timeline) if d >= 10)
-    truly_left = 0.1 * (100 - done) + 1.0 * (100 - done) / 5
-    assert abs(_estimate(line) - truly_left) <= 0.5 * truly_left, line
-
-
-def test_solves_not_timed_yet_are_named_not_guessed(monkeypatch, capsys):
-    """Before any solve after the start has been timed, the line says how many are to come."""
-    timeline = [(5.0 + 0.1 * step, float(step), (0.01, 1, 5)) for step in range(1, 11)]
-    line = _lines_of(monkeypatch, capsys, timeline)[-1][1]
-    assert re.search(r"left ~[\d.]+ s \+ 5 mechanics solves$", line), line
+@pytest.mark.parametrize("start", [0.0, 10.0, 60.0])
+def test_the_start_up_is_not_paced(start):
+    """A fixed start-up cost (imports, assembly) before steady steps: it is paid once, and the estimate at a
+    tenth is the time truly left (pacing from the start said 11x too long with 10 s)."""
+    run = synthetic_run(step=0.1, solve=0.1 * pace.SOLVE_STEPS, start=start)
+    mark, truly_left = run[9]
+    assert pace.time_left(run[0][0], mark, 100.0) == pytest.approx(truly_left)
 
 
 def test_time_left_needs_a_pace():
-    """No estimate at the first report (no pace yet), none when done."""
+    """No estimate at the first report (no pace yet), none when nothing is left; a run's finish and last solve
+    are left after its last step."""
     first = pace.Mark(5.0, 1.0)
     assert pace.time_left(None, pace.Mark(5.0, 1.0), 10.0) is None
     assert pace.time_left(first, pace.Mark(5.0, 1.0), 10.0) is None
     assert pace.time_left(first, pace.Mark(9.0, 10.0), 10.0) is None
-    assert pace.time_left(first, pace.Mark(7.0, 3.0), 10.0) == pace.Left(7.0)
+    assert pace.time_left(first, pace.Mark(7.0, 3.0), 10.0) == 7.0
+    run = synthetic_run(step=0.1, solve=1.0)
+    last, truly_left = run[-1]
+    assert truly_left > 1.0 and pace.time_left(run[0][0], last, 100.0) == pytest.approx(truly_left)
+
+
+def _lines(monkeypatch, capsys, run) -> list[str]:
+    """The lines `Lines` prints for a synthetic run."""
+    monkeypatch.setattr(progress.clock, "monotonic", lambda: now)
+    now = 0.0
+    lines = progress.Lines("synthetic", 100.0)
+    for mark, _ in run:
+        now = mark.time
+        lines.update(mark.done, f"step {mark.done:g}", "", work=mark.work)
+    return capsys.readouterr().err.splitlines()
+
+
+def test_lines_print_the_time_left_each_tenth(monkeypatch, capsys):
+    """One line a tenth; the last (100 %) with what is left after the last step: the last solve and the finish."""
+    printed = _lines(monkeypatch, capsys, synthetic_run(step=0.1, solve=1.0))
+    assert [re.search(r"\((\d+)%\)", line)[1] for line in printed] == [str(10 * n) for n in range(1, 11)]
+    assert printed[-1].endswith(f"left ~{1.0 + pace.FINISH_STEPS * 11 * 0.1:.1f} s"), printed[-1]
+
+
+def test_under_a_second_is_said_so(monkeypatch, capsys):
+    """A few tenths of a second are in no price (files, the exit): under `SHORTEST` the line says "<1 s"."""
+    printed = _lines(monkeypatch, capsys, synthetic_run(step=0.0005, solve=0.0005 * pace.SOLVE_STEPS))
+    assert all(line.endswith("left <1 s") for line in printed[1:]), printed

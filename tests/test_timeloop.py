@@ -95,7 +95,8 @@ def test_progress_reports_every_accepted_step():
 
 def test_progress_tells_the_mechanics_solves_done_and_to_come():
     """Solves at outputs 0, 3 and 4 (every 3rd and the last): each report says how many are done, how many come,
-    and their wall time so far (a time-left estimate counts them apart from the steps)."""
+    their wall time so far and the outputs the run makes (a time-left estimate counts them apart from the
+    steps)."""
     from solver.problem import MechanicsSetup
 
     seen = []
@@ -105,6 +106,7 @@ def test_progress_tells_the_mechanics_solves_done_and_to_come():
     assert told[0] == (1, 2) and told[-1] == (2, 1)  # before the solves at T* = 0.15 and 0.2
     assert all(done + left == 3 for done, left in told)
     assert seen[0].mechanics_seconds > 0 and seen[-1].mechanics_seconds > seen[0].mechanics_seconds
+    assert {p.outputs for p in seen} == {5}
 
 
 def test_two_dimensional_scene_is_solved_in_two_dimensions():

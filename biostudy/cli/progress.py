@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from ..formatting import UNCUT
 from . import logs
-from .pace import Lumps, Mark, time_left
+from .pace import SHORTEST, Mark, Work, time_left
 
 detail = logging.getLogger("biostudy.cli")  # each job's end with -v (`logs`)
 
@@ -51,22 +51,22 @@ def out() -> Console:
 
 class Lines:
     """Progress for a log: one plain line each time another `EVERY` of the work is done or `SECONDS` have
-    passed since the last line: what is done, the counts, the time elapsed and the time left at this pace."""
+    passed since the last line: what is done, the counts, the time elapsed and the time left (`pace`)."""
 
     EVERY = 0.1
     SECONDS = 30.0
 
-    def __init__(self, title: str, total: float, lumps: str = ""):
-        self.title, self.total, self.lumps = title, total, lumps  # lumps: what they are ("mechanics solves")
+    def __init__(self, title: str, total: float):
+        self.title, self.total = title, total
         self.began = self.last_time = clock.monotonic()
         self.last_done = 0.0
         self.first: Mark | None = None  # at the first report
 
-    def update(self, done: float, position: str, counts: str, force: bool = False, lumps: Lumps = (0.0, 0, 0)
+    def update(self, done: float, position: str, counts: str, force: bool = False, work: Work | None = None
                ) -> None:
-        """`lumps`: work that comes in lumps, not in proportion to `done` (`pace.Lumps`)."""
+        """`work`: a run's steps, mechanics solves and outputs, which the time left prices apart (`pace`)."""
         now = clock.monotonic()
-        mark = Mark(now, done, *lumps)
+        mark = Mark(now, done, work or Work())
         if self.first is None:
             self.first = mark
         fraction = done / self.total if self.total else 1.0
@@ -76,10 +76,15 @@ class Lines:
         self.last_done, self.last_time = fraction, now
         elapsed = now - self.began
         left = time_left(self.first, mark, self.total)
-        then = f" + {left.unpriced} {self.lumps}" if left and left.unpriced else ""
-        left_text = f", left ~{duration(left.seconds)}{then}" if left else ""
+        left_text = f", left {about(left)}" if left is not None else ""
         print(f"{self.title}: {position} ({fraction:.0%}), {counts}, elapsed {duration(elapsed)}{left_text}",
               file=sys.stderr, flush=True)
+
+
+def about(seconds: float) -> str:
+    """~12.3 s; <1 s under `pace.SHORTEST`, where what no estimate prices (files opened and closed, the exit)
+    outweighs what it does."""
+    return f"<{SHORTEST:g} s" if seconds < SHORTEST else f"~{duration(seconds)}"
 
 
 def duration(seconds: float) -> str:
@@ -98,10 +103,11 @@ def simulation(name: str, t_end: float, quiet: bool):
     console = err()
     quiet = quiet or logs.is_quiet()
     if not quiet and not console.is_terminal:
-        lines = Lines(name, t_end, "mechanics solves")
+        lines = Lines(name, t_end)
         yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
                                      f"steps {p.steps}, bisections {p.bisections}",
-                                     lumps=(p.mechanics_seconds, p.mechanics_solves, p.mechanics_left))
+                                     work=Work(p.steps, p.mechanics_seconds, p.mechanics_solves, p.mechanics_left,
+                                               p.outputs))
         return
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 

@@ -17,6 +17,8 @@ another operator.
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pyamg
 import scipy.sparse as sp
@@ -33,19 +35,27 @@ except ImportError:  # pragma: no cover - depends on the platform
 class Factoriser:
     """factor(A) -> solve(b): PARDISO's symmetric indefinite LDL^T if available, else SuperLU.
 
-    Keeps one PARDISO handle (creating one searches the disk for MKL) and so
-    one factorisation at a time: a new one replaces the last."""
+    Keeps one PARDISO handle and so one factorisation at a time: a new one
+    replaces the last.  The handle is made with the factoriser, before the
+    time loop: making it searches the environment's directories for MKL's
+    library (pypardiso, unless PYPARDISO_MKL_RT names it), a second or more
+    in a large environment that the first mechanics solve would otherwise
+    carry, and a time-left estimate would take for the price of every solve.
+    The library found is named in PYPARDISO_MKL_RT, so that the search is
+    made once per process (and by none of the processes it starts)."""
 
     def __init__(self):
-        self._pardiso = None
+        self._pardiso, self._factored = None, False
+        if pypardiso is not None:
+            self._pardiso = pypardiso.PyPardisoSolver(mtype=-2)
+            os.environ.setdefault("PYPARDISO_MKL_RT", self._pardiso.libmkl._name)
 
     def __call__(self, A: sp.spmatrix):
-        if pypardiso is None:
-            return superlu(A)
         if self._pardiso is None:
-            self._pardiso = pypardiso.PyPardisoSolver(mtype=-2)
-        else:
+            return superlu(A)
+        if self._factored:
             self._pardiso.free_memory()  # the last factors
+        self._factored = True
         upper = sp.triu(A, format="csr")
         upper.sort_indices()
         self._pardiso.factorize(upper)
