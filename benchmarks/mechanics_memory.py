@@ -120,7 +120,7 @@ def disc(n: int):
     return grid, np.clip(0.5 - (np.hypot(x - 10, y - 10) - 5.0) / grid.spacing, 0.0, 1.0)
 
 
-def case(n: int, k: float, ndim: int, method: str) -> dict:
+def case(n: int, k: float, ndim: int, method: str, chunk: int) -> dict:
     import tracemalloc
 
     import numpy as np
@@ -129,7 +129,7 @@ def case(n: int, k: float, ndim: int, method: str) -> dict:
     from mechanics import scene
 
     from solver import MechanicsSetup, Parameters
-    from solver.mechanics import GrowthMechanics, assembly, linear, pressure
+    from solver.mechanics import GrowthMechanics, Settings, assembly, linear, pressure
 
     grid, phi = scene(n) if ndim == 3 else disc(n)
     phases = Phases()
@@ -145,7 +145,7 @@ def case(n: int, k: float, ndim: int, method: str) -> dict:
     before = vm_hwm()
     tracemalloc.start()
     began = time.perf_counter()
-    mechanics = GrowthMechanics(grid, Parameters(), MechanicsSetup(linear_solver=method), None)
+    mechanics = GrowthMechanics(grid, Parameters(), MechanicsSetup(linear_solver=method), None, settings=Settings(chunk=chunk))
     setup = tracemalloc.get_traced_memory()[0]
     result = None
     seconds = []
@@ -180,11 +180,12 @@ def main():
     parser.add_argument("--k", type=float, default=1e-2, help="alpha = k phi (then 1.1 k phi)")
     parser.add_argument("--ndim", type=int, default=3, choices=(2, 3))
     parser.add_argument("--linear-solver", default="auto", choices=("auto", "direct", "multigrid", "amg"))
+    parser.add_argument("--chunk", type=int, default=4096, help="cells assembled at once (Settings.chunk)")
     parser.add_argument("--baseline", default=None, help="another version's tree, run beside this one")
     parser.add_argument("--case", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.case is not None:
-        print(json.dumps(case(args.case, args.k, args.ndim, args.linear_solver)))
+        print(json.dumps(case(args.case, args.k, args.ndim, args.linear_solver, args.chunk)))
         return
     versions = [("this", None)] + ([("baseline", args.baseline)] if args.baseline else [])
     header(f"{'n^' + str(args.ndim):>5} {'version':>8} {'B/node:':>7} " + " ".join(f"{p:>8}" for p in
@@ -193,7 +194,7 @@ def main():
     for n in args.sizes:
         for name, tree in versions:
             found = run_case(__file__, ["--case", str(n), "--k", str(args.k), "--ndim", str(args.ndim),
-                                        "--linear-solver", args.linear_solver], tree)
+                                        "--linear-solver", args.linear_solver, "--chunk", str(args.chunk)], tree)
             if "error" in found:
                 print(f"{n:>5} {name:>8} {found['error']}")
                 continue

@@ -107,6 +107,12 @@ class Multigrid:
             A = Stencil(blocks, coarse.nodes_shape, coarse.node_of, coarse.nodes)
         self.coarse_solve = superlu(A.tobsr())
 
+    def release(self):
+        """Drop the operators of the last `build` (until the next one)."""
+        for level in self.levels:
+            level.A = level.Dinv = level.bounds = None
+        self.coarse_solve = None
+
     def prolong(self, depth: int, coarse_x: np.ndarray) -> np.ndarray:
         """P coarse_x: from level depth + 1 to level depth."""
         fine, coarse = self.levels[depth], self.levels[depth + 1]
@@ -149,11 +155,6 @@ class Multigrid:
         x += self.prolong(depth, self(self.restrict(depth, b - level.A @ x), depth + 1))
         self._smooth(level, x, b)
         return x
-
-    def nbytes(self) -> int:
-        """Bytes the hierarchy holds beyond the fine operator (the coarse stencils, inverse diagonals)."""
-        return sum(level.A.nbytes for level in self.levels[1:-1] if level.A is not None) + sum(
-            level.Dinv.nbytes for level in self.levels[:-1] if level.Dinv is not None)
 
 
 def _largest_eigenvalue(level: Level, iterations: int = 12) -> float:

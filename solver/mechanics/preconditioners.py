@@ -73,6 +73,9 @@ class Preconditioner:
     def prepare(self, A: sp.spmatrix):
         """Nothing to redo for another operator: the built preconditioner serves as it is."""
 
+    def release(self):
+        """Forget what `build` made (it will not be used again before the next `build`)."""
+
     def follow(self, modes: np.ndarray):
         """Nothing to do with the modes of the bodies (see `Deflated`)."""
 
@@ -91,6 +94,9 @@ class Direct(Preconditioner):
     def build(self, A: sp.spmatrix):
         self._solve = self._factorise(A.tocsr())
 
+    def release(self):
+        self._solve = None
+
     def constrain(self, constrained: np.ndarray):
         pass  # the factors come from the (constrained) matrix itself
 
@@ -107,6 +113,9 @@ class GeometricMultigrid(Preconditioner):
 
     def build(self, A: sp.spmatrix):
         self.cycle.build(A)
+
+    def release(self):
+        self.cycle.release()
 
     def constrain(self, constrained: np.ndarray):
         self.cycle.constrain(constrained)
@@ -135,6 +144,9 @@ class SmoothedAggregation(Preconditioner):
             postsmoother=("block_gauss_seidel", {"sweep": "symmetric"}),
             max_coarse=self.coarsest, coarse_solver="splu", keep=False)
         self._cycle = hierarchy.aspreconditioner(cycle="V")
+
+    def release(self):
+        self._cycle = None
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         return self._cycle @ r
@@ -167,6 +179,10 @@ class Deflated(Preconditioner):
 
     def constrain(self, constrained: np.ndarray):
         self.inner.constrain(constrained)
+
+    def release(self):
+        self.inner.release()
+        self._A = self._AZ = self._Einv = None
 
     def prepare(self, A: sp.spmatrix):
         """The exact part for operator A (k products with A); the inner preconditioner stays."""
