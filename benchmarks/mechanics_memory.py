@@ -145,7 +145,8 @@ def case(n: int, k: float, ndim: int, method: str, chunk: int) -> dict:
     before = vm_hwm()
     tracemalloc.start()
     began = time.perf_counter()
-    mechanics = GrowthMechanics(grid, Parameters(), MechanicsSetup(linear_solver=method), None, settings=Settings(chunk=chunk))
+    mechanics = GrowthMechanics(grid, Parameters(), MechanicsSetup(linear_solver=method), None,
+                                settings=Settings(chunk=chunk))
     setup = tracemalloc.get_traced_memory()[0]
     result = None
     seconds = []
@@ -180,7 +181,7 @@ def main():
     parser.add_argument("--k", type=float, default=1e-2, help="alpha = k phi (then 1.1 k phi)")
     parser.add_argument("--ndim", type=int, default=3, choices=(2, 3))
     parser.add_argument("--linear-solver", default="auto", choices=("auto", "direct", "multigrid", "amg"))
-    parser.add_argument("--chunk", type=int, default=4096, help="cells assembled at once (Settings.chunk)")
+    parser.add_argument("--chunk", type=int, default=2048, help="cells assembled at once (Settings.chunk)")
     parser.add_argument("--baseline", default=None, help="another version's tree, run beside this one")
     parser.add_argument("--case", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()

@@ -37,6 +37,7 @@ import numpy as np
 
 from . import material, stencil
 from .mesh import Box, StructuredMesh
+from .settings import DEFAULT
 from .stencil import Stencil
 
 
@@ -54,7 +55,7 @@ class Evaluation:
 class Assembler:
     """Assembles on a fixed pattern; `constrained` marks dofs held at zero."""
 
-    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = 4096):
+    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = DEFAULT.chunk):
         self.mesh = mesh
         self.d = d = mesh.ndim
         self.ref = ref = mesh.reference

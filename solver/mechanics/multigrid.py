@@ -25,6 +25,14 @@ two are compared in docs/mechanics.md.)
   sweep (fewer CG iterations in less time: benchmarks/mechanics_linear.py).
 * Coarsest level: a sparse factorisation (SuperLU: it has < `coarsest` dofs).
 
+* Kept while it works (`linear.py`): a V-cycle built from one tangent also
+  serves the next Newton steps' tangents.  It smooths on the tangent it was
+  built from; once the solver drops that tangent for a newer one, the
+  V-cycle keeps its own copy rounded to single precision (`detach`), so that
+  two tangents in double precision are never held at once.  The rounding
+  (relative 6e-8) changes only how well a stale V-cycle preconditions, not
+  what the Krylov solve converges to.
+
 The grids and their unknowns depend only on the mesh and are found once;
 `build(A)` recomputes the operators for a new tangent.  Memory: the coarse
 stencils hold about 1/7 of the fine one's blocks, the smoother's inverse
@@ -106,6 +114,14 @@ class Multigrid:
             blocks[coarse.nodes[empty[0]], 0, empty[1], empty[1]] = 1.0
             A = Stencil(blocks, coarse.nodes_shape, coarse.node_of, coarse.nodes)
         self.coarse_solve = superlu(A.tobsr())
+
+    def detach(self):
+        """Keep the finest operator (the tangent of the last `build`, which its owner is about to drop) in
+        single precision: a V-cycle built from an older tangent smooths on that one (see the module's
+        docstring), and in half the memory it no longer costs a second tangent beside the next."""
+        fine = self.levels[0]
+        if fine.A is not None and fine.A.blocks.dtype != np.float32:
+            fine.A = fine.A.single()
 
     def release(self):
         """Drop the operators of the last `build` (until the next one)."""

@@ -66,7 +66,8 @@ def forcing(r: float, contraction: float | None, target: float, s: Settings) -> 
 
 def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.ndarray, reference: float,
            tolerance: float, max_iterations: int, settings: Settings, operator=None) -> NewtonOutcome:
-    """Iterate from u; evaluate(u, tangent) -> Evaluation, linear.solve(K, rhs, rtol) -> du."""
+    """Iterate from u; evaluate(u, tangent) -> Evaluation, linear.solve(K, rhs, rtol) -> du (and
+    linear.detach() before a newer tangent is assembled)."""
     s = settings
     ev = evaluate(u, operator is None)
     if np.min(ev.min_det) <= 0:
@@ -98,6 +99,7 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
             step *= 0.5
         else:
             if not exact:  # an operator from elsewhere misled the step: the tangent at u, then again
+                linear.detach()
                 matrix = ev.matrix = None  # no tangent held while the next is assembled
                 ev, exact, contraction = evaluate(u, True), True, None
                 matrix = ev.matrix
@@ -115,6 +117,7 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
             return NewtonOutcome(u, ev, True, k, history)
         exact = False
         if contraction > s.retangent or step < 1.0:  # slow or damped: the tangent at the iterate
+            linear.detach()
             matrix = ev.matrix = None  # no tangent held while the next is assembled
             ev, exact = evaluate(u, True), True  # (the residual again: cheaper than a tangent per trial)
             matrix = ev.matrix

@@ -58,8 +58,9 @@ def backend() -> str:
 
 class Preconditioner:
     """What the tangent solver asks of a preconditioner: `build` for a new tangent, `constrain` when other
-    dofs are held, `prepare` for an operator close to the built one, and `follow` for the rigid-body modes
-    of the dense bodies (only a deflated preconditioner uses them: `uses_modes`)."""
+    dofs are held, `prepare` for an operator close to the built one, `detach` before the one it was built
+    from is dropped, `release` when it will be rebuilt anyway, and `follow` for the rigid-body modes of the
+    dense bodies (only a deflated preconditioner uses them: `uses_modes`)."""
 
     name = "preconditioner"
     uses_modes = False
@@ -75,6 +76,10 @@ class Preconditioner:
 
     def release(self):
         """Forget what `build` made (it will not be used again before the next `build`)."""
+
+    def detach(self):
+        """The tangent it was built from is about to be dropped by the solver (a newer one comes): keep what
+        solving with the newer one needs, in less memory if possible."""
 
     def follow(self, modes: np.ndarray):
         """Nothing to do with the modes of the bodies (see `Deflated`)."""
@@ -116,6 +121,9 @@ class GeometricMultigrid(Preconditioner):
 
     def release(self):
         self.cycle.release()
+
+    def detach(self):
+        self.cycle.detach()
 
     def constrain(self, constrained: np.ndarray):
         self.cycle.constrain(constrained)
@@ -183,6 +191,10 @@ class Deflated(Preconditioner):
     def release(self):
         self.inner.release()
         self._A = self._AZ = self._Einv = None
+
+    def detach(self):
+        self.inner.detach()
+        self._A = None  # `prepare` gives the next operator before it is used
 
     def prepare(self, A: sp.spmatrix):
         """The exact part for operator A (k products with A); the inner preconditioner stays."""

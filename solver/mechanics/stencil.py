@@ -60,6 +60,11 @@ class Stencil:
     def nbytes(self) -> int:
         return self.blocks.nbytes
 
+    def single(self) -> Stencil:
+        """The same operator with its blocks rounded to single precision (half the memory; the product still
+        sums in double)."""
+        return Stencil(self.blocks.astype(np.float32), self.nodes_shape, self.node_of, self.nodes, self.linked)
+
     def matvec(self, x: np.ndarray) -> np.ndarray:
         y = np.zeros(self.shape[0])
         apply(self.blocks, grid3(self.nodes_shape), self.offsets, self.node_of, np.ascontiguousarray(x, float), y)
