@@ -2,16 +2,23 @@
 
 A grid of 2000³ cells, or a million outputs, must be refused at once with the
 estimate ("needs ~X GB of memory, Y GB available"), not end in a MemoryError
-or an exhausted machine.  The estimate is a sum of parts, each measured on
-this solver (peak resident memory of a run above a worker with the solver
-imported, 2-D 100²-400², 3-D 20³-50³, mechanics 10³-32³ and 100²-200²;
-docs/mechanics.md for the 3-D multigrid and smoothed-aggregation figures):
+or an exhausted machine.  The estimate is a sum of parts, each a model of what
+the solver holds, fitted to peak resident memory (VmHWM) measured on this
+solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
+`python benchmarks/scale.py`, `python benchmarks/mechanics_memory.py`):
 
-- transport: per cell (matrices, the AMG hierarchy, Krylov vectors, FiPy's
-  mesh): ~2.4 kB in 3-D, ~1.6 kB in 2-D;
-- mechanics: per grid node, by preconditioner (the direct factorisation is
-  the larger; "auto" means what it means to the solver:
-  `solver.mechanics.linear_solver_for`);
+- transport: per cell (matrices, the AMG hierarchy, Krylov vectors, index
+  arrays; FiPy's mesh while the Laplacian is made): ~1.9 kB in 3-D, ~1.6 kB
+  in 2-D;
+- mechanics (`mechanics_memory`): a fixed part (imports, compiled kernels,
+  the temporaries of the box of cells assembled at once) and per grid node the
+  tangent in double precision (half a stencil of ndim x ndim blocks,
+  `solver.mechanics.stencil`) plus what the preconditioner and the Newton
+  solve hold besides, by preconditioner ("auto" means what it means to the
+  solver: `solver.mechanics.linear_solver_for`): for the multigrid its
+  single-precision copy of the tangent before a Newton step's new one, the
+  coarser levels, the smoother's inverse diagonal blocks, the Krylov and
+  Newton vectors; a direct factorisation's fill is larger;
 - outputs: a run that writes its file streams its fields to disk as they
   are made, once they exceed `STREAM_ABOVE` (`streams`, `data.spool`): a few outputs' fields at a time (the one being
   made, the one being written, the observables' block of at most
@@ -23,11 +30,14 @@ docs/mechanics.md for the 3-D multigrid and smoothed-aggregation figures):
 - a process: ~0.32 GB for an interpreter that runs and writes a scene (each
   local worker is one), 0.06 GB more with the mechanics' imports.
 
-The parts are estimates within a factor of ~1.5, not bounds: a run is
-refused when its estimate exceeds the memory available (psutil), so a run
-that is refused would certainly not have fit.  Disk: a run's dataset is
-about its outputs once over (checked against the free space of the target's
-file system).
+The sum stays above the measured peaks and within 1.5 times them from 32³ to
+128³ with the mechanics, to 200³ without.  What it does not cover: a
+mechanics solve whose conjugate gradients fail and fall back to restarted
+GMRES holds its basis too, ~50 vectors of the unknowns (~1.2 kB per node in
+3-D; a rescue on the way to a refusal, docs/mechanics.md).  A run is refused
+when its estimate exceeds the memory available (`memory_limits`).  Disk: a
+run's dataset is about its outputs once over (checked against the free space
+of the target's file system).
 """
 from __future__ import annotations
 
@@ -38,21 +48,21 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from solver.mechanics import linear_solver_for
+from solver.mechanics import Settings, linear_solver_for
 
 from ..errors import BadInput
 from . import memory
 
 PROCESS = 0.32e9  # bytes: a process that runs and writes a scene (biostudy, FiPy, xarray, dask, netCDF4 imported):
 # VmHWM of `biostudy run` at 12³ 0.31 GB (benchmarks/scale.py); a bare `solver.simulate` needs ~0.2 GB
+TRANSPORT_PER_CELL = {2: 1.6e3, 3: 1.9e3}
 MECHANICS_IMPORTS = 0.06e9  # scikit-fem and the mechanics' compiled kernels: 12³ with mechanics 0.37 GB
-TRANSPORT_PER_CELL = {2: 1.6e3, 3: 2.4e3}
-# 3-D multigrid: peak 0.77 GB at 40³, 2.0 GB at 60³ per snapshot, 2.8 GB for a one-shot growth to alpha = 0.2
-# at 60³ (docs/mechanics.md): 8-12 kB per node.  2-D multigrid: the first version's figure, not measured again.
-# Smoothed aggregation ("amg"): the multigrid's figures times 1.1, its ratio on one 40³ tangent (0.84 GB against
-# 0.76 GB, benchmarks/mechanics_linear.py).
-MECHANICS_PER_NODE = {("direct", 2): 7.5e3, ("direct", 3): 55e3, ("multigrid", 2): 4e3, ("multigrid", 3): 12e3,
-                      ("amg", 2): 4.4e3, ("amg", 3): 13.2e3}
+ASSEMBLY_PER_CELL = {2: 5e3, 3: 35e3}  # temporaries per cell of the box assembled at once (`Settings.chunk` cells)
+MECHANICS_PER_NODE = {  # bytes per grid node besides the tangent (`tangent_bytes`), by preconditioner
+    ("multigrid", 3): 1.25e3, ("multigrid", 2): 0.6e3,
+    ("amg", 3): 7e3, ("amg", 2): 2.5e3,  # pyamg's hierarchy, its own copy of the tangent among it
+    ("direct", 3): 55e3, ("direct", 2): 7.5e3,  # the factors' fill (measured at 40³, 100²-200²)
+}
 COPIES = 3  # how many times the outputs are held at once, unless streamed
 STREAMED = 4  # outputs' fields held at once by a run that streams them (made, spooled, read back, written)
 STREAM_ABOVE = 64e6  # bytes of output fields beyond which a run that writes its file streams them (`streams`)
@@ -106,8 +116,7 @@ def estimate(scene, streamed: bool = False) -> Estimate:
     mechanics = 0.0
     per_output = 3 * cells  # phi, c, alpha
     if scene.mechanics is not None and scene.mechanics.enabled:
-        method = linear_solver_for(scene.mechanics.linear_solver, ndim * nodes)
-        mechanics = MECHANICS_IMPORTS + MECHANICS_PER_NODE[(method, ndim)] * nodes
+        mechanics = mechanics_memory(linear_solver_for(scene.mechanics.linear_solver, ndim * nodes), ndim, nodes)
         per_output += cells + ndim * nodes  # p, u
     written = 8.0 * per_output * outputs
     held = COPIES * (written + PER_OUTPUT * outputs)
@@ -115,6 +124,19 @@ def estimate(scene, streamed: bool = False) -> Estimate:
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
         held = STREAMED * 8.0 * per_output + BLOCK_COPIES * block + PER_OUTPUT * outputs
     return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written)
+
+
+def tangent_bytes(ndim: int) -> float:
+    """Bytes per grid node of the mechanics' tangent: its diagonal block and the blocks to the later half of the
+    3^ndim - 1 neighbours, ndim x ndim doubles each (`solver.mechanics.stencil`)."""
+    return (3**ndim + 1) // 2 * ndim**2 * 8.0
+
+
+def mechanics_memory(method: str, ndim: int, nodes: int) -> float:
+    """Bytes the mechanics of a grid of `nodes` nodes needs with preconditioner `method` ("direct", "multigrid",
+    "amg"): the fixed part, the assembly's box of cells and, per node, the tangent and the rest."""
+    box = ASSEMBLY_PER_CELL[ndim] * Settings().chunk
+    return MECHANICS_IMPORTS + box + nodes * (tangent_bytes(ndim) + MECHANICS_PER_NODE[(method, ndim)])
 
 
 def streams(scene) -> bool:

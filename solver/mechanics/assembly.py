@@ -20,21 +20,25 @@ Table 1 step 7); the rest is `material.tangent_coefficients` contracted with
 the gradients.  Fixed dofs get identity rows and columns so that the matrix
 stays symmetric.
 
-Assembly uses the grid: element matrices are added into a node x stencil
-array (27 neighbours in 3-D, 9 in 2-D) one local node pair (a, b) at a time,
-each a shifted slice of the cell grid (no index arrays, no sorting), and the
-BSR data are one gather from it.  Work goes in slabs of grid planes to bound
-the temporaries.
+Assembly uses the grid: the tangent is kept as half a stencil of blocks on
+the grid's nodes (`stencil.py`: the diagonal block and the blocks to the 13
+later neighbours in 3-D, 4 in 2-D; the rest are their transposes), and element
+matrices are added into it one local node pair (a, b) at a time, b at or
+after a, each a shifted slice of the cell grid (no index arrays, no sorting,
+no second copy).  Work goes in boxes of about `Settings.chunk` cells (whole grid
+planes, or rows of one plane: `StructuredMesh.boxes`) to bound the temporaries.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
-from . import material
-from .mesh import StructuredMesh
+from . import material, stencil
+from .mesh import Box, StructuredMesh
+from .settings import DEFAULT
+from .stencil import Stencil
 
 
 @dataclass
@@ -42,7 +46,7 @@ class Evaluation:
     """One evaluation at a displacement: everything Newton and the output need."""
 
     residual: np.ndarray  # (dofs,), zero at constrained dofs
-    matrix: sp.bsr_matrix | None  # consistent tangent, identity at constrained dofs
+    matrix: Stencil | None  # consistent tangent, identity at constrained dofs
     pressure: np.ndarray  # (elements,) Cauchy hydrostatic stress p = w kappa (Theta - 1), Pa
     min_det: np.ndarray  # (elements,) smallest det F over Gauss points and corners
     energy: float
@@ -51,19 +55,14 @@ class Evaluation:
 class Assembler:
     """Assembles on a fixed pattern; `constrained` marks dofs held at zero."""
 
-    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = 4096):
+    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = DEFAULT.chunk):
         self.mesh = mesh
         self.d = d = mesh.ndim
         self.ref = ref = mesh.reference
-        self.edofs = mesh.element_dofs()
         nloc = ref.gradients.shape[1]
         self._pattern()
         self.constrain(constrained)
-        cells = mesh.grid.cells_shape
-        self.plane = plane = int(np.prod(cells[1:]))  # elements per grid plane (cells, obstacles included)
-        self.planes = max(1, chunk // plane)  # grid planes per slab
-        # first element of every plane (elements are the open cells in grid order)
-        self.plane_start = np.searchsorted(mesh.cells, np.arange(cells[0] + 1) * plane)
+        self.boxes = mesh.boxes(chunk)
         Q = ref.gradients.shape[0]
         # constant per element: w_q dN_a . dN_b (the isotropic part), w_q dN_a/dX_J (the residual)
         self.gram = np.einsum("q,qaJ,qbJ->qab", ref.weights, ref.gradients, ref.gradients).reshape(Q, -1)
@@ -71,51 +70,65 @@ class Assembler:
         # displacement -> gradient at the Gauss points / corners: (nloc, Q * d) each
         self.to_points = ref.gradients.transpose(1, 0, 2).reshape(nloc, -1)
         self.to_corners = ref.corner_gradients.transpose(1, 0, 2).reshape(nloc, -1)
+        self.nloc = nloc
+        self.corners = [tuple(int(c) for c in ca) for ca in mesh.reference.corners[:, ::-1]]  # (a, [z,] y, x)
 
     def _pattern(self):
-        """The BSR pattern from the grid: node x stencil slot, occupied where an open cell links them."""
+        """The local node pairs (a, b) whose block is kept (b at or after a), and which node pairs an open cell
+        links (the pattern of the tangent as a sparse matrix)."""
         mesh, d = self.mesh, self.d
-        cells, nodes = mesh.grid.cells_shape, mesh.grid.nodes_shape
+        cells = mesh.grid.cells_shape
         corners = mesh.reference.corners[:, ::-1]  # (a, [z,] y, x)
-        self.slots = 3**d
-        strides = np.array([int(np.prod(nodes[k + 1:])) for k in range(d)])
-        self.pairs = []  # (a, b, where node a sits relative to the cell, stencil slot of b from a)
+        centre = (3**d - 1) // 2
+        self.slots = centre + 1
+        self.pairs = []  # (a, b, where node a sits in the cell ([z,] y, x), stencil slot of b from a)
         for a, ca in enumerate(corners):
             for b, cb in enumerate(corners):
-                slot = int(np.dot(cb - ca + 1, 3 ** np.arange(d - 1, -1, -1)))
-                self.pairs.append((a, b, tuple(slice(c, c + n) for c, n in zip(ca, cells)), slot))
-        occupied = np.zeros(nodes + (self.slots,), bool)
-        for _, _, at, slot in self.pairs:
-            occupied[at + (slot,)] |= ~mesh.obstacle
-        self.gather = np.flatnonzero(occupied)  # rows sorted, and columns within a row (slot order)
-        row_grid, slot = np.divmod(self.gather, self.slots)
-        offsets = np.array(np.unravel_index(np.arange(self.slots), (3,) * d)).T - 1
-        col_grid = row_grid + offsets[slot] @ strides
-        self.rows = mesh.grid_to_mesh_node[row_grid]
-        self.indices = mesh.grid_to_mesh_node[col_grid].astype(np.int32)
-        self.indptr = np.searchsorted(self.rows, np.arange(mesh.n_nodes + 1)).astype(np.int32)
+                slot = int(np.dot(cb - ca + 1, 3 ** np.arange(d - 1, -1, -1))) - centre
+                if slot >= 0:
+                    self.pairs.append((a, b, tuple(int(c) for c in ca), slot))
+        self.linked = np.zeros(mesh.grid.nodes_shape + (self.slots,), bool)
+        for _, _, ca, slot in self.pairs:
+            self.linked[tuple(slice(c, c + n) for c, n in zip(ca, cells)) + (slot,)] |= ~mesh.obstacle
+        self.linked = self.linked.reshape(-1, self.slots)
 
     def constrain(self, constrained: np.ndarray):
         """Hold the dofs `constrained` at zero: their rows and columns become the identity's."""
-        d = self.d
         self.constrained = np.asarray(constrained, bool)
-        constrained_node = self.constrained.reshape(-1, d)
-        self.keep = ~constrained_node[self.rows][:, :, None] & ~constrained_node[self.indices][:, None, :]
-        diag = np.flatnonzero(self.rows == self.indices)
-        node, comp = np.nonzero(constrained_node)
-        self.constrained_diagonal = (diag[node], comp)
 
-    def gradient(self, u: np.ndarray, elements: slice, corners: bool = False) -> np.ndarray:
-        """F = I + grad u at the Gauss points (or the corners) of some elements: (E, Q, 3, 3)."""
+    def _on_grid(self, u: np.ndarray) -> np.ndarray:
+        """u on every grid node (nodes_shape + (d,)), zero at nodes without dofs."""
+        grid = np.zeros((self.mesh.grid_to_mesh_node.size, self.d))
+        grid[self.mesh.nodes] = u.reshape(-1, self.d)
+        return grid.reshape(self.mesh.grid.nodes_shape + (self.d,))
+
+    def _slab(self, values: np.ndarray, box: Box) -> np.ndarray:
+        """Per-element values of a box on its cells (box.shape + ..., obstacle cells zero)."""
+        if values.shape[0] == math.prod(box.shape):  # no obstacle in the box: elements are its cells
+            return values.reshape(box.shape + values.shape[1:])
+        slab = np.zeros((math.prod(box.shape),) + values.shape[1:])
+        slab[self.mesh.cells[box.part] - box.first] = values
+        return slab.reshape(box.shape + values.shape[1:])
+
+    def gradient(self, u_grid: np.ndarray, box: Box, corners: bool = False) -> np.ndarray:
+        """F = I + grad u at the Gauss points (or the corners) of a box's elements: (E, Q, 3, 3); u_grid from
+        `_on_grid`."""
         d = self.d
-        nloc = self.to_points.shape[0]
-        ue = u[self.edofs[elements]].reshape(-1, nloc, d).transpose(0, 2, 1).reshape(-1, nloc)  # (E d, a)
-        H = ue @ (self.to_corners if corners else self.to_points)
+        ue = np.stack([u_grid[box.nodes(c)] for c in self.corners], axis=-1).reshape(-1, d, self.nloc)
+        if ue.shape[0] != box.part.stop - box.part.start:  # obstacles: only the open cells
+            ue = ue[self.mesh.cells[box.part] - box.first]
+        H = ue.reshape(-1, self.nloc) @ (self.to_corners if corners else self.to_points)  # (E d, a) x (a, Q d)
         H = H.reshape(-1, d, H.shape[1] // d, d).transpose(0, 2, 1, 3)  # (E, Q, i, J)
         F = np.zeros(H.shape[:2] + (3, 3))
         F[..., :d, :d] = H
         F[..., [0, 1, 2], [0, 1, 2]] += 1.0
         return F
+
+    def _add_to_nodes(self, grid: np.ndarray, values: np.ndarray, box: Box):
+        """Add per-element nodal values (E, a, d) of a box to the grid's nodes."""
+        slab = self._slab(values, box)
+        for a, corner in enumerate(self.corners):
+            grid[box.nodes(corner)] += slab[..., a, :]
 
     def evaluate(self, u: np.ndarray, w: np.ndarray, growth: np.ndarray, mu: float, kappa: float,
                  tangent: bool = True) -> Evaluation:
@@ -123,19 +136,16 @@ class Assembler:
         mesh, d, ref = self.mesh, self.d, self.ref
         E, nloc = mesh.n_elements, self.to_points.shape[0]
         V, wq = ref.volume, ref.weights
-        forces = np.zeros((E, nloc, d))
-        stencil = np.zeros(mesh.grid.nodes_shape + (self.slots, d, d)) if tangent else None
+        u_grid, forces = self._on_grid(u), np.zeros(mesh.grid.nodes_shape + (d,))
+        blocks = np.zeros(mesh.grid.nodes_shape + (self.slots, d, d)) if tangent else None
         pressure, min_det = np.zeros(E), np.empty(E)
         energy = 0.0
-        n_planes = mesh.grid.cells_shape[0]
-        for first in range(0, n_planes, self.planes):
-            last = min(first + self.planes, n_planes)
-            part = slice(self.plane_start[first], self.plane_start[last])
-            if part.start == part.stop:
-                continue
-            F = self.gradient(u, part)
+        for box in self.boxes:
+            part = box.part
+            F = self.gradient(u_grid, box)
             J = material.determinant(F)
-            min_det[part] = np.minimum(J.min(axis=1), material.determinant(self.gradient(u, part, True)).min(axis=1))
+            at_corners = material.determinant(self.gradient(u_grid, box, True))
+            min_det[part] = np.minimum(J.min(axis=1), at_corners.min(axis=1))
             if np.any(J <= 0):  # leave the rest undefined: the caller rejects this state
                 continue
             G = material.cofactor(F) / J[..., None, None]
@@ -152,14 +162,14 @@ class Assembler:
             stress = s[..., None, None] * (Fd - (I1 / 3)[..., None, None] * Gd) + (p[:, None] * J)[..., None, None] * Gd
             # R_ai = sum_(q, J) P_iJ w_q dN_aJ: one product over (q, J)
             n = stress.shape[0]
-            forces[part] = (stress.transpose(0, 2, 1, 3).reshape(n * d, -1) @ self.weighted_dN
-                            ).reshape(n, d, nloc).transpose(0, 2, 1)
+            self._add_to_nodes(forces, (stress.transpose(0, 2, 1, 3).reshape(n * d, -1) @ self.weighted_dN
+                                        ).reshape(n, d, nloc).transpose(0, 2, 1), box)
             if tangent:
                 K = self._element_matrices(Fd, Gd, J, s, c_fg, c_gg, c_swap, we * kappa / (Jg * V))
-                self._scatter(stencil, K, part, first, last)
-        residual = np.bincount(self.edofs.ravel(), weights=forces.ravel(), minlength=mesh.n_dofs)
+                self._scatter(blocks, K, box)
+        residual = forces.reshape(-1, d)[mesh.nodes].ravel()
         residual[self.constrained] = 0.0
-        matrix = self._matrix(stencil) if tangent and np.all(min_det > 0) else None
+        matrix = self._matrix(blocks) if tangent and np.all(min_det > 0) else None
         return Evaluation(residual, matrix, pressure, min_det, energy)
 
     def growth_load(self, w: np.ndarray, growth: np.ndarray, kappa: float) -> float:
@@ -167,11 +177,14 @@ class Assembler:
 
         At u = 0, F = G = I: the isochoric stress vanishes and P = p I with
         p = w kappa (1/Jg - 1), so R_ai = p sum_q w_q dN_a/dX_i per element."""
-        corner_forces = self.weighted_dN.reshape(-1, self.d, self.weighted_dN.shape[1]).sum(axis=0).T  # (a, i)
-        p = w * kappa * (1.0 / growth - 1.0)
-        forces = p[:, None, None] * corner_forces
-        return float(np.linalg.norm(np.bincount(self.edofs.ravel(), weights=forces.ravel(),
-                                                minlength=self.mesh.n_dofs)))
+        corner_forces = self.weighted_dN.reshape(-1, self.d, self.nloc).sum(axis=0).T  # (a, i)
+        p = np.zeros(self.mesh.grid.n_cells)
+        p[self.mesh.cells] = w * kappa * (1.0 / growth - 1.0)
+        p = p.reshape(self.mesh.grid.cells_shape + (1,))
+        forces = np.zeros(self.mesh.grid.nodes_shape + (self.d,))
+        for a, corner in enumerate(self.corners):
+            forces[tuple(slice(c, c + n) for c, n in zip(corner, p.shape))] += p * corner_forces[a]
+        return float(np.linalg.norm(forces.reshape(-1, self.d)[self.mesh.nodes]))
 
     def _vectors(self, T: np.ndarray) -> np.ndarray:
         """T_iJ dN_a/dX_J at every point, as (E, Q, a * d + i): the element dof order."""
@@ -205,23 +218,16 @@ class Assembler:
         K += (bulk[:, None, None] * h)[:, :, None, :, None] * h[:, None, :, None, :]
         return K
 
-    def _scatter(self, stencil: np.ndarray, K: np.ndarray, elements: slice, first: int, last: int):
-        """Add the element matrices (E, a, b, i, k) of grid planes [first, last) into the stencil array."""
-        cells, plane = self.mesh.grid.cells_shape, self.plane
-        slab_shape = (last - first,) + cells[1:]
-        if K.shape[0] == (last - first) * plane:  # no obstacle in the slab: elements are its cells
-            slab = K.reshape(slab_shape + K.shape[1:])
-        else:
-            slab = np.zeros((int(np.prod(slab_shape)),) + K.shape[1:])
-            slab[self.mesh.cells[elements] - first * plane] = K
-            slab = slab.reshape(slab_shape + K.shape[1:])
-        for a, b, at, slot in self.pairs:
-            rows = (slice(at[0].start + first, at[0].start + last),) + at[1:]
-            stencil[rows + (slot,)] += slab[..., a, b, :, :]
+    def _scatter(self, blocks: np.ndarray, K: np.ndarray, box: Box):
+        """Add the kept blocks of a box's element matrices (E, a, b, i, k) to the stencil's blocks."""
+        slab = self._slab(K, box)
+        for a, b, corner, slot in self.pairs:
+            blocks[box.nodes(corner) + (slot,)] += slab[..., a, b, :, :]
 
-    def _matrix(self, stencil: np.ndarray) -> sp.bsr_matrix:
-        d, n = self.d, self.mesh.n_dofs
-        data = stencil.reshape(-1, d, d)[self.gather]
-        data *= self.keep
-        data[self.constrained_diagonal[0], self.constrained_diagonal[1], self.constrained_diagonal[1]] = 1.0
-        return sp.bsr_matrix((data, self.indices, self.indptr), shape=(n, n))
+    def _matrix(self, blocks: np.ndarray) -> Stencil:
+        mesh = self.mesh
+        blocks = blocks.reshape((-1,) + blocks.shape[-3:])
+        held = Stencil(blocks, mesh.grid.nodes_shape, mesh.grid_to_mesh_node, mesh.nodes, self.linked)
+        stencil.hold(blocks, stencil.grid3(mesh.grid.nodes_shape), held.offsets, mesh.grid_to_mesh_node,
+                     self.constrained)
+        return held

@@ -63,13 +63,21 @@ class TangentSolver:
         self.builds_left = self.settings.max_builds
 
     def invalidate(self):
-        """The next solve rebuilds first (the problem changed, e.g. a new snapshot's phi)."""
+        """The next solve rebuilds first (the problem changed, e.g. a new snapshot's phi); until then the
+        preconditioner holds nothing (the tangent it was built from is as large as the next one)."""
         self.ready = False
+        self.preconditioner.release()
+
+    def detach(self):
+        """The caller is about to drop its tangent for a newer one: the preconditioner keeps what it needs of
+        it (in less memory: `Preconditioner.detach`)."""
+        if self.ready:
+            self.preconditioner.detach()
 
     def constrain(self, constrained: np.ndarray):
         """Other dofs held (the rigid-body pins moved): rebuild on the next solve."""
         self.preconditioner.constrain(constrained)
-        self.ready = False
+        self.invalidate()
 
     def _build(self, A):
         if self.builds_left <= 0:

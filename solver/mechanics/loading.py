@@ -74,9 +74,12 @@ def step_load(system: Callable[[float, float], Callable], linear, u: np.ndarray,
             why = (f"all {settings.max_load_steps} load steps" if left > 0
                    else f"all {settings.max_total_newton} Newton steps") + " spent"
             raise Refused(outcome, s_done, target, why)
-        operator = system(target, s_done)(u, True).matrix  # the start's stress, the target's stiffness
+        if outcome is not None:  # no tangent held while the next is assembled
+            linear.detach()
+            outcome.evaluation.matrix = None
+        # the first operator: the start's stress, the target's stiffness (passed on, not held here)
         outcome = newton(system(target, target), linear, u, reference, tolerance, min(max_newton, left),
-                         settings, operator=operator)
+                         settings, operator=system(target, s_done)(u, True).matrix)
         attempts.steps.append((s_done, target, outcome.converged, outcome.iterations))
         attempts.history.extend(outcome.history)
         if outcome.converged:

@@ -14,6 +14,7 @@ dof = active_node * ndim + component (x, y[, z]).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,11 +100,47 @@ class StructuredMesh:
         index = np.unravel_index(self.nodes, self.grid.nodes_shape)  # ([z,] y, x)
         return np.stack(index[::-1], axis=1) * self.h
 
-    def element_dofs(self) -> np.ndarray:
-        """(elements, corners * ndim) global dofs, local order corner-major, component-minor."""
-        d = self.ndim
-        return (self.connectivity[:, :, None] * d + np.arange(d)).reshape(self.n_elements, -1)
-
     def node_grid_index(self) -> tuple[np.ndarray, ...]:
         """Grid-node multi-index ([z,] y, x) of each mesh node."""
         return np.unravel_index(self.nodes, self.grid.nodes_shape)
+
+    def boxes(self, chunk: int) -> list[Box]:
+        """The grid's cells in boxes of about `chunk` cells, assembled one at a time to bound the temporaries:
+        whole grid planes, or in 3-D, where a plane has more than `chunk` cells, rows of one plane.  Boxes
+        without an open cell are left out."""
+        cells = self.grid.cells_shape
+        plane = math.prod(cells[1:])
+        if plane <= chunk or self.ndim < 3:
+            step = max(1, chunk // plane)
+            leads = [(slice(z, min(z + step, cells[0])),) for z in range(0, cells[0], step)]
+        else:
+            rows = max(1, chunk // cells[2])
+            leads = [(slice(z, z + 1), slice(y, min(y + rows, cells[1])))
+                     for z in range(cells[0]) for y in range(0, cells[1], rows)]
+        found = []
+        for lead in leads:
+            at = lead + tuple(slice(0, n) for n in cells[len(lead):])
+            first = int(np.ravel_multi_index(tuple(s.start for s in at), cells))
+            part = slice(*(int(i) for i in np.searchsorted(self.cells, [first, first + math.prod(
+                s.stop - s.start for s in at)])))
+            if part.start < part.stop:
+                found.append(Box(at, part, first))
+        return found
+
+
+@dataclass(frozen=True)
+class Box:
+    """A block of cells: whole grid planes or rows of one plane, so its cells, and its elements (the open cells,
+    numbered in grid order), are consecutive."""
+
+    at: tuple[slice, ...]  # the cells, per axis ([z,] y, x)
+    part: slice  # its elements
+    first: int  # grid index of its first cell
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(s.stop - s.start for s in self.at)
+
+    def nodes(self, corner) -> tuple[slice, ...]:
+        """The grid nodes at `corner` (offsets in cells, ([z,] y, x)) of each of its cells."""
+        return tuple(slice(s.start + c, s.stop + c) for s, c in zip(self.at, corner))

@@ -6,25 +6,37 @@ discover them, is the `preconditioners.SmoothedAggregation` alternative; the
 two are compared in docs/mechanics.md.)
 
 * Prolongation: (bi/tri)linear interpolation of each displacement component
-  from the coarse nodes, a Kronecker product of 1-D interpolations.  An odd
-  cell count n gets ceil(n/2) coarse cells whose last one reaches past the
-  domain; only its restriction to the domain matters.  Rows of nodes without
-  dofs (inside obstacles) are dropped, rows of constrained dofs zeroed, so the
-  coarse correction never moves a held component.
-* Coarse operators: Galerkin, A_c = P^T A P, in ndim x ndim blocks (BSR):
-  they inherit the coefficient jumps (biofilm/void contrast 1e4) without
-  any averaging rule.
+  from the coarse nodes (`transfer.py`).  An odd cell count n gets ceil(n/2)
+  coarse cells whose last one reaches past the domain; only its restriction
+  to the domain matters.  Nodes without dofs (inside obstacles) take no
+  part, held components are not interpolated to, so the coarse correction
+  never moves them.  A coarse grid's unknowns are its nodes that some fine
+  node interpolates from.  Applied node by node, never stored.
+* Coarse operators: Galerkin, A_c = P^T A P, in ndim x ndim blocks, kept as
+  half stencils like the tangent (`stencil.py`): they inherit the coefficient
+  jumps (biofilm/void contrast 1e4) without any averaging rule.  A coarse
+  unknown whose support is all held gets a unit diagonal.
 * Smoother: Chebyshev polynomials of degree 3 in D^-1 A (D the ndim x ndim
   node blocks of the diagonal), aimed at the upper part [lmax/30, 1.1 lmax]
   of its spectrum (lmax by power iteration), before and after the coarse
   correction: the V-cycle is symmetric, a valid preconditioner for CG.  Each
-  degree costs one block-sparse product; per unit of work it smooths better
+  degree costs one stencil product; per unit of work it smooths better
   than pyamg's block Gauss-Seidel, whose kernel costs several products a
   sweep (fewer CG iterations in less time: benchmarks/mechanics_linear.py).
 * Coarsest level: a sparse factorisation (SuperLU: it has < `coarsest` dofs).
 
-The transfers depend only on the mesh and the constraints and are built
-once; `build(A)` recomputes the operators for a new tangent.
+* Kept while it works (`linear.py`): a V-cycle built from one tangent also
+  serves the next Newton steps' tangents.  It smooths on the tangent it was
+  built from; once the solver drops that tangent for a newer one, the
+  V-cycle keeps its own copy rounded to single precision (`detach`), so that
+  two tangents in double precision are never held at once.  The rounding
+  (relative 6e-8) changes only how well a stale V-cycle preconditions, not
+  what the Krylov solve converges to.
+
+The grids and their unknowns depend only on the mesh and are found once;
+`build(A)` recomputes the operators for a new tangent.  Memory: the coarse
+stencils hold about 1/7 of the fine one's blocks, the smoother's inverse
+diagonal blocks d^2 numbers per node (docs/mechanics.md, "Memory").
 """
 from __future__ import annotations
 
@@ -32,7 +44,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from . import transfer
 from .mesh import StructuredMesh
+from .stencil import Stencil, grid3
 
 
 def superlu(A: sp.spmatrix):
@@ -40,24 +54,15 @@ def superlu(A: sp.spmatrix):
     return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve
 
 
-def interpolation_1d(cells: int) -> sp.csr_matrix:
-    """Linear interpolation from ceil(cells/2) coarse cells to `cells` fine ones: (cells+1, coarse+1)."""
-    fine = np.arange(cells + 1)
-    left = fine // 2
-    odd = fine % 2 == 1
-    rows = np.concatenate([fine, fine[odd]])
-    cols = np.concatenate([left, left[odd] + 1])
-    vals = np.concatenate([np.where(odd, 0.5, 1.0), np.full(odd.sum(), 0.5)])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(cells + 1, (cells + 1) // 2 + 1))
-
-
 class Level:
-    """One grid of the hierarchy: operator (BSR), inverse diagonal blocks, transfers to the next."""
+    """One grid of the hierarchy: its nodes with unknowns, operator, inverse diagonal blocks, smoother bounds."""
 
-    def __init__(self, P: sp.bsr_matrix | None = None):
-        self.P = P  # from the next coarser level
-        self.R = None if P is None else P.T.tobsr(blocksize=P.blocksize[::-1])
-        self.A = None
+    def __init__(self, nodes_shape: tuple[int, ...], node_of: np.ndarray, nodes: np.ndarray, cells: tuple[int, ...]):
+        self.nodes_shape = tuple(nodes_shape)
+        self.node_of = node_of  # (grid nodes,) unknowns' block of each node, -1 without
+        self.nodes = nodes  # (blocks,) grid node of each block
+        self.cells = cells
+        self.A: Stencil | None = None
         self.Dinv = None  # (nodes, d, d) inverse diagonal blocks
         self.bounds = None  # the smoother's target interval of the spectrum of D^-1 A
 
@@ -68,50 +73,77 @@ class Level:
 
 
 class Multigrid:
-    """V-cycle preconditioner: `build(A)` for each new tangent, then call it on residuals."""
+    """V-cycle preconditioner: `build(A)` for each new tangent (a `Stencil` on the mesh's nodes), then call it on
+    residuals."""
 
     def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, coarsest: int, degree: int,
                  ratio: float = 30.0):
         self.d = d = mesh.ndim
         self.degree, self.ratio = degree, ratio
         self.coarse_solve = None
-        self.levels = []
-        shape, nodes = tuple(mesh.grid.cells_shape), mesh.nodes
-        while nodes.size * d > coarsest and max(shape) > 1:
-            P = interpolation_1d(shape[0])
-            for n in shape[1:]:
-                P = sp.kron(P, interpolation_1d(n), format="csr")
-            P = P[nodes]
-            used = np.flatnonzero(np.diff(P.tocsc().indptr))
-            P = sp.kron(P[:, used], sp.identity(d), format="csr")
-            self.levels.append(Level(P.tobsr(blocksize=(d, d))))
-            shape, nodes = tuple((n + 1) // 2 for n in shape), used
-        self.levels.append(Level())
-        self.interpolation = self.levels[0].P if len(self.levels) > 1 else None
+        shape, nodes_shape = tuple(mesh.grid.cells_shape), tuple(mesh.grid.nodes_shape)
+        self.levels = [Level(nodes_shape, mesh.grid_to_mesh_node, mesh.nodes, shape)]
+        while self.levels[-1].nodes.size * d > coarsest and max(shape) > 1:
+            fine = self.levels[-1]
+            used = transfer.parents_used(fine.nodes_shape, fine.node_of)
+            nodes = np.flatnonzero(used)
+            node_of = np.full(used.size, -1, dtype=np.int64)
+            node_of[nodes] = np.arange(nodes.size)
+            shape = tuple((n + 1) // 2 for n in shape)
+            self.levels.append(Level(transfer.coarse_shape(fine.nodes_shape), node_of, nodes, shape))
+        self.free = [np.ones(level.nodes.size * d) for level in self.levels]
         self.constrain(constrained)
 
     def constrain(self, constrained: np.ndarray):
-        """Zero the interpolation's rows of held dofs: a coarse correction never moves them."""
-        if self.interpolation is None:
-            return
-        free = sp.diags((~np.asarray(constrained, bool)).astype(float))
-        P = (free @ self.interpolation).tobsr(blocksize=self.interpolation.blocksize)
-        self.levels[0] = Level(P)
+        """Held fine dofs are not interpolated to: a coarse correction never moves them."""
+        self.free[0] = (~np.asarray(constrained, bool)).astype(float)
 
-    def build(self, A: sp.spmatrix):
+    def build(self, A: Stencil):
         """Galerkin operators and smoother data for tangent A (fine level, identity at constrained dofs)."""
         d = self.d
-        A = A.tobsr(blocksize=(d, d))
-        for level in self.levels[:-1]:
-            A.sort_indices()
-            level.A, level.Dinv = A, _block_diagonal_inverse(A)
+        for depth, level in enumerate(self.levels[:-1]):
+            level.A, level.Dinv = A, np.ascontiguousarray(np.linalg.inv(A.diagonal_blocks()))
             top = 1.1 * _largest_eigenvalue(level)
             level.bounds = (top / self.ratio, top)
-            A = level.R @ (A @ level.P)
-            empty = A.diagonal() == 0  # coarse dofs whose support is all constrained
-            if np.any(empty):
-                A = (A + sp.diags(empty.astype(float))).tobsr(blocksize=(d, d))
-        self.coarse_solve = superlu(A)
+            coarse = self.levels[depth + 1]
+            blocks = np.zeros((coarse.node_of.size,) + A.blocks.shape[1:])
+            transfer.galerkin(A.blocks, grid3(level.nodes_shape), A.offsets, level.node_of, self.free[depth],
+                              grid3(coarse.nodes_shape), blocks)
+            diagonal = blocks[coarse.nodes, 0].reshape(-1, d * d)[:, ::d + 1]  # coarse dofs whose support is
+            empty = np.nonzero(diagonal == 0)  # all constrained: a unit diagonal
+            blocks[coarse.nodes[empty[0]], 0, empty[1], empty[1]] = 1.0
+            A = Stencil(blocks, coarse.nodes_shape, coarse.node_of, coarse.nodes)
+        self.coarse_solve = superlu(A.tobsr())
+
+    def detach(self):
+        """Keep the finest operator (the tangent of the last `build`, which its owner is about to drop) in
+        single precision: a V-cycle built from an older tangent smooths on that one (see the module's
+        docstring), and in half the memory it no longer costs a second tangent beside the next."""
+        fine = self.levels[0]
+        if fine.A is not None and fine.A.blocks.dtype != np.float32:
+            fine.A = fine.A.single()
+
+    def release(self):
+        """Drop the operators of the last `build` (until the next one)."""
+        for level in self.levels:
+            level.A = level.Dinv = level.bounds = None
+        self.coarse_solve = None
+
+    def prolong(self, depth: int, coarse_x: np.ndarray) -> np.ndarray:
+        """P coarse_x: from level depth + 1 to level depth."""
+        fine, coarse = self.levels[depth], self.levels[depth + 1]
+        x = np.zeros(fine.nodes.size * self.d)
+        transfer.prolong(self.d, coarse_x, grid3(coarse.nodes_shape), coarse.node_of, grid3(fine.nodes_shape),
+                         fine.node_of, self.free[depth], x)
+        return x
+
+    def restrict(self, depth: int, x: np.ndarray) -> np.ndarray:
+        """P^T x: from level depth to level depth + 1."""
+        fine, coarse = self.levels[depth], self.levels[depth + 1]
+        coarse_x = np.zeros(coarse.nodes.size * self.d)
+        transfer.restrict(self.d, x, grid3(fine.nodes_shape), fine.node_of, self.free[depth],
+                          grid3(coarse.nodes_shape), coarse.node_of, coarse_x)
+        return coarse_x
 
     def _smooth(self, level: Level, x: np.ndarray, b: np.ndarray, zero: bool = False):
         """`degree` Chebyshev steps on D^-1 A x = D^-1 b, in place (zero: x is 0, saves a product)."""
@@ -136,7 +168,7 @@ class Multigrid:
         level = self.levels[depth]
         x = np.zeros_like(b)
         self._smooth(level, x, b, zero=True)
-        x += level.P @ self(level.R @ (b - level.A @ x), depth + 1)
+        x += self.prolong(depth, self(self.restrict(depth, b - level.A @ x), depth + 1))
         self._smooth(level, x, b)
         return x
 
@@ -150,10 +182,3 @@ def _largest_eigenvalue(level: Level, iterations: int = 12) -> float:
         estimate = np.linalg.norm(w) / np.linalg.norm(v)
         v = w / np.linalg.norm(w)
     return float(estimate)
-
-
-def _block_diagonal_inverse(A: sp.bsr_matrix) -> np.ndarray:
-    d = A.blocksize[0]
-    rows = np.repeat(np.arange(A.shape[0] // d), np.diff(A.indptr))
-    diagonal = A.data[rows == A.indices]
-    return np.ascontiguousarray(np.linalg.inv(diagonal))

@@ -66,7 +66,8 @@ def forcing(r: float, contraction: float | None, target: float, s: Settings) -> 
 
 def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.ndarray, reference: float,
            tolerance: float, max_iterations: int, settings: Settings, operator=None) -> NewtonOutcome:
-    """Iterate from u; evaluate(u, tangent) -> Evaluation, linear.solve(K, rhs, rtol) -> du."""
+    """Iterate from u; evaluate(u, tangent) -> Evaluation, linear.solve(K, rhs, rtol) -> du (and
+    linear.detach() before a newer tangent is assembled)."""
     s = settings
     ev = evaluate(u, operator is None)
     if np.min(ev.min_det) <= 0:
@@ -76,7 +77,7 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
     if r <= tolerance * reference:
         return NewtonOutcome(u, ev, True, 0, history)
     matrix = operator if operator is not None else ev.matrix
-    exact = operator is None  # matrix is the tangent at u
+    exact, operator = operator is None, None  # matrix is the tangent at u; held once
     previous_size = contraction = None
     for k in range(1, max_iterations + 1):
         eta = forcing(r, contraction, tolerance * reference, s)
@@ -98,6 +99,8 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
             step *= 0.5
         else:
             if not exact:  # an operator from elsewhere misled the step: the tangent at u, then again
+                linear.detach()
+                matrix = ev.matrix = None  # no tangent held while the next is assembled
                 ev, exact, contraction = evaluate(u, True), True, None
                 matrix = ev.matrix
                 continue
@@ -114,6 +117,8 @@ def newton(evaluate: Callable[[np.ndarray, bool], Evaluation], linear, u: np.nda
             return NewtonOutcome(u, ev, True, k, history)
         exact = False
         if contraction > s.retangent or step < 1.0:  # slow or damped: the tangent at the iterate
+            linear.detach()
+            matrix = ev.matrix = None  # no tangent held while the next is assembled
             ev, exact = evaluate(u, True), True  # (the residual again: cheaper than a tangent per trial)
             matrix = ev.matrix
     return NewtonOutcome(u, ev, False, max_iterations, history,

@@ -68,8 +68,9 @@ def backend() -> str:
 
 class Preconditioner:
     """What the tangent solver asks of a preconditioner: `build` for a new tangent, `constrain` when other
-    dofs are held, `prepare` for an operator close to the built one, and `follow` for the rigid-body modes
-    of the dense bodies (only a deflated preconditioner uses them: `uses_modes`)."""
+    dofs are held, `prepare` for an operator close to the built one, `detach` before the one it was built
+    from is dropped, `release` when it will be rebuilt anyway, and `follow` for the rigid-body modes of the
+    dense bodies (only a deflated preconditioner uses them: `uses_modes`)."""
 
     name = "preconditioner"
     uses_modes = False
@@ -82,6 +83,13 @@ class Preconditioner:
 
     def prepare(self, A: sp.spmatrix):
         """Nothing to redo for another operator: the built preconditioner serves as it is."""
+
+    def release(self):
+        """Forget what `build` made (it will not be used again before the next `build`)."""
+
+    def detach(self):
+        """The tangent it was built from is about to be dropped by the solver (a newer one comes): keep what
+        solving with the newer one needs, in less memory if possible."""
 
     def follow(self, modes: np.ndarray):
         """Nothing to do with the modes of the bodies (see `Deflated`)."""
@@ -101,6 +109,9 @@ class Direct(Preconditioner):
     def build(self, A: sp.spmatrix):
         self._solve = self._factorise(A.tocsr())
 
+    def release(self):
+        self._solve = None
+
     def constrain(self, constrained: np.ndarray):
         pass  # the factors come from the (constrained) matrix itself
 
@@ -117,6 +128,12 @@ class GeometricMultigrid(Preconditioner):
 
     def build(self, A: sp.spmatrix):
         self.cycle.build(A)
+
+    def release(self):
+        self.cycle.release()
+
+    def detach(self):
+        self.cycle.detach()
 
     def constrain(self, constrained: np.ndarray):
         self.cycle.constrain(constrained)
@@ -145,6 +162,9 @@ class SmoothedAggregation(Preconditioner):
             postsmoother=("block_gauss_seidel", {"sweep": "symmetric"}),
             max_coarse=self.coarsest, coarse_solver="splu", keep=False)
         self._cycle = hierarchy.aspreconditioner(cycle="V")
+
+    def release(self):
+        self._cycle = None
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
         return self._cycle @ r
@@ -177,6 +197,14 @@ class Deflated(Preconditioner):
 
     def constrain(self, constrained: np.ndarray):
         self.inner.constrain(constrained)
+
+    def release(self):
+        self.inner.release()
+        self._A = self._AZ = self._Einv = None
+
+    def detach(self):
+        self.inner.detach()
+        self._A = None  # `prepare` gives the next operator before it is used
 
     def prepare(self, A: sp.spmatrix):
         """The exact part for operator A (k products with A); the inner preconditioner stays."""

@@ -50,7 +50,8 @@ class Settings:
     deflate: bool = False  # solve the rigid motions of floating dense bodies exactly (constraints.body_modes)
 
     # -- assembly and machine --------------------------------------------------------------
-    chunk: int = 4096  # elements per vectorised batch: bounds the temporaries (~40 MB in 3-D)
+    chunk: int = 2048  # cells assembled at once (whole grid planes or rows of one): bounds the temporaries,
+    # which `biostudy.inputs.resources` counts per cell; smaller boxes cost more Python per assembly
     blas_threads: int | None = 1  # BLAS threads during a solve (None: the library's default): the
     # products here are small or tall and thin, and on busy cores threads cost more than they
     # bring (docs/mechanics.md)

@@ -11,9 +11,14 @@ The Laplacian is built once by FiPy (``DiffusionTerm`` on a ``Grid2D``/
 ``Grid3D`` with zero coefficient on faces touching an obstacle, FiPy's
 default zero flux on the outer boundary) and restricted to active cells.
 It is the one matrix both the nutrient and the biofilm equations reuse.
+FiPy's mesh and variables refer to each other, so the arrays they hold (a
+large part of a run's peak memory: docs/transport.md, "How far one machine
+goes") wait for Python's cyclic collector, which counts objects, not bytes;
+on grids of `COLLECT_ABOVE` cells or more they are collected at once.
 """
 from __future__ import annotations
 
+import gc
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +26,8 @@ import scipy.sparse as sp
 
 from ..errors import describe_cell
 from ..problem import Grid
+
+COLLECT_ABOVE = 32**3  # cells: below, FiPy's garbage is small and a full collection costs a small run more
 
 
 @dataclass(frozen=True)
@@ -115,6 +122,9 @@ class FiniteVolumeGrid:
             self._laplacian = sp.csr_matrix(matrix[self.cells][:, self.cells])
             self._laplacian.eliminate_zeros()
             self._laplacian.sort_indices()
+            if self.grid.n_cells >= COLLECT_ABOVE:
+                del mesh, coeff, var, matrix
+                gc.collect()
         return self._laplacian
 
     def to_full(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
