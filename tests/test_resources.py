@@ -207,15 +207,17 @@ def test_the_mechanics_estimate_is_at_least_its_parts_and_grows_with_the_grid(me
 
 
 def test_a_scenes_estimate_is_the_sum_of_its_parts_and_grows_with_its_grid():
-    """The estimate `biostudy show` prints: process, transport, mechanics and outputs add up, each grows with the
+    """The estimate `biostudy show` prints: process, transport, mechanics and outputs add up (the observables of a
+    streamed run are measured after the solver's memory is freed: the larger of the two), each grows with the
     grid, and the mechanics is the solver's own choice of preconditioner ("auto": a factorisation when small, so
     11³ needs more than 16³)."""
     previous = None
     for n in (16, 32, 64, 128, 200):  # multigrid throughout ("auto" beyond `Settings.direct_limit` dofs)
         on, off = (resources.estimate(directional(n, mechanics), streamed=True) for mechanics in (True, False))
-        for found in (on, off):
-            assert found.memory == pytest.approx(resources.PROCESS + found.transport + found.mechanics
-                                                 + found.snapshots)
+        for found in (on, off):  # the observables of a streamed run are measured once the solver is freed
+            assert found.memory == pytest.approx(resources.PROCESS + found.snapshots
+                                                 + max(found.transport + found.mechanics, found.measuring))
+            assert found.memory >= resources.PROCESS + found.transport + found.mechanics + found.snapshots
         assert on.transport == off.transport and off.mechanics == 0 < on.mechanics
         assert on.memory > off.memory
         if previous is not None:

@@ -21,8 +21,10 @@ solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
   Newton vectors; a direct factorisation's fill is larger;
 - outputs: a run that writes its file streams its fields to disk as they
   are made, once they exceed `STREAM_ABOVE` (`streams`, `data.spool`): a few outputs' fields at a time (the one being
-  made, the one being written, the observables' block of at most
-  `BLOCK_BYTES`) and a little bookkeeping per output; a sweep's
+  made, the one being written) and a little bookkeeping per output, and
+  measures its observables from the spool in blocks of at most
+  `BLOCK_BYTES` once `solver.simulate` has returned, when the solver's
+  arrays are freed (`commands.run`): the larger of the two counts; a sweep's
   case, a calibration's simulation and the API's run without a file hold
   every snapshot's fields (phi, c, alpha; p and u with mechanics) about
   three times over (the run's snapshots, the dataset, its encoding or
@@ -83,10 +85,11 @@ class Estimate:
     mechanics: float
     snapshots: float
     disk: float
+    measuring: float = 0.0  # a streamed run's observables, measured from its spool once the solver is freed
 
     @property
     def memory(self) -> float:
-        return PROCESS + self.transport + self.mechanics + self.snapshots
+        return PROCESS + self.snapshots + max(self.transport + self.mechanics, self.measuring)
 
     @property
     def validation(self) -> float:
@@ -94,7 +97,9 @@ class Estimate:
 
     def parts(self) -> str:
         parts = [("transport", self.transport), ("mechanics", self.mechanics), ("outputs", self.snapshots)]
-        return ", ".join(f"{name} {size(value)}" for name, value in parts if value)
+        text = ", ".join(f"{name} {size(value)}" for name, value in parts if value)
+        return text + (f"; then {size(self.measuring)} to measure the outputs, the solver's memory freed"
+                       if self.measuring else "")
 
 
 def size(value: float) -> str:
@@ -119,11 +124,11 @@ def estimate(scene, streamed: bool = False) -> Estimate:
         mechanics = mechanics_memory(linear_solver_for(scene.mechanics.linear_solver, ndim * nodes), ndim, nodes)
         per_output += cells + ndim * nodes  # p, u
     written = 8.0 * per_output * outputs
-    held = COPIES * (written + PER_OUTPUT * outputs)
-    if streamed and written > STREAM_ABOVE:
+    held, measuring = COPIES * (written + PER_OUTPUT * outputs), 0.0
+    if streamed and written > STREAM_ABOVE:  # the observables are measured after `solver.simulate` returned
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
-        held = STREAMED * 8.0 * per_output + BLOCK_COPIES * block + PER_OUTPUT * outputs
-    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written)
+        held, measuring = STREAMED * 8.0 * per_output + PER_OUTPUT * outputs, BLOCK_COPIES * block
+    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring)
 
 
 def tangent_bytes(ndim: int) -> float:
