@@ -89,14 +89,17 @@ def measure(n: int, k: float, changes: list[str]) -> dict:
 def in_run(n: int, steps: int, changes: list[str]) -> dict:
     import biostudy
 
-    # the first version (--baseline) calls it biostudy.catalog; asked for biostudy.bundled, the editable
+    # the first version (--baseline) calls it biostudy.catalog; asked for biostudy.inputs.bundled, the editable
     # install's finder would hand it this version's module, and so this version's scene file
-    if (Path(biostudy.__file__).parent / "bundled.py").exists():
+    if (Path(biostudy.__file__).parent / "inputs" / "bundled.py").exists():
         from biostudy.inputs import bundled
     else:
         from biostudy import catalog as bundled
     from biostudy.inputs.scene import load_scene
-    from solver import Run
+    try:  # `Simulation` since the house was regrouped (0.2.0), `Run` before
+        from solver.timeloop import Simulation as Run
+    except ImportError:
+        from solver import Run
 
     scene = load_scene(bundled.resolve("directional"), [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20 / n!r}",
                                                         f"time.steps={steps}", "time.outputs=6", "mechanics.every=1"])

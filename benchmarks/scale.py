@@ -4,6 +4,7 @@
     python benchmarks/scale.py                                # 32^3 ... 128^3 with mechanics, ... 200^3 without
     python benchmarks/scale.py --sizes 64 --outputs 5 81 --steps 80 --no-mechanics   # streamed outputs (29.1)
     python benchmarks/scale.py --sizes 32 --outputs 5 81 --steps 80 --no-mechanics --baseline /tmp/old
+    python benchmarks/scale.py --sizes 48 96 --set params.k_alpha=5     # fast growth: a harder mechanics solve
 
 The scene: `studies/directional.toml` (paper 4.1, a 20 µm cube) at n^3 cells of 20/n µm, the time step of the
 scene (dt = 1e-3), `--steps` steps, `--outputs` outputs, mechanics as the scene has it (every 4th output and the
@@ -45,6 +46,7 @@ result = command.compute(loaded)
 attrs = result.dataset.attrs
 peak = int(re.search(r"VmHWM:\\s+(\\d+) kB", open("/proc/self/status").read()).group(1)) * 1024
 solves = int(result.dataset.sizes.get("time_mechanics", 0))
+newton = [int(v) for v in result.dataset["newton_iterations"].values if v >= 0] if solves else []
 try:
     estimate = resources.estimate(loaded.scene, streamed=True).memory
 except TypeError:  # a version before outputs streamed (--baseline)
@@ -52,21 +54,22 @@ except TypeError:  # a version before outputs streamed (--baseline)
 loop = sum(float(v) for k, v in attrs.items() if k.startswith("wall_time_"))  # the time loop's own parts
 print(json.dumps({"wall": time.perf_counter() - began, "run": loop,
                   "mechanics": float(attrs.get("wall_time_mechanics", 0.0)), "steps": int(attrs["steps_taken"]),
-                  "solves": solves, "peak": peak, "estimate": estimate}))
+                  "solves": solves, "newton": newton, "peak": peak, "estimate": estimate}))
 """
 
 
-def overrides(n: int, steps: int, outputs: int, mechanics: bool) -> list[str]:
+def overrides(n: int, steps: int, outputs: int, mechanics: bool, extra: tuple[str, ...] = ()) -> list[str]:
     return [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20.0 / n!r}", f"time.steps={steps}",
-            f"time.t_end={steps * 1e-3!r}", f"time.outputs={outputs}", f"mechanics.enabled={str(mechanics).lower()}"]
+            f"time.t_end={steps * 1e-3!r}", f"time.outputs={outputs}", f"mechanics.enabled={str(mechanics).lower()}",
+            *extra]
 
 
-def case(n: int, steps: int, outputs: int, mechanics: bool) -> dict:
+def case(n: int, steps: int, outputs: int, mechanics: bool, extra: tuple[str, ...] = ()) -> dict:
     """One run in a fresh process, its dataset written to a temporary directory (removed after)."""
     with tempfile.TemporaryDirectory() as directory:
         child = CHILD.replace("SCENE", repr(str(SCENE)))
         done = subprocess.run([sys.executable, "-c", child, str(Path(directory) / "run.nc"),
-                               *overrides(n, steps, outputs, mechanics)],
+                               *overrides(n, steps, outputs, mechanics, extra)],
                               capture_output=True, text=True, env={"BIOSTUDY_MEMORY": "1 TB", **_env()},
                               cwd=directory)  # not this tree: `python -c` puts the working directory first
     if done.returncode:
@@ -110,6 +113,8 @@ def main() -> None:
     parser.add_argument("--outputs", type=int, nargs="*", default=[5])
     parser.add_argument("--no-mechanics", action="store_true", help="only runs without mechanics")
     parser.add_argument("--memory", type=float, default=24e9, help="bytes of memory for the largest fitting n")
+    parser.add_argument("--set", dest="extra", action="append", default=[], metavar="KEY=VALUE",
+                        help="another override of the scene, e.g. params.k_alpha=5 (fast growth)")
     parser.add_argument("--baseline", default="", help="run another version's tree instead (e.g. before streaming: "
                                                        "git archive 55c9f28 | tar -x -C /tmp/old)")
     args = parser.parse_args()
@@ -129,13 +134,14 @@ def main() -> None:
         for n in sizes:
             for outputs in args.outputs:
                 began = time.perf_counter()
-                found = case(n, args.steps, outputs, mechanics)
+                found = case(n, args.steps, outputs, mechanics, tuple(args.extra))
                 transport = (found["run"] - found["mechanics"]) / max(found["steps"], 1)
                 per_solve = found["mechanics"] / found["solves"] if found["solves"] else float("nan")
                 start = found["wall"] - found["run"]
                 print(f"{n:>6} {'on' if mechanics else 'off':>4} {outputs:>7} {1e3 * transport:>8.1f} "
                       f"{per_solve:>8.2f} {start:>8.1f} {found['peak'] / 1e9:>8.2f} {found['estimate'] / 1e9:>11.2f} "
-                      f"{found['peak'] / found['estimate']:>8.2f}   ({time.perf_counter() - began:.0f} s)",
+                      f"{found['peak'] / found['estimate']:>8.2f}   ({time.perf_counter() - began:.0f} s"
+                      f"{', Newton steps ' + str(found['newton']) if found.get('newton') else ''})",
                       flush=True)
     for mechanics in (True, False):
         n = largest_fitting(args.memory, mechanics, max(args.outputs))

@@ -195,12 +195,15 @@ def test_the_mechanics_model_holds_the_tangent_the_solver_allocates():
 @pytest.mark.parametrize("method", ["multigrid", "amg", "direct"])
 @pytest.mark.parametrize("ndim", [2, 3])
 def test_the_mechanics_estimate_is_at_least_its_parts_and_grows_with_the_grid(method, ndim):
+    """Per node the solver holds at least the tangent and, at a Newton step that reassembles it, the kept
+    V-cycle's single-precision copy (1.5 tangents); pyamg and a factorisation copy both triangles besides (3)."""
     sizes = [10**k for k in range(2, 8)]
     found = [resources.mechanics_memory(method, ndim, n) for n in sizes]
     assert all(b > a for a, b in zip(found, found[1:]))
     fixed = resources.MECHANICS_IMPORTS + resources.ASSEMBLY_PER_CELL[ndim] * 1
+    tangents = {"multigrid": 1.5, "amg": 3.0, "direct": 3.0}[method]
     for n, value in zip(sizes, found):
-        assert value >= fixed + n * resources.tangent_bytes(ndim)
+        assert value >= fixed + n * tangents * resources.tangent_bytes(ndim)
     # a factorisation's fill is the largest, the geometric multigrid the smallest
     per_node = {m: resources.MECHANICS_PER_NODE[(m, ndim)] for m in ("multigrid", "amg", "direct")}
     assert per_node["multigrid"] < per_node["amg"] < per_node["direct"]

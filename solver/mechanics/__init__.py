@@ -4,9 +4,11 @@ One file per concept:
   material         energy, stress coefficients and tangent at quadrature points (pure functions)
   mesh             the transport grid as a Q1 mesh (scikit-fem reference element)
   assembly         residual and consistent tangent, vectorised over elements
+  stencil          the tangent's storage: half a stencil of blocks on the grid's nodes, its product
   constraints      clamp / slide faces, obstacles, rigid-body modes
   pressure         the dataset's pressure: Q1/P0 element values or recovered without checkerboards
   multigrid        geometric multigrid V-cycle on the structured grid
+  transfer         its interpolation, restriction and Galerkin operator, node by node
   preconditioners  direct, multigrid, smoothed aggregation, deflation (build, then apply)
   linear           scipy's Krylov solvers around a reused preconditioner
   newton           safeguarded, capped Newton iteration

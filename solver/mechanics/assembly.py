@@ -2,8 +2,8 @@
 
 Apart from solving: given nodal displacements and per-element data (weight
 w, growth Jg), return the internal-force vector, the exact tangent as a
-block-sparse (BSR, ndim x ndim blocks) matrix on a pattern fixed at
-construction, and per-element pressure and volume ratios.
+symmetric stencil of ndim x ndim blocks on the grid's nodes (`stencil.py`),
+and per-element pressure and volume ratios.
 
 Element quantities (mean dilatation, paper section 3 and Table 1 steps 5-7),
 with g_ai = G_iJ dN_a/dX_J, f_ai = F_iJ dN_a/dX_J at each Gauss point q:

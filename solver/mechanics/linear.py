@@ -1,6 +1,7 @@
 """Linear solves of the Newton steps: scipy's Krylov methods around a preconditioner kept while it works.
 
-`TangentSolver.solve(A, b, rtol)` returns x with |b - A x| <= rtol |b| (the
+`TangentSolver.solve(A, b, rtol)` (A the tangent: a `stencil.Stencil`, or any
+matrix or operator with a product) returns x with |b - A x| <= rtol |b| (the
 plain residual: what inexact Newton's forcing term bounds, and what Newton's
 own stopping test reads):
 
@@ -16,7 +17,10 @@ own stopping test reads):
    stopped.
 3. A preconditioner built from an older tangent is kept while the solve needs
    at most `Settings.rebuild_after` iterations; past that it is rebuilt from
-   A (once per solve) and the solve continues from its iterate.
+   A (once per solve) and the solve continues from its iterate.  Before the
+   caller drops the tangent it was built from, `detach` lets it keep what it
+   needs in less memory (the multigrid: that tangent in single precision);
+   a new snapshot's is released (`invalidate`), since it will be rebuilt.
 
 A solve that still misses rtol is accepted if it cut the residual by
 `Settings.accept_inexact` (Newton copes with inexact steps), else it raises
@@ -27,7 +31,6 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .settings import Settings
@@ -87,7 +90,7 @@ class TangentSolver:
         self.builds_left -= 1
         self.ready, self.source = True, weakref.ref(A)
 
-    def solve(self, A: sp.spmatrix, b: np.ndarray, rtol: float) -> np.ndarray:
+    def solve(self, A, b: np.ndarray, rtol: float) -> np.ndarray:
         """x with |b - A x| <= rtol |b| (or an inexact step, see the module docstring)."""
         s = self.settings
         b_norm = np.linalg.norm(b)

@@ -16,8 +16,8 @@ multigrid.  The product runs in one compiled pass over the nodes (numba); a
 BSR matrix of the same blocks is made on request for a factorisation or
 pyamg (`tobsr`), on the pattern of node pairs an open cell links (`linked`).
 
-Slots: h = 0 is the diagonal, h > 0 the neighbour at `OFFSETS[ndim][h]`
-((z, y, x) steps, z = 0 in 2-D), in C order of the offsets.
+Slots: h = 0 is the diagonal, h > 0 the neighbour at `offsets(ndim)[h]`
+((z, y, x) steps, z = 0 in 2-D), in C order of the steps.
 """
 from __future__ import annotations
 
@@ -83,7 +83,8 @@ class Stencil:
         return self.blocks[self.nodes, 0]
 
     def tobsr(self, blocksize=None) -> sp.bsr_matrix:
-        """The same operator as a BSR matrix (rows and columns sorted), both triangles."""
+        """The same operator as a BSR matrix of its d x d blocks (whatever `blocksize` asks, as scipy's own
+        `tobsr` is called), both triangles, rows and columns sorted."""
         shape = grid3(self.nodes_shape)
         index = np.unravel_index(self.nodes, tuple(shape))
         rows, cols, data = [], [], []
@@ -112,7 +113,7 @@ class Stencil:
 
 
 def apply(blocks, shape, steps, node_of, x, y):
-    """y += A x (the 3-D kernel written out for 3x3 blocks: twice as fast as the loops over components)."""
+    """y += A x (in 3-D by a kernel written out for 3x3 blocks: numba leaves the loops over components rolled)."""
     (_apply3 if blocks.shape[2] == 3 else _apply)(blocks, shape, steps, _linear(steps, shape), node_of, x, y)
 
 

@@ -34,16 +34,17 @@ def parents_used(nodes_shape: tuple[int, ...], node_of: np.ndarray) -> np.ndarra
 
 
 @jit
-def _all_parents(iz, iy, ix, coarse, weights, index):
-    """Coarse grid nodes and weights of the fine node (iz, iy, ix) into `index`, `weights`; how many.
-
-    Along an axis: fine i even lies on coarse i/2 (weight 1), odd halfway between i//2 and i//2 + 1."""
+def _parents(iz, iy, ix, coarse, weights, points, index):
+    """The coarse parents of the fine node (iz, iy, ix): their weights, (z, y, x) points and grid indices into
+    the arrays given; how many.  Along an axis fine i lies on coarse i/2 when even (weight 1), else halfway
+    between i//2 and i//2 + 1."""
     wz, wy, wx = 1.0 - 0.5 * (iz % 2), 1.0 - 0.5 * (iy % 2), 1.0 - 0.5 * (ix % 2)
     count = 0
     for a in range(1 + iz % 2):
         for b in range(1 + iy % 2):
             for c in range(1 + ix % 2):
-                index[count] = ((iz // 2 + a) * coarse[1] + iy // 2 + b) * coarse[2] + ix // 2 + c
+                points[count, 0], points[count, 1], points[count, 2] = iz // 2 + a, iy // 2 + b, ix // 2 + c
+                index[count] = (points[count, 0] * coarse[1] + points[count, 1]) * coarse[2] + points[count, 2]
                 weights[count] = wz * wy * wx
                 count += 1
     return count
@@ -51,27 +52,27 @@ def _all_parents(iz, iy, ix, coarse, weights, index):
 
 @jit
 def _mark(shape, node_of, coarse, used):
-    weights, index = np.empty(8), np.empty(8, np.int64)
+    weights, points, index = np.empty(8), np.empty((8, 3), np.int64), np.empty(8, np.int64)
     for iz in range(shape[0]):
         for iy in range(shape[1]):
             for ix in range(shape[2]):
                 if node_of[(iz * shape[1] + iy) * shape[2] + ix] < 0:
                     continue
-                for p in range(_all_parents(iz, iy, ix, coarse, weights, index)):
+                for p in range(_parents(iz, iy, ix, coarse, weights, points, index)):
                     used[index[p]] = True
 
 
 @jit
 def prolong(d, coarse_x, coarse, coarse_of, shape, node_of, free, x):
     """x += P coarse_x: fine rows with unknowns, held components (free = 0) untouched."""
-    weights, index = np.empty(8), np.empty(8, np.int64)
+    weights, points, index = np.empty(8), np.empty((8, 3), np.int64), np.empty(8, np.int64)
     for iz in range(shape[0]):
         for iy in range(shape[1]):
             for ix in range(shape[2]):
                 m = node_of[(iz * shape[1] + iy) * shape[2] + ix]
                 if m < 0:
                     continue
-                for p in range(_all_parents(iz, iy, ix, coarse, weights, index)):
+                for p in range(_parents(iz, iy, ix, coarse, weights, points, index)):
                     c = coarse_of[index[p]]
                     for i in range(d):
                         x[m * d + i] += weights[p] * free[m * d + i] * coarse_x[c * d + i]
@@ -80,14 +81,14 @@ def prolong(d, coarse_x, coarse, coarse_of, shape, node_of, free, x):
 @jit
 def restrict(d, x, shape, node_of, free, coarse, coarse_of, coarse_x):
     """coarse_x += P^T x."""
-    weights, index = np.empty(8), np.empty(8, np.int64)
+    weights, points, index = np.empty(8), np.empty((8, 3), np.int64), np.empty(8, np.int64)
     for iz in range(shape[0]):
         for iy in range(shape[1]):
             for ix in range(shape[2]):
                 m = node_of[(iz * shape[1] + iy) * shape[2] + ix]
                 if m < 0:
                     continue
-                for p in range(_all_parents(iz, iy, ix, coarse, weights, index)):
+                for p in range(_parents(iz, iy, ix, coarse, weights, points, index)):
                     c = coarse_of[index[p]]
                     for i in range(d):
                         coarse_x[c * d + i] += weights[p] * free[m * d + i] * x[m * d + i]
@@ -103,6 +104,7 @@ def galerkin(blocks, shape, steps, node_of, free, coarse, coarse_blocks):
     d = blocks.shape[2]
     nz, ny, nx = shape[0], shape[1], shape[2]
     wf, fi, wg, gi = np.empty(8), np.empty((8, 3), np.int64), np.empty(8), np.empty((8, 3), np.int64)
+    index = np.empty(8, np.int64)
     block = np.empty((d, d))
     for iz in range(nz):
         for iy in range(ny):
@@ -111,7 +113,7 @@ def galerkin(blocks, shape, steps, node_of, free, coarse, coarse_blocks):
                 m = node_of[g]
                 if m < 0:
                     continue
-                kf = _parent_points(iz, iy, ix, wf, fi)
+                kf = _parents(iz, iy, ix, coarse, wf, fi, index)
                 for h in range(steps.shape[0]):
                     jz, jy, jx = iz + steps[h, 0], iy + steps[h, 1], ix + steps[h, 2]
                     if not inside(jz, jy, jx, shape):
@@ -126,7 +128,7 @@ def galerkin(blocks, shape, steps, node_of, free, coarse, coarse_blocks):
                             nonzero |= block[i, k] != 0.0
                     if not nonzero:
                         continue
-                    kg = _parent_points(jz, jy, jx, wg, gi)
+                    kg = _parents(jz, jy, jx, coarse, wg, gi, index)
                     for a in range(kf):
                         first = (fi[a, 0] * coarse[1] + fi[a, 1]) * coarse[2] + fi[a, 2]
                         for b in range(kg):
@@ -146,17 +148,3 @@ def galerkin(blocks, shape, steps, node_of, free, coarse, coarse_blocks):
                                 for i in range(d):
                                     for k in range(d):
                                         coarse_blocks[second, 13 - code, i, k] += w * block[k, i]
-
-
-@jit
-def _parent_points(iz, iy, ix, weights, points):
-    """Coarse parents of the fine node (iz, iy, ix) as (z, y, x) points, with their weights; how many."""
-    wz, wy, wx = 1.0 - 0.5 * (iz % 2), 1.0 - 0.5 * (iy % 2), 1.0 - 0.5 * (ix % 2)
-    count = 0
-    for a in range(1 + iz % 2):
-        for b in range(1 + iy % 2):
-            for c in range(1 + ix % 2):
-                points[count, 0], points[count, 1], points[count, 2] = iz // 2 + a, iy // 2 + b, ix // 2 + c
-                weights[count] = wz * wy * wx
-                count += 1
-    return count
