@@ -125,7 +125,8 @@ def test_more_workers_do_not_change_the_path():
     wide = least_squares(np.array([[0.2, 0.7]]), objective(residuals_of(data), workers=16))
     np.testing.assert_array_equal(serial.best.x, wide.best.x)
     for a, b in zip(serial.profiles, wide.profiles):
-        np.testing.assert_array_equal(a.u, b.u) and np.testing.assert_array_equal(a.chi2, b.chi2)
+        np.testing.assert_array_equal(a.u, b.u)
+        np.testing.assert_array_equal(a.chi2, b.chi2)
 
 
 def test_an_error_in_a_round_ends_every_fit():

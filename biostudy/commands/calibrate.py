@@ -34,7 +34,8 @@ from ..reports.calibration import dataset, table_text
 from ..reports.petab import simulation_table
 from .finished import Finished
 
-PICTURES = {"profiles": "calibration_profiles.png", "posterior": "calibration_corner.png"}  # per method product
+PICTURES = {"profiles": ("calibration_profiles.png", profiles_figure),  # per method product: file, figure
+            "posterior": ("calibration_corner.png", corner_figure)}
 SIMULATIONS = "simulation.tsv"  # PEtab's simulation table
 
 
@@ -57,7 +58,7 @@ class Calibrate:
     def reports(self) -> tuple[str, ...]:
         """The report and the pictures this calibration writes beside calibration.nc."""
         products = self.plan.spec.method.method().products
-        return ("calibration.md", "calibration_fit.png", *(PICTURES[p] for p in products))
+        return ("calibration.md", "calibration_fit.png", *(PICTURES[p][0] for p in products))
 
     def run(self, execution: Execution = Execution()) -> Finished:
         """Fit, write DIR/calibration.nc, calibration.md, the pictures and simulation.tsv; the table is the
@@ -89,9 +90,9 @@ class Calibrate:
             writing.write_atomic(ds, self.directory / "calibration.nc")
             claims.write_report(self.directory / "calibration.md", table)
             save(fit_figure(ds), self.directory / "calibration_fit.png")
-            pictures = {"profiles": profiles_figure, "posterior": corner_figure}
             for product in method.products:
-                save(pictures[product](ds), self.directory / PICTURES[product])
+                name, figure = PICTURES[product]
+                save(figure(ds), self.directory / name)
             claims.write_digested(self.directory / SIMULATIONS, simulations, before, "calibration.nc")
         summary = (f"{len(runs.ran)} simulations run, {len(runs.reused)} reused (finished before); "
                    f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}, {SIMULATIONS}")
@@ -100,9 +101,7 @@ class Calibrate:
 
     @staticmethod
     def _cost(runs: Evaluator, result: Result, began: float) -> dict[str, float]:
-        spent = runs.cost()
-        cost = {**{k: spent[k] for k in ("simulations", "simulations_reused", "rounds")},
-                "wall_time": time.perf_counter() - began, **spent}
+        cost = {**runs.cost(), "wall_time": time.perf_counter() - began}
         if result.posterior is not None:
             cost["wall_time_sampling"] = result.posterior.seconds
         return cost

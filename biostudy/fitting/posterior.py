@@ -177,7 +177,7 @@ def _fill_box(objective: Objective, centre: np.ndarray, standard_error: np.ndarr
     """Steps 1-3: the design in the box, the first pass on its surrogate, the box widened where the first pass
     finds it cutting the posterior; returns the box, the last first pass and how often it was widened."""
     low, high = box(centre, standard_error, options.box)
-    known = [(p, r) for p, r in objective.known()]
+    known = objective.known()
     count = options.design
     for widening in range(WIDENINGS + 1):
         design = low + (high - low) * qmc.LatinHypercube(d=objective.k, scramble=True,
@@ -189,14 +189,14 @@ def _fill_box(objective: Objective, centre: np.ndarray, standard_error: np.ndarr
             _, first = _first_pass(training.runs, low, high, centre, standard_error, options, rng, False)
         cut = _cut(first.samples, low, high)
         if not cut or widening == WIDENINGS:
-            return low, high, first, widening
+            break
         for j, side in cut:  # that side's distance from the estimate doubled, within the bounds
             if side < 0:
                 low[j] = max(0.0, centre[j] - 2 * (centre[j] - low[j]))
             else:
                 high[j] = min(1.0, centre[j] + 2 * (high[j] - centre[j]))
         count = max(objective.k + 2, options.design // 2)
-    raise AssertionError("unreachable")
+    return low, high, first, widening
 
 
 def _held_out(objective: Objective, surrogate: Surrogate, picked: np.ndarray, training: _Training,
