@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from biostudy.inputs.substratum_face import default_face
 from biostudy.quantities import substratum as sub
 from biostudy.quantities.substratum import substratum_observables as observe
 from solver.problem import FACES
@@ -342,7 +341,6 @@ def test_table_names_units_and_functions():
     for q in sub.QUANTITIES.values():
         assert q.long_name
         assert q.compute(phi, 1.0, "z-") == pytest.approx(together[q.name], rel=1e-12)
-    assert default_face(3) == "z-" and default_face(2) == "y-"
 
 
 # ---- the scene's [substratum], recorded in the datasets; a vanished dense biofilm ---------------------------------
