@@ -2,7 +2,11 @@
 
 The model clock takes nominal steps dt = t_end / steps (or error-controlled
 steps, see `numerics.time_tolerance`); the output clock is the list of
-output times, which steps land on exactly.  A step that fails (linear solver
+output times, which steps land on exactly.  No step lets the growth front
+cross more than one cell (`transport.courant`): a longer one is split into
+equal substeps (`steps_substepped`), so that few steps and many give the
+same answer to within the scheme's time error; `courant_max` is the largest
+Courant number a run took.  A step that fails (linear solver
 not converged, NaN, bounds) is bisected, as in the paper, until the step
 would fall below t_end / max_substeps (paper: 1e6); then the run stops with a
 `SimulationError` naming time, cause and place.  After a bisection the step
@@ -15,7 +19,9 @@ and OpenBLAS's threads, when the cores are busy with anything else, turned a
 
 `evolve` is a generator of `Snapshot`s (one per output time) that tests can
 step with ``next()``; `simulate` runs it to the end and returns the dataset,
-each output's fields handed to an output sink as they are made (`sink`).
+each output's fields handed to an output sink as they are made (`sink`).  A
+run that stops (`SimulationError`) keeps what it computed: the error carries
+the dataset of the outputs made and the last state accepted (`partial`).
 Mechanics (if the problem asks for it) is solved only at output times:
 nothing feeds back from it into phi or c.
 """
@@ -30,11 +36,12 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .counters import Counters, declared
-from .errors import SimulationError, StepFailure
+from .errors import Runaway, SimulationError, StepFailure
 from .problem import Problem
 from .sink import Held, OutputSink
 from .snapshot import Snapshot
 from .transport import State, Transport
+from .transport.courant import within_limit
 
 
 @dataclass(frozen=True)
@@ -95,8 +102,8 @@ class Clock:
         self.smallest = problem.t_end / problem.numerics.max_substeps
         self.tolerance = problem.numerics.time_tolerance
         self.dt = min(problem.first_step or self.nominal, self.nominal)  # a continuation goes on with its step
-        self.steps = self.bisections = self.rejected = 0
-        self.largest_error = 0.0
+        self.steps = self.bisections = self.rejected = self.substepped = 0
+        self.largest_error = self.courant_max = 0.0
         self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
         self.cpu = CpuTime()
 
@@ -104,6 +111,8 @@ class Clock:
         return {"steps_taken": self.steps,
                 "steps_bisected": self.bisections,
                 "steps_rejected": self.rejected,
+                "steps_substepped": self.substepped,
+                "courant_max": self.courant_max,
                 "largest_step_error": self.largest_error,
                 "next_step": self.dt}
 
@@ -114,6 +123,7 @@ class Clock:
             dt = min(self.dt, until - state.t)
             if until - (state.t + dt) < 1e-6 * dt:
                 dt = until - state.t
+            dt, split = within_limit(dt, self.limit_rate(state))
             try:
                 with self.cpu.spent():
                     new = self._attempt(state, dt)
@@ -131,16 +141,26 @@ class Clock:
                 continue
             state = new if abs(new.t - until) > eps else replace(new, t=until)
             self.steps += 1
+            self.substepped += split
+            self.courant_max = max(self.courant_max, state.courant)
+            runaway = self.transport.runaway(state)
+            if runaway is not None:
+                raise _stopped(Runaway(state.t, *runaway), state)
             if self.progress is not None:
                 self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected,
                                        self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
                                        self.mechanics_left, self.outputs))
         return state
 
+    def limit_rate(self, state: State) -> float:
+        """1/T*: the longest step the scheme allows from `state` is LIMIT over it (`transport.courant`): the front
+        crosses at most one cell, and the explicit expansion source (k_alpha alpha^n) grows at most e-fold."""
+        return max(self.transport.velocity(state)[1], self.transport.problem.params.k_alpha)
+
     def _check_smallest(self, state: State, dt: float, cause: str, where: str):
         if dt < self.smallest * (1 - 1e-9):
-            raise SimulationError(state.t, f"{cause} (step bisected below t_end/max_substeps = "
-                                           f"{self.smallest:.3g})", where)
+            raise _stopped(SimulationError(state.t, f"{cause} (step bisected below t_end/max_substeps = "
+                                                    f"{self.smallest:.3g})", where), state)
 
     def _attempt(self, state: State, dt: float) -> State:
         if self.tolerance is None:
@@ -151,6 +171,7 @@ class Clock:
         full = self.transport.step(state, dt, with_nutrient=False)
         half = self.transport.step(state, 0.5 * dt)
         two = self.transport.step(half, 0.5 * dt)
+        two = replace(two, courant=max(half.courant, two.courant))  # the largest of the two half steps
         error = float(np.max(np.abs(two.phi - full.phi), initial=0.0))
         if error > self.tolerance:
             raise _Rejected(error)
@@ -159,6 +180,12 @@ class Clock:
         if dt >= self.dt * (1 - 1e-9):
             self.dt = dt * factor
         return two
+
+
+def _stopped(error: SimulationError, state: State) -> SimulationError:
+    """`error` with the last state the clock accepted, for the caller to keep (errors.SimulationError)."""
+    error.last = state
+    return error
 
 
 def _mechanics(problem: Problem):
@@ -199,19 +226,31 @@ class Simulation:
             if index < first:
                 continue
             clock.mechanics_left = sum(i >= index for i in solved_at)
-            with threadpool_limits(limits=1, user_api="blas"):
-                state = clock.advance(state, float(when))
-            assert state.c is not None  # an accepted step ends with its nutrient solved
-            snapshot = Snapshot(
-                time=float(when), phi=transport.full(state.phi), c=transport.full(state.c),
-                alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
-                rejected=clock.rejected, elapsed=0.0,
-            )
+            try:
+                with threadpool_limits(limits=1, user_api="blas"):
+                    state = clock.advance(state, float(when))
+            except SimulationError as error:  # the last state accepted is kept (errors.SimulationError)
+                if error.last is not None and error.last.t > state.t and error.last.c is not None:
+                    error.stopped = self._snapshot(error.last, error.last.t)
+                raise
+            snapshot = self._snapshot(state, float(when))
             if self._solves_mechanics(index, last):
-                self._solve_mechanics(snapshot)
+                try:
+                    self._solve_mechanics(snapshot)
+                except SimulationError as error:  # the output's transport fields are kept, without u and p
+                    error.stopped = snapshot
+                    raise
                 clock.mechanics_solves += 1
             snapshot.elapsed = time.perf_counter() - self.started
             yield snapshot
+
+    def _snapshot(self, state: State, when: float) -> Snapshot:
+        """The fields of `state` as grid arrays, with the clock's counters."""
+        transport, clock = self.transport, self.clock
+        assert state.c is not None  # an accepted step ends with its nutrient solved
+        return Snapshot(time=when, phi=transport.full(state.phi), c=transport.full(state.c),
+                        alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
+                        rejected=clock.rejected, elapsed=time.perf_counter() - self.started)
 
     def _solves_mechanics(self, index: int, last: int) -> bool:
         """Whether u and p are solved at output `index` (every `mechanics.every`-th, and the last)."""
@@ -248,7 +287,15 @@ def simulate(problem: Problem, progress: Callable[[Progress], None] | None = Non
     sink = Held() if sink is None else sink
     simulation = Simulation(problem, progress)
     records = []
-    for snapshot in simulation:
-        records.append(record(problem, snapshot))
-        sink.add(snapshot)
+    try:
+        for snapshot in simulation:
+            records.append(record(problem, snapshot))
+            sink.add(snapshot)
+    except SimulationError as error:  # what was computed: every output made, and the state where it stopped
+        if error.stopped is not None:
+            records.append(record(problem, error.stopped))
+            sink.add(error.stopped)
+        if records:
+            error.partial = assemble(problem, records, sink.fields(), simulation.report())
+        raise
     return assemble(problem, records, sink.fields(), simulation.report())

@@ -10,12 +10,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from rich.console import Group
+from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
 from solver.problem import parameter_infos
 
 from ..data import real_time
+from ..data.incomplete import INCOMPLETE
 from ..formatting import number, units_text
 from ..inputs.substratum_face import LEFT_OUT
 from ..quantities.saturation import SATURATION, saturated
@@ -113,7 +115,7 @@ def _cost(attrs: dict) -> str:
         return text
     text += f", steps {attrs['steps_taken']} taken, {attrs.get('steps_bisected', '-')} bisected"
     if "steps_substepped" in attrs:
-        text += f", {attrs['steps_substepped']} shortened to the Courant limit"
+        text += f", {attrs['steps_substepped']} shortened to the scheme's limit"
     if "courant_max" in attrs:
         text += f", largest Courant number {number(attrs['courant_max'], 3)}"
     return text
@@ -126,9 +128,11 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
     rows = _header(attrs)
     if status != "done":
         rows.append(("status", f"[red]{status}[/red]: {attrs.get('message', '')}"))
+    elif attrs.get(INCOMPLETE):
+        rows.append(("status", f"[red]incomplete[/red]: {escape(str(attrs[INCOMPLETE]))}"))
     rows += [
         ("run", _cost(attrs)),
-        ("COMSTAT", str(attrs.get(LEFT_OUT, ""))),
+        ("COMSTAT", escape(str(attrs.get(LEFT_OUT, "")))),
         ("created", str(attrs.get("created", ""))),
         ("software", _software(attrs)),
     ]

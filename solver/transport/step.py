@@ -21,8 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..counters import Counters
-from ..problem import Problem
+from ..problem import Parameters, Problem
+from .bounds import CEILING, Expansion, model_bound
 from .biofilm import Biofilm
+from .courant import courant_rate
 from .expansion import grow
 from .finite_volume import FiniteVolumeGrid
 from .nutrient import Nutrient
@@ -41,6 +43,8 @@ class State:
     c_rate: np.ndarray | None = None
     c_span: float = 0.0
     c_curvature: np.ndarray | None = None
+    courant: float = 0.0  # the Courant number of the step that led here (courant.py)
+    expansion: Expansion | None = None  # the largest phi and alpha the model allows by t (bounds.py)
 
     def c_guess(self, dt: float) -> np.ndarray | None:
         """c extrapolated to t + dt: Newton's parabola through the last three c's, or the line through the
@@ -51,13 +55,14 @@ class State:
             return self.c + dt * self.c_rate
         return self.c + dt * (self.c_rate + (dt + self.c_span) * self.c_curvature)
 
-    def after(self, dt: float, phi: np.ndarray, alpha: np.ndarray, c: np.ndarray) -> State:
+    def after(self, dt: float, phi: np.ndarray, alpha: np.ndarray, c: np.ndarray, courant: float = 0.0,
+              expansion: Expansion | None = None) -> State:
         """The state dt later with these fields, its c's rate and curvature updated."""
         if self.c is None:
-            return State(self.t + dt, phi, alpha, c)
+            return State(self.t + dt, phi, alpha, c, courant=courant, expansion=expansion)
         rate = (c - self.c) / dt
         curvature = None if self.c_rate is None else (rate - self.c_rate) / (dt + self.c_span)
-        return State(self.t + dt, phi, alpha, c, rate, dt, curvature)
+        return State(self.t + dt, phi, alpha, c, rate, dt, curvature, courant, expansion)
 
 
 class Transport:
@@ -71,6 +76,7 @@ class Transport:
         self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces)
         self.timings = defaultdict(float)
         self.largest_numerical_diffusion = 0.0
+        self._velocity: tuple[State, list[np.ndarray], float] | None = None  # of the last state stepped from
 
     def initial(self) -> State:
         """The state at the problem's start: from rest (alpha = 0, c solved for phi0) or, continuing a run,
@@ -79,7 +85,7 @@ class Transport:
         phi = self.fv.to_active(problem.phi0)
         alpha = np.zeros_like(phi) if problem.alpha0 is None else self.fv.to_active(problem.alpha0)
         c = self._nutrient(phi, None) if problem.c0 is None else self.fv.to_active(problem.c0)
-        return State(problem.start_time, phi, alpha, c)
+        return State(problem.start_time, phi, alpha, c, expansion=Expansion.initially(phi, alpha))
 
     def _nutrient(self, phi, guess):
         start = time.perf_counter()
@@ -87,25 +93,55 @@ class Transport:
         self.timings["nutrient"] += time.perf_counter() - start
         return c
 
+    def velocity(self, state: State) -> tuple[list[np.ndarray], float]:
+        """The face velocities from `state` (c^n, and phi^n for the front velocity) and the Courant number of a
+        unit step with them (1/T*; `courant.courant_rate`), kept for the step from that state."""
+        if self._velocity is None or self._velocity[0] is not state:
+            start = time.perf_counter()
+            w = self.biofilm.velocity(state.c, state.phi)
+            if not self.biofilm.tvd:  # upwind's own estimate; TVD's is smaller and has no such formula
+                self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
+                                                       self.biofilm.numerical_diffusion(w))
+            self._velocity = (state, w, courant_rate(self.fv, w))
+            self.timings["velocity"] += time.perf_counter() - start
+        return self._velocity[1], self._velocity[2]
+
     def step(self, state: State, dt: float, with_nutrient: bool = True) -> State:
         """State after dt; c at the end only if `with_nutrient` (step doubling skips it)."""
         clock = time.perf_counter
-        start = clock()
-        w = self.biofilm.velocity(state.c, state.phi)
-        if not self.biofilm.tvd:  # upwind's own estimate; TVD's is smaller and has no such formula
-            self.largest_numerical_diffusion = max(self.largest_numerical_diffusion,
-                                                   self.biofilm.numerical_diffusion(w))
+        w, rate = self.velocity(state)
+        courant = dt * rate
         after_velocity = clock()
         phi = self.biofilm.step(state.phi, state.alpha, w, dt)
         after_biofilm = clock()
         alpha = grow(state.alpha, phi, self.problem.params.k_alpha, dt)
-        self.timings["velocity"] += after_velocity - start
+        expansion = None
+        if state.expansion is not None:  # (a bare State of a test of the clock has none)
+            expansion = state.expansion.after(dt, self.problem.params.k_alpha)
+            expansion.within(phi, alpha, self.fv.describe)
         self.timings["biofilm"] += after_biofilm - after_velocity
         self.timings["expansion"] += clock() - after_biofilm
         if not with_nutrient:
-            return State(state.t + dt, phi, alpha, None)
+            return State(state.t + dt, phi, alpha, None, courant=courant, expansion=expansion)
         c = self._nutrient(phi, state.c_guess(dt))
-        return state.after(dt, phi, alpha, c)
+        return state.after(dt, phi, alpha, c, courant, expansion)
+
+    def runaway(self, state: State) -> tuple[str, str] | None:
+        """(cause, cell) when phi or alpha has outgrown what the solver resolves (`bounds.CEILING`), else None."""
+        largest = max(float(np.max(state.phi, initial=0.0)), float(np.max(state.alpha, initial=0.0)))
+        if largest <= CEILING:
+            return None
+        cell = int(np.argmax(np.maximum(state.phi, state.alpha)))
+        problem = self.problem
+        k_alpha = problem.params.k_alpha
+        start = Expansion.initially(problem.phi0, np.zeros(1) if problem.alpha0 is None else problem.alpha0)
+        allowed = model_bound(start.phi, start.alpha, k_alpha, problem.t_end - problem.start_time)[0]
+        reach = f"{allowed:.3g}" if np.isfinite(allowed) else "beyond 1e308"
+        return (f"the expansion feedback runs away: phi and alpha reach {state.phi[cell]:.3g} and "
+                f"{state.alpha[cell]:.3g}, beyond {CEILING:.0e}, where round-off exceeds their own scale and biofilm "
+                f"can no longer be told from void; Eqs. 34 and 36 let phi grow as cosh(k_alpha t), with k_alpha = {k_alpha:g} 1/T* to "
+                f"{reach} by T* = {problem.t_end:g} (docs/model.md, Bounds): look at params.k_alpha (Table 2: "
+                f"{Parameters().k_alpha:g})", self.fv.describe(cell))
 
     def counters(self) -> Counters:
         """The nutrient's and the biofilm's counters; upwind runs add their largest numerical diffusion."""
