@@ -29,11 +29,13 @@ MEANINGS = {
     "cpu_time_first": "CPU seconds of the first step and first mechanics solve (compiled kernels loaded, first "
                       "hierarchies built: one-off)",
     "next_step": "the clock's step after the last output: where a continuation of the run goes on",
+    "step_limit": "the longest step the scheme's limit allowed by the end (T*; 0: none was needed): a continuation "
+                  "keeps to it",
 }
 # How the counters of a run and of its continuation add up to the whole history's (`solver.restart`): the
 # largest of both, the continuation's own, or (every other counter) the sum.
 LARGEST = frozenset({"largest_step_error", "courant_max", "projected_c_largest", "projected_phi_largest", "numerical_diffusion_max"})
-LAST = frozenset({"next_step"})
+LAST = frozenset({"next_step", "step_limit"})
 
 Counters = dict[str, int | float]
 

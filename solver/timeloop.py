@@ -41,7 +41,7 @@ from .problem import Problem
 from .sink import Held, OutputSink
 from .snapshot import Snapshot
 from .transport import State, Transport
-from .transport.courant import within_limit
+from .transport.courant import LIMIT
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,8 @@ class Clock:
         self.tolerance = problem.numerics.time_tolerance
         self.dt = min(problem.first_step or self.nominal, self.nominal)  # a continuation goes on with its step
         self.steps = self.bisections = self.rejected = self.substepped = 0
+        self.split: tuple[float, float] | None = None  # (end, substep) of a step split for the scheme's limit
+        self.longest = np.inf if problem.step_limit is None else problem.step_limit  # what that limit allows
         self.largest_error = self.courant_max = 0.0
         self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
         self.cpu = CpuTime()
@@ -114,7 +116,8 @@ class Clock:
                 "steps_substepped": self.substepped,
                 "courant_max": self.courant_max,
                 "largest_step_error": self.largest_error,
-                "next_step": self.dt}
+                "next_step": self.dt,
+                "step_limit": self.longest if np.isfinite(self.longest) else 0.0}
 
     def advance(self, state: State, until: float) -> State:
         """Step from state.t to exactly `until`."""
@@ -123,7 +126,7 @@ class Clock:
             dt = min(self.dt, until - state.t)
             if until - (state.t + dt) < 1e-6 * dt:
                 dt = until - state.t
-            dt, split = within_limit(dt, self.limit_rate(state))
+            dt, split = self._within_limit(state, dt)
             try:
                 with self.cpu.spent():
                     new = self._attempt(state, dt)
@@ -151,6 +154,28 @@ class Clock:
                                        self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
                                        self.mechanics_left, self.outputs))
         return state
+
+    def _within_limit(self, state: State, dt: float) -> tuple[float, bool]:
+        """The step to take from `state` instead of the clock's `dt`, and whether it is a substep.  The longest
+        step the scheme's limit allows (`courant`) only shrinks over a run (`self.longest`: once the front has needed
+        a step that short, the run keeps to it, as if it had asked for the steps it needs); a step longer than that
+        is split into the fewest equal substeps within it, which keep their length unless it shrinks further."""
+        rate = self.limit_rate(state)
+        if rate > 0:
+            self.longest = min(self.longest, LIMIT / rate)
+        if self.split is not None and state.t < self.split[0] - 1e-12 * self.t_end:
+            end, sub = self.split
+            left = end - state.t
+            if sub > self.longest:
+                sub = left / np.ceil(left / self.longest)
+                self.split = (end, sub)
+            return min(dt, left if left - sub < 1e-6 * sub else sub), True
+        self.split = None
+        if dt <= self.longest:
+            return dt, False
+        sub = dt / np.ceil(dt / self.longest)
+        self.split = (state.t + dt, sub)
+        return sub, True
 
     def limit_rate(self, state: State) -> float:
         """1/T*: the longest step the scheme allows from `state` is LIMIT over it (`transport.courant`): the front

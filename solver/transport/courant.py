@@ -11,10 +11,11 @@ same: the front may cross at most one cell per step.
 The Courant number of a step dt is dt times the largest rate at which the discrete velocity fills a cell,
 max over cells of sum over its inflow faces |w_f| / h: the implicit operator's diagonal for upwinding, and
 |v| dt / h (cells crossed) for a front moving along an axis.  Since |w_f| <= r c_f/(k + c_f) <= r max c/(k +
-max c), it is at most ndim r dt max c/(k + c) / h, the front speed's bound; the clock (`timeloop.Clock`) splits
-any step whose Courant number would exceed `LIMIT` into equal substeps.  The source k_alpha alpha^n of the phi
-step is explicit too: the clock also keeps k_alpha dt <= LIMIT, a step in which the expansion feedback (phi and
-alpha growing together as e^(k_alpha t), Eqs. 34 and 36) grows at most e-fold.
+max c), it is at most ndim r dt max c/(k + c) / h, the front speed's bound.  The source k_alpha alpha^n of the
+phi step is explicit too: k_alpha dt <= LIMIT keeps a step in which the expansion feedback (phi and alpha
+growing together as e^(k_alpha t), Eqs. 34 and 36) grows at most e-fold.  The clock (`timeloop.Clock`) splits a
+step beyond either limit into equal substeps, and keeps to the shortest such step a run has needed (docs/model.md,
+"Clocks", says why).
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from .finite_volume import FiniteVolumeGrid
 
-LIMIT = 1.0  # cells the front may cross per step
+LIMIT = 1.0  # cells the front may cross per step (and e-folds of the expansion source)
 
 
 def inflow_rate(fv: FiniteVolumeGrid, w: list[np.ndarray]) -> np.ndarray:
@@ -39,11 +40,3 @@ def inflow_rate(fv: FiniteVolumeGrid, w: list[np.ndarray]) -> np.ndarray:
 def courant_rate(fv: FiniteVolumeGrid, w: list[np.ndarray]) -> float:
     """The Courant number of a unit step (1/T*): a step dt has Courant number dt * courant_rate."""
     return float(np.max(inflow_rate(fv, w), initial=0.0))
-
-
-def within_limit(dt: float, rate: float) -> tuple[float, bool]:
-    """The step to take instead of `dt`: dt itself, or dt split into the fewest equal parts whose Courant number
-    is at most `LIMIT`; and whether it was split."""
-    if dt * rate <= LIMIT:
-        return dt, False
-    return dt / np.ceil(dt * rate / LIMIT), True
