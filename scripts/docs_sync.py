@@ -11,8 +11,9 @@ A generated block in README.md or a guide (`PAGES`) is marked
 
 and its text comes from `BLOCKS[NAME]()`, which reads a table that a measuring
 script wrote: `docs/gallery/runs.md` (`scripts/gallery.py`: the bundled scenes
-at paper size) and `docs/measured/suite.md` (`scripts/suite_time.py`: the test
-suite on this machine).
+at paper size), `docs/measured/suite.md` (`scripts/suite_time.py`: the test
+suite on this machine) and `docs/accuracy/stability.md` (`biostudy stability
+stability`: the catalogue of stiff and extreme cases, its table as written).
 """
 from __future__ import annotations
 
@@ -22,9 +23,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-PAGES = (README, ROOT / "docs" / "gallery.md")  # the files holding generated blocks
+PAGES = (README, ROOT / "docs" / "gallery.md", ROOT / "docs" / "accuracy.md")  # the files holding generated blocks
 RUNS = ROOT / "docs" / "gallery" / "runs.md"
 SUITE = ROOT / "docs" / "measured" / "suite.md"
+STABILITY = ROOT / "docs" / "accuracy" / "stability.md"
+CATALOGUE = ROOT / "studies" / "stability.toml"
+TELLING = ("d=1 g=1e10", "g=1e10 zero-order", "r=1e4", "one step to T*=5", "k_alpha=1", "k_alpha=1e3", "large grid",
+           "mechanics k_alpha=1", "mechanics alpha=0.2 40^3")  # the rows docs/accuracy.md shows
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
 
 
@@ -56,7 +61,36 @@ def suite_time() -> str:
             f"{facts['load average']}: `docs/measured/suite.md`; `-m \"not slow\"` leaves out the longest checks):\n")
 
 
-BLOCKS = {"gallery-runs": gallery_runs, "setup-time": setup_time, "suite-time": suite_time}
+def stability_summary() -> str:
+    """How many cases the catalogue has and what became of them, from its table (which must hold every case)."""
+    import tomllib
+
+    rows = table_rows(STABILITY)
+    cases = [case["name"] for case in tomllib.loads(CATALOGUE.read_text(encoding="utf-8"))["case"]]
+    if sorted(rows) != sorted(cases):
+        raise SystemExit(f"{STABILITY.relative_to(ROOT)} is not the table of {CATALOGUE.relative_to(ROOT)}: run "
+                         "biostudy stability stability again and copy its stability.md there")
+    verdicts = [row["verdict"] for row in rows.values()]
+    said = ", ".join(f"{verdicts.count(v)} {words}" for v, words in (
+        ("completed", "completed with their bounds held"), ("refused", "refused by the mechanics with its diagnosis"),
+        ("stopped", "stopped by a runaway with its diagnosis"), ("failed", "failed")) if verdicts.count(v))
+    return (f"`biostudy stability stability -o stab --workers 2`: {len(cases)} cases of `studies/stability.toml` on "
+            f"12³ cells of the directional scene (the 40³ mechanics case and the large grid apart), T* = 0.2, 40 "
+            f"steps, upwind unless the case says TVD, mechanics only where the case asks for it. Result: **{said}**. "
+            f"Full table: `accuracy/stability.md`; the most telling rows:\n")
+
+
+def stability_rows() -> str:
+    rows = table_rows(STABILITY)
+    head = ["case", "what it stresses", "verdict", "steps", "bisected", "substepped", "Courant max", "wall s",
+            "phi range", "c range"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(rows[name][column] for column in head) + " |" for name in TELLING if name in rows]
+    return "\n".join(lines) + "\n"
+
+
+BLOCKS = {"gallery-runs": gallery_runs, "setup-time": setup_time, "suite-time": suite_time,
+          "stability-summary": stability_summary, "stability-rows": stability_rows}
 
 
 def synced(text: str) -> tuple[str, list[str]]:

@@ -34,7 +34,8 @@ MEANINGS = {
 }
 # How the counters of a run and of its continuation add up to the whole history's (`solver.restart`): the
 # largest of both, the continuation's own, or (every other counter) the sum.
-LARGEST = frozenset({"largest_step_error", "courant_max", "projected_c_largest", "projected_phi_largest", "numerical_diffusion_max"})
+LARGEST = frozenset({"largest_step_error", "courant_max", "projected_c_largest", "projected_phi_largest",
+                     "numerical_diffusion_max"})
 LAST = frozenset({"next_step", "step_limit"})
 
 Counters = dict[str, int | float]

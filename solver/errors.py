@@ -7,6 +7,8 @@ place (cell index in ``(z, y, x)`` order and its centre in µm).  A
 """
 from __future__ import annotations
 
+from typing import Any
+
 
 class StepFailure(Exception):
     """One time step could not be taken at this step size (NaN, bounds, no convergence)."""
@@ -28,7 +30,9 @@ class SimulationError(RuntimeError):
         self.time = float(time)
         self.cause = cause
         self.where = where
-        self.last = self.stopped = self.partial = None
+        self.last: Any = None  # transport.State
+        self.stopped: Any = None  # snapshot.Snapshot
+        self.partial: Any = None  # xarray.Dataset
         place = f" at {where}" if where else ""
         super().__init__(f"t = {self.time:.6g}: {cause}{place}")
 

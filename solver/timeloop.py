@@ -163,6 +163,10 @@ class Clock:
         rate = self.limit_rate(state)
         if rate > 0:
             self.longest = min(self.longest, LIMIT / rate)
+            if self.longest < self.smallest * (1 - 1e-9):
+                raise _stopped(SimulationError(state.t, f"the scheme's limit needs steps of {self.longest:.3g} (the "
+                                                        f"front crossing one cell, the expansion growing e-fold), "
+                                                        f"below t_end/max_substeps = {self.smallest:.3g}"), state)
         if self.split is not None and state.t < self.split[0] - 1e-12 * self.t_end:
             end, sub = self.split
             left = end - state.t

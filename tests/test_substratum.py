@@ -403,7 +403,7 @@ def test_the_substratum_defaults_to_the_face_the_biofilm_rests_on_and_a_run_reco
 
 @pytest.mark.parametrize("face, expected", [
     ('"z-"', "substratum.face: 'z-' is not a face of a 2-D grid (faces: x-, x+, y-, y+)"),
-    ('"w-"', "substratum.face: must be 'x-', 'x+', 'y-', 'y+', 'z-' or 'z+'"),
+    ('"w-"', "substratum.face: must be 'x-', 'x+', 'y-', 'y+', 'z-', 'z+' or 'none'"),
 ])
 def test_a_wrong_substratum_face_is_one_line(write_toml, tmp_path, face, expected):
     from typer.testing import CliRunner

@@ -184,9 +184,12 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
             spool = Spool(loaded.target)  # no file until the first output
         try:
             ds = _simulated(loaded, progress, spool)
-        except Stopped as stopped:  # what it computed up to there is kept, marked incomplete
+        except Stopped as stopped:  # what it computed up to there is kept, marked incomplete, but not over a result
             if loaded.target is None:
                 raise Failed(stopped.message) from None
+            if loaded.replacing:
+                raise Failed(f"{stopped.message}; the earlier result at {loaded.target} is kept as it was (this "
+                             "run's incomplete outputs are not written over it)") from None
             _write(loaded, stopped.dataset)
             raise Failed(f"{stopped.message}; {incomplete.kept(stopped.dataset, loaded.target)}") from None
         if loaded.target is not None:

@@ -85,7 +85,7 @@ class SubstratumSpec(BaseModel):
     measured.  Measurement only: the simulation is the same whatever it says."""
 
     model_config = CONFIG
-    face: Face | Literal["none"] | None = Field(
+    face: Literal[Face, "none"] | None = Field(
         None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+), or none; default: the single "
                           "face the initial biofilm rests on; without one (none, a floating biofilm, several faces "
                           "alike) COMSTAT's observables are left out (inputs/substratum_face.py)")

@@ -1,8 +1,9 @@
 """What a finished run must say besides its numbers: the checks that warn in words.
 
 Each check reads a run's dataset and returns '' or a sentence: `dense` (the dense biofilm vanished while the
-biofilm grew, a grid artefact) and `retreat` (the biofilm shrank or vanished, the model's own retreat from
-where the nutrient is not).  Commands store each sentence as the dataset attribute named by its check, print
+biofilm grew, a grid artefact), `retreat` (the biofilm shrank or vanished, the model's own retreat from
+where the nutrient is not) and `quasi_steady` (diffusion does not settle the nutrient within a step, which the
+model assumes).  Commands store each sentence as the dataset attribute named by its check, print
 it after a run, and list the runs that raised it in sweeps and calibrations.
 """
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import Callable, Mapping
 
 import xarray as xr
 
-from . import dense, retreat
+from . import dense, quasi_steady, retreat
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,8 @@ ALERTS = (
           "lost their dense biofilm (phi >= 0.8) while the biofilm grew, likely a grid artefact"),
     Alert(retreat.ATTRIBUTE, retreat.lost,
           "lost a quarter or more of their biofilm (the model retreats from where the nutrient is not)"),
+    Alert(quasi_steady.ATTRIBUTE, quasi_steady.unsettled,
+          "have a nutrient that diffusion does not settle within a step (the model takes it as settled)"),
 )
 ATTRIBUTES = tuple(alert.attribute for alert in ALERTS)
 

@@ -148,7 +148,8 @@ NUMBERS = {"ok": ("1", "1 = completed within bounds, refused by the mechanics or
            "nonfinite": ("1", "non-finite values in open cells"),
            "newton_max": ("1", "most Newton iterations of a mechanics solve"),
            **{name: ("1", MEANINGS[name]) for name in PROJECTED}}
-LABELS = {"verdict": "completed, refused (mechanics diagnosis), stopped (runaway diagnosis) or failed", "message": "diagnosis or check result",
+LABELS = {"verdict": "completed, refused (mechanics diagnosis), stopped (runaway diagnosis) or failed",
+          "message": "diagnosis or check result",
           "why": "what the case stresses"}
 COORDS = {"cells": ("1", "grid cells"), "steps_nominal": ("1", "nominal steps"),
           "mechanics": ("1", "1 = the mechanics was solved")}

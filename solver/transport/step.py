@@ -22,8 +22,8 @@ import numpy as np
 
 from ..counters import Counters
 from ..problem import Parameters, Problem
-from .bounds import CEILING, Expansion, model_bound
 from .biofilm import Biofilm
+from .bounds import CEILING, Expansion, model_bound
 from .courant import courant_rate
 from .expansion import grow
 from .finite_volume import FiniteVolumeGrid
@@ -139,9 +139,9 @@ class Transport:
         reach = f"{allowed:.3g}" if np.isfinite(allowed) else "beyond 1e308"
         return (f"the expansion feedback runs away: phi and alpha reach {state.phi[cell]:.3g} and "
                 f"{state.alpha[cell]:.3g}, beyond {CEILING:.0e}, where round-off exceeds their own scale and biofilm "
-                f"can no longer be told from void; Eqs. 34 and 36 let phi grow as cosh(k_alpha t), with k_alpha = {k_alpha:g} 1/T* to "
-                f"{reach} by T* = {problem.t_end:g} (docs/model.md, Bounds): look at params.k_alpha (Table 2: "
-                f"{Parameters().k_alpha:g})", self.fv.describe(cell))
+                f"can no longer be told from void; Eqs. 34 and 36 let phi grow as cosh(k_alpha t), with k_alpha = "
+                f"{k_alpha:g} 1/T* to {reach} by T* = {problem.t_end:g} (docs/model.md, Bounds): look at "
+                f"params.k_alpha (Table 2: {Parameters().k_alpha:g})", self.fv.describe(cell))
 
     def counters(self) -> Counters:
         """The nutrient's and the biofilm's counters; upwind runs add their largest numerical diffusion."""
