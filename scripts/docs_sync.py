@@ -75,8 +75,8 @@ def stability_summary() -> str:
         ("completed", "completed with their bounds held"), ("refused", "refused by the mechanics with its diagnosis"),
         ("stopped", "stopped by a runaway with its diagnosis"), ("failed", "failed")) if verdicts.count(v))
     return (f"`biostudy stability stability -o stab --workers 2`: {len(cases)} cases of `studies/stability.toml` on "
-            f"12³ cells of the directional scene (the 40³ mechanics case and the large grid apart), T* = 0.2, 40 "
-            f"steps, upwind unless the case says TVD, mechanics only where the case asks for it. Result: **{said}**. "
+            f"12³ cells of the directional scene, T* = 0.2 in 40 steps, upwind, no mechanics, unless the case says "
+            f"otherwise. Result on this machine: **{said}**. "
             f"Full table: `accuracy/stability.md`; the most telling rows:\n")
 
 
