@@ -9,8 +9,10 @@ observables), with the attribute `incomplete` saying when and why it stopped; `s
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import xarray as xr
+if TYPE_CHECKING:  # `show` reads INCOMPLETE at a glance, without xarray (reports.glance)
+    import xarray as xr
 
 INCOMPLETE = "incomplete"  # the attribute: why the run stopped where it did
 
