@@ -67,12 +67,21 @@ def test_convergence_rejects_bad_options(tmp_path):
     assert result.exit_code == 2 and result.stderr.startswith("error: --series: unknown series sideways")
 
 
+# The fast-front variants whose fronts cross as many cells as "r=1e4"'s (~1200-1500 substeps each since the clock
+# keeps to the Courant limit, issue 33): in the full catalogue's table (docs/accuracy/stability.md), not run here.
+SPARED = ('name = "r=1e4 tvd"', 'name = "beta=0 r=1e4 tvd"', 'name = "pointwise r=1e4 tvd"',
+          'name = "one step r=1e4 g=1e10"')
+
+
 def without_large_mechanics(tmp_path) -> Path:
     """The catalogue without its one case sized on purpose (growth to alpha = 0.2 on 40³ cells: minutes; its
-    measurement is in docs/mechanics.md, and tests/test_mechanics.py bounds a hard one-shot solve)."""
+    measurement is in docs/mechanics.md, and tests/test_mechanics.py bounds a hard one-shot solve), nor the
+    `SPARED` ones."""
     head, *cases = (STUDIES / "stability.toml").read_text().split("\n[[case]]\n")
     kept = [c for c in cases if '"grid.shape" = [40, 40, 40]' not in c or '"mechanics.enabled" = true' not in c]
     assert len(kept) == len(cases) - 1, "the catalogue's large mechanics case moved: update this test"
+    kept = [c for c in kept if not c.startswith(SPARED)]
+    assert len(kept) == len(cases) - 1 - len(SPARED), "a spared case was renamed: update this test"
     head = head.replace('scene = "directional.toml"', f'scene = "{STUDIES / "directional.toml"}"')
     path = tmp_path / "stability.toml"
     path.write_text("\n[[case]]\n".join([head, *kept]))
@@ -81,19 +90,20 @@ def without_large_mechanics(tmp_path) -> Path:
 
 @pytest.mark.slow
 def test_stability_catalogue_at_reduced_size(tmp_path):
-    """Every case completes within bounds, or (mechanics only) stops with its diagnosis; exit 0."""
+    """Every case completes within bounds, or stops with its diagnosis (the mechanics refused, the runaway stopped);
+    exit 0."""
     out = tmp_path / "stab"
     result = invoke("stability", without_large_mechanics(tmp_path), "-o", out, "-q", "--set", "grid.shape=[10,10,10]",
-                    "--set", "grid.spacing=2.0", "--set", "time.steps=10")
+                    "--set", "grid.spacing=2.0", "--set", "time.steps=20")  # within the front's limit at 10³
     assert result.exit_code in (0, 1), result.output
     ds = xr.open_dataset(out / "stability.nc")
-    assert ds.sizes["case"] >= 20 and (out / "stability.md").is_file()
+    assert ds.sizes["case"] == 20 and (out / "stability.md").is_file()  # 25 less the 40³ case and SPARED
     transport = ds.mechanics.values == 0
     runaway = ds.case.values == "k_alpha=1e3"
     assert set(ds.verdict.values[transport & ~runaway]) == {"completed"}, ds.message.values[transport]
     assert ds.verdict.sel(case="k_alpha=1e3") == "stopped" and "look at params.k_alpha" in str(
         ds.message.sel(case="k_alpha=1e3").values)  # the expansion runs away: stopped, not "bounds held"
-    giant = ds.sel(case="one step to T*=5")  # 10 nominal steps of 0.5 T* (--set): the front crosses many cells
+    giant = ds.sel(case="one step to T*=5")  # 20 nominal steps of 0.25 T* (--set): the front crosses many cells
     assert giant.verdict == "completed" and giant.steps_substepped > 0 and 0.5 < giant.courant_max <= 1.0
     assert set(ds.verdict.values[~transport]) <= {"completed", "refused"}
     assert (ds.courant_max.values[ds.verdict.values == "completed"] <= 1.0).all()
