@@ -25,6 +25,7 @@ from ..execution.targets import owned
 from ..fitting.methods import Result
 from ..fitting.posterior import Untrainable
 from ..inputs import bundled
+from ..inputs.resources import Preflight
 from ..plans import calibration_cost
 from ..plans.calibration import CalibrationPlan, load_calibration
 from ..plots.calibration import corner_figure, fit_figure, profiles_figure
@@ -137,7 +138,7 @@ def load(calibration: str | Path, *, output: Path | None = None,
          overrides: tuple[str, ...] | list[str] = (), runs_here: bool = False) -> Calibrate:
     """Read and validate a calibration file (a path or a bundled name), its scene, conditions and measurements;
     bad input is `BadInput` (`runs_here`: as for `commands.sweep.load`)."""
-    plan = load_calibration(bundled.resolve(calibration), overrides, runs_here)
+    plan = load_calibration(bundled.resolve(calibration), overrides, Preflight(runs=runs_here))
     too_costly = calibration_cost.problems(plan, runs_here)
     if too_costly:
         raise BadInput.every(too_costly)

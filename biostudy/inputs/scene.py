@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
 import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
@@ -38,11 +38,11 @@ from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
-from .resources import estimate, run_problem, validation_problem
 from .substratum_face import resting_face
 from .tomltext import dumps as toml_dumps
 
-STREAMED = "streamed"  # runs_here of a run that writes its file as it goes: its outputs stream to disk
+if TYPE_CHECKING:
+    from .resources import Preflight
 
 class GridSpec(BaseModel):
     """Structured grid of cubic cells, origin at 0."""
@@ -146,9 +146,12 @@ class Scene(BaseModel):
 
     @model_validator(mode="after")
     def _fits_the_grid(self, info: ValidationInfo):
-        """The rules between tables, each a step: memory first (before any array of the grid's size is made), then
-        the regions, the nutrient sources, the clock and the faces the scene names."""
-        self._fits_memory((info.context or {}).get("runs_here", False))
+        """The rules between tables, each a step: a command's memory check first, if it gives one
+        (`resources.Preflight`: before any array of the grid's size is made; what the machine holds is no rule of
+        the scene), then the regions, the nutrient sources, the clock and the faces the scene names."""
+        preflight = (info.context or {}).get("preflight")
+        if preflight is not None:
+            preflight(self)
         grid = self.grid.solver_grid()
         self._regions_fit(grid)
         self._sources_free(grid)
@@ -158,19 +161,6 @@ class Scene(BaseModel):
         self._faces_exist(grid)
         self.substratum_face()  # an ambiguous default is bad input before anything runs
         return self
-
-    def _fits_memory(self, runs_here: bool | str) -> None:
-        """Validating fits in memory; a run here (`runs_here`) fits as a whole (its estimate, before the masks)."""
-        too_big = validation_problem(self)
-        if too_big:
-            raise InvalidAt("grid.shape", too_big)
-        if runs_here:
-            found = estimate(self, streamed=runs_here == STREAMED)
-            too_big = run_problem({self.name: found}, 1)
-            if too_big:
-                outputs = "time.output_times" if self.time.output_times is not None else "time.outputs"
-                raise InvalidAt("grid.shape" if found.transport + found.mechanics >= found.snapshots else outputs,
-                                too_big)
 
     def _regions_fit(self, grid: solver.Grid) -> None:
         """Every region inside the grid and covering a cell; grey values only for biofilm; a cell left open."""
@@ -282,17 +272,16 @@ def key_info(key: str) -> tuple[str, str]:
 
 
 def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None,
-                    runs_here: bool | str = False) -> Scene:
+                    preflight: Preflight | None = None) -> Scene:
     """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
-    value that an override gave names that override instead (`origins`).  `runs_here`: the scene is to run
-    in this process, so a run that could not fit in its memory is refused before the grid's arrays are made
-    (`STREAMED`: a run that writes its file as it goes, `resources.estimate`)."""
+    value that an override gave names that override instead (`origins`).  `preflight`: a command's check that
+    the scene fits this machine, made before the grid's arrays are (`resources.Preflight`)."""
     file = Path(file)
     data = copy.deepcopy(data)
     if isinstance(data.get("name", ""), str) and not data.get("name"):
         data["name"] = file.stem
     try:
-        return Scene.model_validate(data, context={"base": file.parent, "runs_here": runs_here})
+        return Scene.model_validate(data, context={"base": file.parent, "preflight": preflight})
     except ValidationError as error:
         raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS, tags=SHAPE_TAGS), origins) from None
 
@@ -305,11 +294,12 @@ def read_scene_data(path: str | Path) -> dict:
     return data
 
 
-def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool | str = False) -> Scene:
-    """Read, override and validate a scene file: the only way a scene file becomes a `Scene` (`runs_here`: see
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+               preflight: Preflight | None = None) -> Scene:
+    """Read, override and validate a scene file: the only way a scene file becomes a `Scene` (`preflight`: see
     `scene_from_data`)."""
     data = read_scene_data(path)
-    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"), runs_here)
+    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"), preflight)
 
 
 def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:

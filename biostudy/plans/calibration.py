@@ -51,6 +51,7 @@ from ..formatting import value_text
 from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_key, takes_integers
 from ..inputs.measurements import Measurement, read_measurements, refusal
 from ..inputs.real_time import apart, check_agree, exact
+from ..inputs.resources import Preflight
 from ..inputs.scene import SCENE_KEYS, Scene, scene_from_data
 from ..quantities import observables
 from .calibration_method import MethodSpec
@@ -373,18 +374,18 @@ def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarra
 
 
 def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                     runs_here: bool = False) -> CalibrationPlan:
+                     preflight: Preflight | None = None) -> CalibrationPlan:
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
-    `BadInput` (every problem of the table at once; `runs_here`: as for `cases.load_plan`)."""
+    `BadInput` (every problem of the table at once; `preflight`: as for `cases.load_plan`)."""
     path = Path(path)
     spec = read_spec(path, Calibration, _wrong_kind)
     scene_file, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
     origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, runs_here)
+    base = scene_from_data(base_data, scene_file, origins, preflight)
     spec.check(base_data, scene_file, path)
     not_varied(spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace "
                "it; change its bounds instead", spec.set, path, overrides)
-    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, runs_here)
+    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, preflight)
     data_file, rows, times = _measurements(spec, scenes, scene_file, path)
     return CalibrationPlan(path, spec, scene_file, base, scenes, base_data, _parameters(spec), rows, times, data_file)
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 from ..data import real_time
 from ..inputs import bundled, resources
 from ..inputs.files import read_toml
+from ..inputs.resources import Preflight
 from ..inputs.scene import load_scene
 from ..plans import calibration_cost, catalogue
 from ..plans.calibration import load_calibration
@@ -27,7 +28,7 @@ def needs(path) -> str:
     available = resources.available_text()
     what = bundled.kind(read_toml(path))
     if what in ("study", "stability"):
-        plan = load_study(path) if what == "study" else catalogue.load(path)
+        plan = load_study(path, (), Preflight()) if what == "study" else catalogue.load(path, (), Preflight())
         found = {case.id: resources.estimate(plan.scenes[case.id]) for case in plan.cases}
         largest = max(found, key=lambda i: found[i].memory)
         return "\n".join([
@@ -38,7 +39,7 @@ def needs(path) -> str:
             f"here          {available}; N local workers need about N times the largest case"]
                          + _refused(found[largest], f"the largest case, {largest}, needs"))
     if what == "calibration":
-        plan = load_calibration(path)
+        plan = load_calibration(path, (), Preflight())
         found = calibration_cost.estimates(plan)  # outputs at the measurement times, as `calibrate` runs them
         largest = max(found, key=lambda i: found[i].memory)
         method, k = plan.spec.method, len(plan.parameters)
@@ -53,7 +54,7 @@ def needs(path) -> str:
             *chains,
             f"here          {available}; N local workers need about N times one simulation"]
                          + _refused(found[largest], "one simulation needs"))
-    scene = load_scene(path)
+    scene = load_scene(path, (), Preflight())
     found = resources.estimate(scene, streamed=True)  # `biostudy run` writes its file as it goes
     mechanics = "on" if scene.mechanics is not None and scene.mechanics.enabled else "off"
     return "\n".join([
