@@ -197,8 +197,10 @@ def _measurement_variables(plan: CalibrationPlan, found: Estimate, model: np.nda
                                                                            "fitted model (Jacobian covariance)"}),
         "band_upper": ("measurement", model + half, {**mapped, "long_name": "upper end of the 95 % band of the "
                                                                            "fitted model (Jacobian covariance)"}),
-        "residual": ("measurement", (model - measured) / sigma,
-                     {"units": "1", "long_name": "weighted residual (fitted - measured) / sigma"}),
+        "residual": ("measurement", np.divide(model - measured, sigma, out=np.full(len(rows), np.nan),
+                                              where=sigma > 0),
+                     {"units": "1", "long_name": "weighted residual (fitted - measured) / sigma (NaN where an "
+                                                 "estimated sigma is 0: the model fits its rows exactly)"}),
     }
 
 
