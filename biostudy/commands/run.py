@@ -133,7 +133,7 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
     clock = loaded.scene.real_time_attrs()  # the warnings say their times in real time too
     ds = stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-               **loaded.scene.substratum_attrs(), **clock)
+               **loaded.scene.substratum_attrs(), **loaded.scene.image_attrs(), **clock)
     ds = netcdf.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
     ds.attrs.update(alerts.attrs(ds))  # from the volumes just measured
     if loaded.previous is not None:

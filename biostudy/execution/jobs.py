@@ -270,10 +270,11 @@ def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
 def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict[str, str]:
     """Write one case's file: its dataset, or the failure record; returns what `quantities.alerts` say of it.  A
     file that cannot be written stops the sweep (`SweepError`): the cases recorded so far are kept."""
-    extra = {**job.attrs, "fingerprint": fingerprint, **job.scene.substratum_attrs(), **job.scene.real_time_attrs()}
+    extra = {**job.attrs, "fingerprint": fingerprint, **job.scene.substratum_attrs(), **job.scene.real_time_attrs(),
+             **job.scene.image_attrs()}
     said: dict[str, str] = {}
     if outcome.status == "done":
-        said = alerts.attrs(outcome.dataset.assign_attrs(job.scene.real_time_attrs()))
+        said = alerts.attrs(outcome.dataset.assign_attrs({**job.scene.real_time_attrs(), **job.scene.image_attrs()}))
         extra.update(said)
         ds = provenance.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
                               message="", **extra)
