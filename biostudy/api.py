@@ -269,9 +269,10 @@ def plot(result: str | Path, *, output: str | Path | None = None, variable: str 
     return written
 
 
-def export(result: str | Path, directory: str | Path, *, format: str = "vtu") -> list[Path]:  # noqa: A002
+def export(result: str | Path, directory: str | Path, *, format: str = "vti") -> list[Path]:  # noqa: A002
     """Write one run's fields into `directory` (as ``biostudy export FILE.nc DIR``) and return the files
-    written: 'vtu', one VTU per snapshot and series.pvd for ParaView; 'tiff', phi.tif and c.tif for Fiji."""
+    written: 'vti', one VTK image per snapshot and series.pvd for ParaView; 'vtu', the same as unstructured grids
+    of the open cells; 'tiff', phi.tif and c.tif for Fiji."""
     from .commands import export as command  # lazily, as in `run`
 
     written = command.export(_path(result, "result"), _path(directory, "directory"), format=format)

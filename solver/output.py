@@ -39,8 +39,9 @@ NORMALISED_TIME = "T*"  # t / t_ref: dimensionless
 
 def cf_units(units: str) -> str:
     """The udunits spelling of a model unit.  T* = t / t_ref is dimensionless, so a rate per T* has the
-    units of its numerator: 'um2/T*' -> 'um2', 'um/T*' -> 'um', '1/T*' -> '1'; other units are udunits
-    spellings already ('um', 'um3', 'Pa', 's', '1')."""
+    units of its numerator: 'um^2/T*' -> 'um^2', 'um/T*' -> 'um', '1/T*' -> '1'; other units are written as
+    they are ('um', 'um^3', 'Pa', 's', '1'), spelled so that udunits and plain pint both read them (powers with
+    '^': pint reads 'um3' as a unit named um3, and 'um-1' as um minus 1)."""
     head, per, rest = units.partition("/" + NORMALISED_TIME)
     if NORMALISED_TIME in rest or NORMALISED_TIME in head:
         raise ValueError(f"T* may only divide a unit: {units!r}")

@@ -155,8 +155,8 @@ class Parameters:
 
     mu: float = parameter(3.3557, "Pa", "shear modulus mu", gt=0)
     nu: float = parameter(0.49, "1", "Poisson ratio nu", ge=0, lt=0.5)
-    d: float = parameter(1e10, "um2/T*", "nutrient diffusivity d", gt=0)
-    beta: float = parameter(2.0, "um2/T*", "phase-field regularisation beta", ge=0)
+    d: float = parameter(1e10, "um^2/T*", "nutrient diffusivity d", gt=0)
+    beta: float = parameter(2.0, "um^2/T*", "phase-field regularisation beta", ge=0)
     k_alpha: float = parameter(1e-3, "1/T*", "growth factor k_alpha", ge=0)
     k: float = parameter(1.0, "1", "half-velocity constant k (Monod)", gt=0)
     g: float = parameter(1e8, "1/T*", "consumption g (0: no consumption)", ge=0)

@@ -128,18 +128,18 @@ def test_scenes_is_the_commands_json_of_the_bundled_files():
 
 def test_plot_and_export_write_the_files_the_command_writes_and_print_nothing(made, capfd):
     pictures = biostudy.plot(made / "a.nc", output=made / "api.png", variable="phi", time=0.1)
-    vtu = biostudy.export(made / "a.nc", made / "vtu-api")
+    vti = biostudy.export(made / "a.nc", made / "vti-api")
     tiff = biostudy.export(made / "a.nc", made / "tiff-api", format="tiff")
     assert capfd.readouterr() == ("", "")
     said = invoke("plot", made / "a.nc", "-o", made / "cli.png", "--variable", "phi", "--time", "0.1")
     assert [p.name for p in pictures] == ["api_series.png", "api_maps.png"]
     assert said.splitlines() == [f"wrote {p.with_name(p.name.replace('api', 'cli'))}" for p in pictures]
-    invoke("export", made / "a.nc", made / "vtu-cli")
+    invoke("export", made / "a.nc", made / "vti-cli")
     invoke("export", made / "a.nc", made / "tiff-cli", "--format", "tiff")
-    assert [p.name for p in vtu] == ["snapshot_0000.vtu", "snapshot_0001.vtu", "snapshot_0002.vtu", "series.pvd"]
+    assert [p.name for p in vti] == ["snapshot_0000.vti", "snapshot_0001.vti", "snapshot_0002.vti", "series.pvd"]
     assert [p.name for p in tiff] == ["phi.tif", "c.tif"]
     for written, other in ((pictures, lambda p: p.with_name(p.name.replace("api", "cli"))),
-                           (vtu, lambda p: made / "vtu-cli" / p.name), (tiff, lambda p: made / "tiff-cli" / p.name)):
+                           (vti, lambda p: made / "vti-cli" / p.name), (tiff, lambda p: made / "tiff-cli" / p.name)):
         assert all(filecmp.cmp(p, other(p), shallow=False) for p in written)
 
 

@@ -43,7 +43,7 @@ def test_a_known_sphere_volume_height_means():
     np.testing.assert_allclose(values["c_mean"].values, [1.0, 1.0 - 0.75 / 9**3])
     np.testing.assert_allclose(values["nutrient_minimum"].values, [1.0, 0.25])
     assert "front_advance" not in values and "compression_max" not in values  # no source mask, no p
-    assert values["biofilm_volume"].attrs == {"units": "um3", "long_name": "volume of cells with phi >= 0.5"}
+    assert values["biofilm_volume"].attrs == {"units": "um^3", "long_name": "volume of cells with phi >= 0.5"}
 
 
 def test_front_advance_and_obstacles_in_2d():
@@ -144,7 +144,7 @@ def test_substratum_observables_from_a_dataset_alone_on_its_recorded_face():
     np.testing.assert_allclose(values["biomass"].values, [2.3 * H, 3.3 * H], rtol=1e-12)
     np.testing.assert_allclose(values["max_thickness"].values, [2.3 * H, 3.3 * H], rtol=1e-12)
     np.testing.assert_allclose(values["coverage"].values, [1.0, 1.0])
-    assert values["surface_to_biovolume"].attrs == {"units": "um-1", "long_name": observables.get(
+    assert values["surface_to_biovolume"].attrs == {"units": "um^-1", "long_name": observables.get(
         "surface_to_biovolume").long_name}
     ds.attrs["substratum_threshold"] = 0.25  # phi falls by 0.25 per cell: 0.25 lies one cell beyond 0.5
     np.testing.assert_allclose(observables.evaluate(ds, "biomass").values, [3.3 * H, 4.3 * H], rtol=1e-12)

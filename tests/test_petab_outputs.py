@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 import xarray as xr
 from test_calibration_hostile import COST, SCENE, calibration, invoke, one_line
+from unit_readers import assert_every_unit_read_alike
 
 from biostudy.formatting import number
 
@@ -190,3 +191,14 @@ def test_a_users_simulation_table_that_appears_while_a_calibration_computes_is_n
         assert path.read_bytes() == users
     claims.write_digested(path, "ours\n", claims.digested("simulation.tsv", users.decode()), "calibration.nc")
     assert path.read_text() == "ours\n"
+
+
+def test_calibration_nc_units_read_alike_by_udunits_plain_pint_and_cf_xarray(tmp_path):
+    """Issue 36.3: calibration.nc as written (r per T* in um, per hour in um/h, the times in min) quantified by
+    pint-xarray with plain pint's registry; UDUNITS and cf_xarray read the same."""
+    from biostudy.data import writing
+
+    writing.write_atomic(fit(tmp_path, table()), tmp_path / "calibration.nc")
+    with xr.open_dataset(tmp_path / "calibration.nc") as back:
+        assert back["estimate_r"].attrs["units"] == "um" and back["estimate_r_real"].attrs["units"] == "um/h"
+        assert_every_unit_read_alike(back.load(), "calibration.nc")

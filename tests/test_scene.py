@@ -152,7 +152,7 @@ def test_mask_file_relative_to_the_scene(write_toml, tmp_path):
 
 def test_key_info_gives_units_for_sweep_coordinates():
     assert key_info("g") == ("consumption g (0: no consumption), 1/T*", "1/T*")
-    assert key_info("params.d")[1] == "um2/T*"
+    assert key_info("params.d")[1] == "um^2/T*"
     assert key_info("biofilm.0.radius") == ("radius, µm", "um")
     assert key_info("grid.spacing")[1] == "um"
 
@@ -160,7 +160,7 @@ def test_key_info_gives_units_for_sweep_coordinates():
 def test_json_schema_documents_units_and_meaning():
     schema = Scene.model_json_schema()
     params = schema["$defs"]["Params"]["properties"]
-    assert params["d"]["units"] == "um2/T*" and "diffusivity" in params["d"]["description"]
+    assert params["d"]["units"] == "um^2/T*" and "diffusivity" in params["d"]["description"]
     assert params["d"]["exclusiveMinimum"] == 0
 
 

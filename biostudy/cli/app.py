@@ -220,6 +220,7 @@ def analyze(
 
 
 class ExportFormat(str, enum.Enum):
+    vti = "vti"
     vtu = "vtu"
     tiff = "tiff"
 
@@ -227,13 +228,15 @@ class ExportFormat(str, enum.Enum):
 @app.command()
 def export(
     path: Annotated[Path, typer.Argument(metavar="FILE.nc", help="dataset written by run (or one case of a sweep)")],
-    directory: Annotated[Path, typer.Argument(metavar="DIR", help="directory for snapshot_NNNN.vtu files and "
-                                                                  "series.pvd (tiff: phi.tif, c.tif)")],
+    directory: Annotated[Path, typer.Argument(metavar="DIR", help="directory for snapshot_NNNN.vti files and "
+                                                                  "series.pvd (vtu: .vtu; tiff: phi.tif, c.tif)")],
     format: Annotated[ExportFormat, typer.Option(
-        "--format", metavar="F", help="vtu: ParaView (default); tiff: ImageJ hyperstacks of phi and c at scale (µm) "
-                                      "with the time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vtu,
+        "--format", metavar="F", help="vti: ParaView, VTK image data (default); vtu: ParaView, unstructured grid of "
+                                      "the open cells; tiff: ImageJ hyperstacks of phi and c at scale (µm) with the "
+                                      "time axis, for Fiji, BiofilmQ, COMSTAT")] = ExportFormat.vti,
 ):
-    """Write files ParaView opens (one VTU per snapshot and a PVD listing them in time), or TIFF stacks for Fiji."""
+    """Write files ParaView opens (one VTK image per snapshot and a PVD listing them in time), or TIFF stacks for
+    Fiji."""
     with guarded():
         from ..commands import export as command  # lazily (module docstring)
 

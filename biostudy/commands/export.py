@@ -1,7 +1,8 @@
 """`biostudy export FILE.nc DIR`: one run's fields as files other programs open.
 
-``vtu``: one VTU per snapshot and ``series.pvd`` for ParaView (`data.export`);
-``tiff``: ``phi.tif`` and ``c.tif``, ImageJ hyperstacks at scale for Fiji
+``vti`` (the default): VTK image data, one file per snapshot, and ``series.pvd``
+for ParaView; ``vtu``: the same as unstructured grids of the open cells
+(`data.export`); ``tiff``: ``phi.tif`` and ``c.tif``, ImageJ hyperstacks at scale for Fiji
 (`data.tiff`).  What the dataset cannot give is `BadInput` naming the file.
 """
 from __future__ import annotations
@@ -11,10 +12,10 @@ from pathlib import Path
 from ..data.reading import open_result
 from ..errors import BadInput
 
-FORMATS = ("vtu", "tiff")
+FORMATS = ("vti", "vtu", "tiff")  # the first is the default
 
 
-def export(path: str | Path, directory: str | Path, *, format: str = "vtu") -> list[Path]:  # noqa: A002
+def export(path: str | Path, directory: str | Path, *, format: str = FORMATS[0]) -> list[Path]:  # noqa: A002
     """Write a run's fields (a run or one case of a sweep) into `directory` in `format` (`FORMATS`); returns the
     files written."""
     if format not in FORMATS:
@@ -28,12 +29,12 @@ def export(path: str | Path, directory: str | Path, *, format: str = "vtu") -> l
             return export_tiff(ds, directory, str(path))
         from ..data.export import export as write  # lazily: meshio only for VTU
 
-        return write(ds, directory)
+        return write(ds, directory, format)
     except ValueError as error:
         raise BadInput(str(error), path) from None
 
 
-def said(written: list[Path], directory: str | Path, format: str = "vtu") -> str:  # noqa: A002
+def said(written: list[Path], directory: str | Path, format: str = FORMATS[0]) -> str:  # noqa: A002
     """The line the command prints: how many files, where, and what opens them."""
     opened = "in Fiji (File > Open: at scale, in µm)" if format == "tiff" else \
         f"{Path(directory) / 'series.pvd'} in ParaView"

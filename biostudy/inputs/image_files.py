@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
 import logging
 import math
 import struct
@@ -60,6 +61,7 @@ class Stack:
     values: np.ndarray
     voxel: tuple[float, ...] | None
     voxel_problem: str = ""
+    sha256: str = ""  # of the file's bytes, for the provenance of what is made from it
 
 
 class BadMetadata(ValueError):
@@ -262,4 +264,13 @@ def read(path: str, mtime_ns: int, size: int) -> Stack:
     if values.dtype.kind == "f" and not np.isfinite(values).all():
         raise InvalidAt("path", f"{path} holds NaN or infinite values")
     values.flags.writeable = False
-    return Stack(values, image.voxel, image.voxel_problem)
+    return Stack(values, image.voxel, image.voxel_problem, file_sha256(path))
+
+
+def file_sha256(path: str) -> str:
+    """The sha256 of a file's bytes, read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -170,6 +170,13 @@ class Scene(BaseModel):
                     region.check(grid)
                 except InvalidAt as error:
                     raise InvalidAt(".".join(filter(None, (f"{kind}[{i}]", error.key))), error.problem) from None
+        for i, region in enumerate(self.biofilm):
+            spill = region.spill(grid) if isinstance(region, Image) else None
+            if spill is not None and spill.voxels:
+                raise InvalidAt(f"biofilm[{i}].path", f"{region.path} spans {spill.spans}, beyond the grid "
+                                f"({spill.grid}): {spill.voxels} voxels of its biofilm ({spill.region:.1%} of it) lie "
+                                "outside, so the biofilm would be cut; enlarge grid.shape, move origin, or crop the "
+                                "stack")
         for kind in ("nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):
                 if getattr(region, "scale", None) is not None:
@@ -245,6 +252,30 @@ class Scene(BaseModel):
         return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold,
                 "substratum_connected": int(self.substratum.connected),
                 "substratum_estimator": self.substratum.estimator}
+
+    def image_attrs(self) -> dict:
+        """The provenance of every image region (``image_biofilm_0_path``, ``_sha256``, ``_shape`` [z,] y, x voxels,
+        ``_voxel`` [dz,] dy, dx µm, ``_origin`` [z,] y, x µm) and, where an image reaches beyond the grid,
+        ``image_left_out``: how much of it was left out (`quantities.alerts` says it after a run)."""
+        found: dict = {}
+        left_out = []
+        grid = self.grid.solver_grid()
+        for kind in ("biofilm", "nutrient", "obstacle"):
+            for i, region in enumerate(getattr(self, kind)):
+                if not isinstance(region, Image):
+                    continue
+                name = f"image_{kind}_{i}"
+                found.update({f"{name}_path": region.path, f"{name}_sha256": region.sha256,
+                              f"{name}_shape": list(region.image_shape), f"{name}_voxel": list(region.voxel_size),
+                              f"{name}_origin": list(reversed(region.origin or [0.0] * grid.ndim))})
+                spill = region.spill(grid)
+                if spill is not None:
+                    cut = f", {spill.region:.1%} of its region" if spill.voxels else ", none of its region"
+                    left_out.append(f"{kind}[{i}]: {region.path} spans {spill.spans}, beyond the grid ({spill.grid}): "
+                                    f"{spill.image:.1%} of the image is left out{cut}")
+        if left_out:
+            found["image_left_out"] = "an image larger than the grid was cropped to it: " + "; ".join(left_out)
+        return found
 
     def real_time_attrs(self) -> dict:
         """{"t_ref": ...} when the scene says what T* = 1 is in real time (`data.real_time` adds time_real)."""

@@ -47,7 +47,7 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
-from solver.series import PER_THICKNESS, SERIES, Series, cell_volume
+from solver.series import PER_THICKNESS, SERIES, VOLUME, Series, cell_volume
 
 from ..inputs.resources import BLOCK_BYTES
 from . import comstat, measures, substratum
@@ -69,7 +69,7 @@ class Observable:
     granularity: Callable[[float, int], float] | None = None  # (h, ndim) -> its step: it counts cells; None: sub-cell
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
-        volume = self.units == "um3" and ds is not None and "z" not in ds.dims
+        volume = self.units == VOLUME and ds is not None and "z" not in ds.dims
         return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if volume else "")}
 
 
@@ -94,7 +94,7 @@ def _recorded(series: Series) -> Observable:
         volume = cell_volume(measures.spacing(ds), fields.ndim - 1)
         return np.array([series.measure(field, np.isfinite(field), volume) for field in fields])
 
-    counts = series.units == "um3"  # a volume of cells: it moves by one cell's volume
+    counts = series.units == VOLUME  # a volume of cells: it moves by one cell's volume
     return Observable(series.name, series.units, series.long_name, compute, (series.field,),
                       granularity=cell_volume if counts else None)
 
@@ -119,7 +119,7 @@ def _on_substratum(quantity: substratum.Quantity) -> Observable:
 RECORDED = {series.name: _recorded(series) for series in SERIES}  # phi_mean, c_mean, biofilm_volume
 REGISTRY: dict[str, Observable] = {o.name: o for o in (
     RECORDED["biofilm_volume"],
-    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=cell_volume),
+    Observable("dense_volume", VOLUME, "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=cell_volume),
     RECORDED["phi_mean"],
     Observable("phi_max", "1", "largest biofilm density", measures.phi_max),
     RECORDED["c_mean"],
