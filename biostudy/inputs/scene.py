@@ -7,12 +7,13 @@ times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
 ``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
 validates; `Scene.problem()` builds the solver's plain description.
 
-Besides the model's own keys, the ``[numerics]`` and ``[mechanics]`` tables and
+Besides the model's own keys, the ``[model]``, ``[numerics]`` and ``[mechanics]`` tables and
 ``[time] output_times`` map onto the solver's settings (`NumericsSpec`,
 `MechanicsSpec`, `Time`: each field says what it does; the README lists them
-all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[numerics]``
-and ``[mechanics]`` are derived from the solver's declarations (`declared`), so an
-option added to `solver.Numerics` or `solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
+all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[model]``,
+``[numerics]`` and ``[mechanics]`` are derived from the solver's declarations
+(`declared`), so an option added to `solver.Laws`, `solver.Numerics` or
+`solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
 threshold) says where and how the COMSTAT observables are measured
 (`biostudy.quantities.substratum`); it changes nothing in the simulation, and
 the datasets record it (`Scene.substratum_attrs`).
@@ -27,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
-from solver.problem import Consumption, Face, blocked_problem, face_problem, held_faces_problem, inside_problem
+from solver.problem import Face, blocked_problem, face_problem, held_faces_problem, inside_problem
 from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
@@ -59,15 +60,8 @@ class GridSpec(BaseModel):
 Params = parameters_model()
 
 
-class Model(BaseModel):
-    """Which form of the model's laws."""
-
-    model_config = CONFIG
-    consumption: Consumption = Field(
-        "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
-                                   "Eq. 35, with c held >= 0")
-
-
+Model = settings_model(solver.Laws, "Model", "Which form of the model's laws (solver.Laws; docs/model.md): the "
+                       "defaults are Eqs. 34-36 with first-order consumption and a quasi-steady nutrient.")
 NumericsSpec = settings_model(solver.Numerics, "NumericsSpec", "How the equations are discretised "
                               "(solver.Numerics); the defaults are the robust choice.")
 MechanicsSpec = settings_model(
@@ -233,7 +227,7 @@ class Scene(BaseModel):
         return solver.Problem(
             grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
-            params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
+            params=solver.Parameters(**self.params.model_dump()), laws=self.model.solver_settings(),
             numerics=self.numerics.solver_settings(), mechanics=mechanics, name=self.name)
 
     def substratum_face(self) -> str:
