@@ -1,52 +1,49 @@
-"""How a calibration's parameters are estimated: its [method] table (docs/calibrate.md)."""
+"""How a calibration's parameters are estimated: its [method] table (docs/calibrate.md), made from the methods'
+declarations (`methods.METHODS`): `name` chooses one, `starts`, `profiles` and `seed` are every method's, and
+each method's own keys (`Method.keys`) apply to it alone."""
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
+from pydantic.fields import FieldInfo
 
 from ..errors import InvalidAt
-from ..fitting.methods import LeastSquares, Method, PosteriorSampling
-from ..fitting.posterior import Options
-
-METHODS = ("least-squares", "posterior")
-POSTERIOR_KEYS = ("design", "held_out", "walkers", "steps", "box")  # [method] keys of "posterior" alone
+from .methods import METHODS, LeastSquares
 
 
-class MethodSpec(BaseModel):
-    """How the parameters are estimated."""
+class _Shared(BaseModel):
+    """The method's name and the keys every method takes; `_keys_of_the_method` holds each method's own keys to
+    it."""
 
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
-    name: Literal[METHODS] = Field("least-squares", description="least-squares: weighted least squares, "
-                                   "multi-start, profile likelihoods; posterior: least squares, then samples of "
-                                   "the posterior on a Gaussian-process surrogate")
+    name: Literal[tuple(METHODS)] = Field(LeastSquares.name, description="; ".join(
+        f"{m.name}: {m.description}" for m in METHODS.values()))
     starts: int = Field(4, ge=1, le=64, description="starts of the optimiser, from a Latin hypercube in the bounds")
-    profiles: bool = Field(True, description="a profile likelihood per parameter: its 95 % interval (posterior: "
-                                             "false unless set)")
-    seed: int = Field(0, ge=0, description="seed of the starts' design (posterior: of its design and chains too)")
-    design: int = Field(30, ge=4, le=2000, description="posterior: simulations of the surrogate's training design "
-                                                       "(the least-squares fit's own join them)")
-    held_out: int = Field(8, ge=1, le=500, description="posterior: simulations held out to measure the surrogate's "
-                                                       "error")
-    walkers: int = Field(16, ge=4, le=1000, description="posterior: emcee's walkers (at least twice the parameters)")
-    steps: int = Field(2000, ge=100, le=1_000_000, description="posterior: steps of every walker")
-    box: float = Field(6.0, ge=2.0, le=1e6, description="posterior: the surrogate's box, the least-squares "
-                                                         "estimate ± this many standard errors (within the bounds)")
+    profiles: bool = Field(True, description="a profile likelihood per parameter: its 95 % interval" + "".join(
+        f" ({m.name}: false unless set)" for m in METHODS.values() if not m.profiles))
+    seed: int = Field(0, ge=0, description="seed of the starts' design" + "".join(
+        f" ({m.name}: of {m.seeds} too)" for m in METHODS.values() if m.seeds))
 
     @model_validator(mode="after")
     def _keys_of_the_method(self):
-        if self.name != "posterior":
-            given = [key for key in POSTERIOR_KEYS if key in self.model_fields_set]
-            if given:
-                raise InvalidAt(given[0], f"applies to name = \"posterior\" only (this method is {self.name!r})")
-        elif "profiles" not in self.model_fields_set:
-            self.profiles = False
+        chosen = METHODS[self.name]
+        given = [key for m in METHODS.values() if m is not chosen for key in m.keys if key in self.model_fields_set]
+        if given:
+            owner = next(m for m in METHODS.values() if given[0] in m.keys)
+            raise InvalidAt(given[0], f"applies to name = \"{owner.name}\" only (this method is {chosen.name!r})")
+        if "profiles" not in self.model_fields_set:
+            self.profiles = chosen.profiles
         return self
 
-    def method(self) -> Method:
-        """The fitting method this table describes (`fitting.methods`)."""
-        fit = LeastSquares(self.starts, self.profiles, self.seed)
-        if self.name == "posterior":
-            return PosteriorSampling(fit, Options(self.design, self.held_out, self.walkers, self.steps, self.box,
-                                                  self.seed))
-        return fit
+
+def _own_keys() -> dict[str, Any]:
+    """Every method's own keys, their descriptions begun with the method's name."""
+    found: dict[str, Any] = {}
+    for method in METHODS.values():
+        for key, (kind, info) in method.keys.items():
+            found[key] = (kind, FieldInfo.merge_field_infos(info, description=f"{method.name}: {info.description}"))
+    return found
+
+
+MethodSpec = create_model("MethodSpec", __base__=_Shared, __doc__="How the parameters are estimated.", **_own_keys())
