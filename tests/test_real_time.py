@@ -88,7 +88,7 @@ def calibration_folder(root, scene_t_ref: str, data_t_ref: str = "20 h"):
 
 
 def test_a_calibration_whose_t_ref_is_not_the_scenes_is_one_line(tmp_path):
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.problem import load_calibration
 
     path = calibration_folder(tmp_path, scene_t_ref="48 h")
     result = CliRunner().invoke(app, ["calibrate", str(path), "-o", str(tmp_path / "out"), "-q"])

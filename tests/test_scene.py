@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 import solver
+from biostudy.calibration.problem import load_calibration
 from biostudy.errors import BadInput
 from biostudy.inputs import bundled
 from biostudy.inputs.keys import parse_override
 from biostudy.inputs.scene import Scene, key_info, load_scene
 from biostudy.inputs.tomltext import dumps
 from biostudy.plans import catalogue
-from biostudy.plans.calibration import load_calibration
 from biostudy.plans.study import load_study
 
 
