@@ -435,27 +435,6 @@ def test_a_scheduler_lost_mid_sweep_says_what_was_kept_and_how_to_resume(tmp_pat
 # 7. A full disk: one line naming the disk and what was kept
 
 
-@pytest.fixture
-def small_disk(tmp_path):
-    """A 2 MB tmpfs; fill() leaves it about full."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small tmpfs needs root")
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(disk)], capture_output=True)
-    if mounted.returncode:
-        pytest.skip(f"cannot mount a tmpfs here ({mounted.stderr.decode().strip()})")
-
-    def fill():
-        with open(disk / "filler", "ab") as handle:
-            handle.write(b"\0" * shutil.disk_usage(disk).free)
-
-    try:
-        yield disk, fill
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=True)
-
-
 def _full(disk: Path) -> str:
     return f"the disk is full (the file system at {disk}, 0 kB free)"
 
