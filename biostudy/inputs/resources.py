@@ -207,12 +207,14 @@ def free_disk(path: str | Path) -> float:
     return float(shutil.disk_usage(existing if existing.is_dir() else existing.parent).free)
 
 
-def too_big(need: float, what: str = "needs") -> str:
-    """'' if `need` bytes of memory are available, else the one-line reason."""
-    available = available_memory()
-    if need <= available:
+def too_big(need: float, what: str = "needs", parts: str = "") -> str:
+    """'' if `need` bytes of memory are available, else the one-line reason: what needs how much (of which
+    `parts`), and what is available by which account (BIOSTUDY_MEMORY, a cgroup, the machine: `memory_limits`)."""
+    binding = memory_limits()[0]
+    if need <= binding.bytes:
         return ""
-    return f"{what} {size(need)} of memory, {size(available).lstrip('~')} available"
+    return (f"{what} {size(need)} of memory{f' ({parts})' if parts else ''}, {size(binding.bytes).lstrip('~')} "
+            f"available ({binding.source})")
 
 
 def validation_problem(scene) -> str:
@@ -234,12 +236,14 @@ def run_problem(estimates: dict[str, Estimate], at_once: int, target: str | Path
     name, one = ranked[0]
     if at_once:
         together = ranked[:at_once]
-        problem = too_big(sum(e.memory for _, e in together),
-                          f"{len(together)} runs at once need" if len(together) > 1 else "needs")
-        if problem and len(together) > 1:
-            return f"{problem} (the largest, {name}: {size(one.memory)}, {one.parts()}); use fewer workers"
+        if len(together) > 1:
+            problem = too_big(sum(e.memory for _, e in together), f"{len(together)} runs at once need",
+                              f"the largest, {name}: {size(one.memory)}, {one.parts()}")
+            if problem:
+                return f"{problem}; use fewer workers"
+        problem = too_big(one.memory, "needs", f"{name}: {one.parts()}") if len(together) == 1 else ""
         if problem:
-            return f"{problem} ({name}: {one.parts()})"
+            return problem
     if target is not None:
         spool = sum(e.spool for e in estimates.values())
         written = sum(e.disk for e in estimates.values()) + spool if disk is None else disk
