@@ -185,7 +185,7 @@ def test_posterior_chains_that_cannot_fit_are_refused_before_anything_runs(tmp_p
                                            'walkers = 1000\nsteps = 1000000\n')
     one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
              "c.toml: method.steps: the posterior's chains (1000 walkers × 1000000 steps × 1 parameters) need ~32 GB "
-             "of memory, 16 GB available: lower steps or walkers")
+             "of memory, 16 GB available (BIOSTUDY_MEMORY=16 GB): lower steps or walkers")
     assert not (tmp_path / "out").exists()
     shown = invoke("show", path)
     assert shown.exit_code == 0 and "chains        ~32 GB of memory" in shown.stdout, shown.output

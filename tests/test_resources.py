@@ -131,8 +131,24 @@ def test_show_says_a_slurm_allocation_binds_and_a_run_beyond_it_is_refused(machi
         in shown.stdout
     assert "refused here: a run needs ~" in shown.stdout and "of memory, 1.57 GB available" in shown.stdout
     refused = CliRunner().invoke(app, ["run", str(big), "-o", str(tmp_path / "big.nc")])
-    assert refused.exit_code == 2 and "of memory, 1.57 GB available" in refused.stderr
+    assert refused.exit_code == 2 and "1.57 GB available (SLURM_MEM_PER_NODE=1500 (MB))" in refused.stderr
     assert not (tmp_path / "big.nc").exists()
+
+
+def test_every_memory_refusal_names_the_account_of_the_memory_available(monkeypatch, tiny_scene, tmp_path):
+    """Issue 39.14: `BIOSTUDY_MEMORY=0 biostudy show s.toml` blamed the scene ("validating alone needs ~197 kB,
+    0 kB available") and never named BIOSTUDY_MEMORY; the run's refusal neither."""
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "0")
+    shown = CliRunner().invoke(app, ["show", str(tiny_scene)])
+    assert shown.exit_code == 2 and "validating alone needs ~" in shown.stderr
+    assert "of memory, 0 kB available (BIOSTUDY_MEMORY=0); running would need" in shown.stderr
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "100 MB")
+    refused = CliRunner().invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "o.nc")])
+    assert refused.exit_code == 2 and refused.stderr.strip().endswith("100 MB available (BIOSTUDY_MEMORY=100 MB)")
+    monkeypatch.delenv("BIOSTUDY_MEMORY")
+    monkeypatch.setattr(memory, "limits", lambda: [memory.Limit(1e8, "cgroup v2 /job_7"), memory.Limit(2e9, "the "
+                                                                                                       "machine")])
+    assert resources.too_big(2e8).endswith("of memory, 100 MB available (cgroup v2 /job_7)")
 
 
 @pytest.mark.parametrize("text, size", [("16 GB", 16e9), ("512MB", 512e6), ("2.5e9", 2.5e9), (".5 gb", 0.5e9)])

@@ -160,7 +160,11 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     try:
         if loaded.target is not None and resources.streams(loaded.scene):
             spool = Spool(loaded.target)  # no file until the first output
-        ds = _simulated(loaded, progress, spool)
+        kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+        try:
+            ds = _simulated(loaded, progress, spool)
+        except writing.NotWritten as error:  # the spool's disk filled up while it ran
+            raise Failed(f"{error}; this run stopped there and its result is lost ({kept})") from None
         if loaded.target is not None:
             try:
                 if loaded.claim is not None:
@@ -168,7 +172,6 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
                 else:
                     writing.write_atomic(ds, loaded.target)
             except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
-                kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
             ds = netcdf_io.open_dataset(loaded.target)
     finally:

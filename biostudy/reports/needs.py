@@ -46,7 +46,14 @@ def needs(path) -> str:
         f"{scene.name}: {' × '.join(map(str, scene.grid.shape))} cells, {scene.time.steps} steps, "
         f"{found.outputs} outputs, mechanics {mechanics}" + _real_end(scene),
         f"memory  {resources.size(found.memory)} ({found.parts()}); here {available}",
-        f"on disk {resources.size(found.disk)} for the dataset"] + refused(found, "a run needs"))
+        f"on disk {resources.size(found.disk)} for the dataset" + _spooled(found)] + refused(found, "a run needs"))
+
+
+def _spooled(found: resources.Estimate) -> str:
+    """What a run that streams its outputs holds on disk besides its dataset while it writes it; '' if it does
+    not stream them."""
+    return (f", {resources.size(found.disk + found.spool)} while it is written (the outputs' spool beside it, "
+            "until then)" if found.spool else "")
 
 
 def _real_end(scene) -> str:
