@@ -28,9 +28,12 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable
 
 from ..inputs.measurements import NOISE_NAME, Measurement
+
+if TYPE_CHECKING:
+    from ..plans.calibration import CalibrationPlan
 
 PETAB_ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 SEPARATOR = "__"  # a dotted key's dots in its PEtab id
@@ -38,6 +41,7 @@ FILES = {"condition_files": "conditions.tsv", "measurement_files": "measurements
          "observable_files": "observables.tsv"}
 PARAMETERS = "parameters.tsv"
 PROBLEM = "problem.yaml"
+SCENE_ID = "scene"  # the condition of a calibration without [conditions] whose table names none
 NOISE_BOUNDS = (1e-300, 1e300)  # σ > 0; biostudy does not bound it (it is estimated in closed form)
 
 
@@ -159,3 +163,47 @@ def relative(path: Path, directory: Path) -> str:
         return os.path.relpath(Path(path).resolve(), Path(directory).resolve())
     except ValueError:  # another drive
         return str(Path(path).resolve())
+
+
+def _value(scene, key: str) -> Any:
+    """A scene's value of a dotted key (its defaults filled in)."""
+    from ..inputs.keys import key_parts
+
+    node: Any = scene.model_dump(mode="json")
+    for part in key_parts(key):
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    return node
+
+
+def problem_texts(plan: CalibrationPlan, directory: Path, given_set: dict[str, Any]) -> dict[str, str]:
+    """Every file of ``DIR/petab/`` (module docstring) of a calibration plan, by name; `directory` is where they
+    go (problem.yaml names the scene relative to it), `given_set` the overrides of every simulation ([set] and
+    --set).  `NotPetab` when PEtab's tables cannot hold the calibration."""
+    from ..quantities import observables
+
+    spec = plan.spec
+    ids = condition_ids({n: c.set for n, c in spec.conditions.items()}, plan.measurements, SCENE_ID)
+    first = ids[0]
+    own = {n: dict(c.estimate) for n, c in spec.conditions.items() if c.estimate}
+    shared_keys = {key for o in own.values() for key in o}
+    shared = {key: f"{petab_id(key)}{SEPARATOR}shared" for key in spec.estimate if key in shared_keys}
+    rows = [(shared.get(key, petab_id(key)), key, bounds, _value(plan.scenes[first], key))
+            for key, bounds in spec.estimate.items()]
+    rows += [(own_id(key, name), f"{key}[{name}]", bounds, _value(plan.scenes[name], key))
+             for name, table in own.items() for key, bounds in table.items()]
+    names = list(dict.fromkeys(m.observable for m in plan.measurements))
+    long_names = {n: f"{observables.get(n).long_name} [{observables.get(n).units}]" for n in names}
+    noise = list(dict.fromkeys(m.noise for m in plan.measurements if m.noise))
+    sets = {n: dict(c.set) for n, c in spec.conditions.items()}
+    extension = {"scene": relative(plan.scene_file, directory), "set": given_set,
+                 "time_unit": spec.data.time_unit, "t_ref": spec.data.t_ref,
+                 "method": spec.method.model_dump(mode="json", exclude_unset=True) or None}
+    return {
+        PROBLEM: problem_yaml(relative(plan.scene_file, directory), {k: v for k, v in extension.items()
+                                                                      if v is not None}),
+        FILES["measurement_files"]: measurements_table(plan.measurements, first),
+        FILES["condition_files"]: conditions_table(ids, sets, own, shared, lambda key: _value(plan.scenes[first],
+                                                                                               key)),
+        FILES["observable_files"]: observables_table(names, long_names),
+        PARAMETERS: parameters_table(rows, noise),
+    }
