@@ -33,3 +33,38 @@ def test_a_scene_file_beside_the_study_wins_and_a_name_that_is_neither_is_one_li
     with pytest.raises(BadInput, match=r"s.toml: scene: scene file 'agar2e' not found \(looked for .*agar2e\) nor a "
                                        r"bundled scene of that name"):
         load_study(tmp_path / "s.toml")
+
+
+def blocks(section: str) -> list[str]:
+    """The shell blocks of a README section."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    body = text.split(f"## {section}\n", 1)[1].split("\n## ", 1)[0]
+    return [part.split("```", 1)[0] for part in body.split("```sh\n")[1:]]
+
+
+def test_the_first_run_uses_the_biostudy_the_set_up_installed():
+    """After the set-up's `python3 -m venv .venv && .venv/bin/pip install ...`, a bare `biostudy` is not on the
+    PATH: "A first run" activates that venv before its first biostudy command (issue 36.6)."""
+    set_up = blocks("Set up")[0]
+    assert "python3 -m venv .venv" in set_up and ".venv/bin/pip install" in set_up
+    lines = [line.split("#")[0].strip() for line in blocks("A first run")[0].splitlines() if line.strip()]
+    assert lines[0] == ". .venv/bin/activate"
+    assert all(line.startswith("biostudy ") for line in lines[1:])
+
+
+def test_show_prints_what_the_readme_says(tiny_scene, tmp_path):
+    """README: `show` gives every observable first and last, and --json at every output."""
+    import json
+
+    from test_cli import invoke
+
+    comment = next(line for line in blocks("A first run")[0].splitlines() if line.startswith("biostudy show"))
+    assert "every observable first and last (--json: at every output)" in comment
+    assert invoke("run", tiny_scene, "-o", tmp_path / "r.nc", "-q").exit_code == 0
+    shown = invoke("show", tmp_path / "r.nc").stdout
+    header = next(line for line in shown.splitlines() if line.lstrip().startswith("observable"))
+    assert header.count("T* = ") == 2 and "T* = 0 " in header and "T* = 0.2" in header  # 3 outputs: first, last
+    record = json.loads(invoke("show", tmp_path / "r.nc", "--json").stdout)
+    assert len(record["time"]) == 3 and len(record["observables"]["biofilm_volume"]["values"]) == 3
