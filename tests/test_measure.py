@@ -205,3 +205,34 @@ def test_a_stack_declaring_more_than_the_memory_is_refused_before_a_pixel_is_rea
     monkeypatch.setenv("BIOSTUDY_MEMORY", "2 GB")
     assert "[1, 20000, 20000] voxels: reading and measuring it needs ~3.6 GB of memory, 2 GB available" in one_line(
         lambda: stacks.load(path, [1.0, 1.0]))
+
+
+def test_the_petab_table_of_a_time_series_is_read_by_a_calibration_and_by_petab(tmp_path):
+    """Issue 36.2: measure's --petab table of a 3-frame series at 0, 12, 24 h is the measurement table a calibration
+    reads (its σ named per observable, estimated) and that petab's own check takes."""
+    from test_calibration_hostile import SCENE
+
+    from biostudy.plans.calibration import load_calibration
+    from biostudy.reports import measured
+
+    series = np.stack([blobs(seed) for seed in (11, 12, 13)])
+    frames = stacks.load(imagej(tmp_path / "colony 1.tif", series, axes="TZYX"))
+    rows = measured.records([stack_measures.measure(frames, threshold=100, face="z-")], [0.0, 12.0, 24.0])
+    text = measured.petab_text(rows, observables=("biomass", "max_thickness"))
+    (tmp_path / "m.tsv").write_text(text)
+    lines = text.splitlines()
+    assert lines[0] == "observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters\tdatasetId"
+    assert lines[1:3] == [f"biomass\t\t0.0\t{rows[0]['biomass']!r}\tsigma_biomass\tcolony_1",
+                          f"max_thickness\t\t0.0\t{rows[0]['max_thickness']!r}\tsigma_max_thickness\tcolony_1"]
+    (tmp_path / "speck.toml").write_text(SCENE.replace("t_end = 0.1", "t_end = 1.0"))
+    (tmp_path / "c.toml").write_text('scene = "speck.toml"\n[data]\nmeasurements = "m.tsv"\ntime_unit = "h"\n'
+                                     't_ref = "48 h"\n[estimate]\ng = [1e7, 1e10, "log"]\n')
+    plan = load_calibration(tmp_path / "c.toml")
+    assert [m.value for m in plan.measurements] == [rows[t][n] for t in range(3) for n in ("biomass",
+                                                                                           "max_thickness")]
+    assert [n.name for n in plan.noise] == ["sigma_biomass", "sigma_max_thickness"]
+    np.testing.assert_allclose(plan.times, np.repeat([0.0, 0.25, 0.5], 2))
+    petab = pytest.importorskip("petab.v1")
+    from petab.v1.lint import check_measurement_df
+
+    check_measurement_df(petab.get_measurement_df(tmp_path / "m.tsv"))
