@@ -50,7 +50,7 @@ from solver.series import BIOFILM_THRESHOLD
 from ..errors import InvalidAt
 from ..formatting import value_text
 from .geometry import Point, Shape, input_path, um
-from .image_files import TIFF, VOXEL_MAX, Stack, read
+from .image_files import TIFF, VOXEL_MAX, Stack, grey_voxels, read
 
 PICTURES = (".png", *TIFF)
 SPILL_TOLERANCE = 1e-9  # of an image's volume: a voxel edge rounded past the grid's by floating point is inside
@@ -141,8 +141,7 @@ class Image(Shape):
         if self.scale is not None and getattr(self, "edge", 0.0):
             raise InvalidAt("edge", "with scale, the image gives phi itself; leave out edge")
         if self.threshold is None and self.scale is None:
-            top = values.max(initial=0)
-            grey = np.count_nonzero((values != 0) & (values != top))
+            grey, top = grey_voxels(values)
             if grey:
                 raise InvalidAt("threshold", f"{self.path} is greyscale ({grey} voxels neither 0 nor {top}): give "
                                              "threshold (the region: values >= it) or, for a biofilm, scale (phi = "

@@ -17,8 +17,10 @@ from typing import Any, Callable, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ..errors import BadInput, from_validation_error
+from ..inputs.bundled import studies_dir
 from ..inputs.files import read_toml
 from ..inputs.keys import Origins, apply_overrides, flatten, given_by, key_parts, parse_override, set_key
+from ..inputs.petab_problem import calibration_data
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, read_scene_data, scene_from_data
 
@@ -57,7 +59,7 @@ class OnScene(FlatSet):
     model_config = ConfigDict(extra="forbid")
     name: str = Field("", description="short name (default: the file's name without .toml)")
     description: str = Field("", description="one line shown by `biostudy scenes`")
-    scene: str = Field(description="base scene file, relative to this file")
+    scene: str = Field(description="base scene file, relative to this file, or a bundled scene's name (agar2d)")
     set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
 
 
@@ -110,9 +112,7 @@ class Plan:
 def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
     """The raw data of the base scene a study or catalogue file names, with its [set] and the --set
     overrides applied; returns (scene file, data, the overrides applied to every case)."""
-    scene_file = path.parent / scene
-    if not scene_file.is_file():
-        raise BadInput(f"scene file {scene!r} not found (looked for {scene_file})", path, "scene")
+    scene_file = scene_path(path, scene)
     data = read_scene_data(scene_file)
     for key, value in given_set.items():
         try:
@@ -120,6 +120,21 @@ def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) 
         except BadInput as error:
             raise BadInput(error.problem, path, f"set.{key}") from None
     return scene_file, data, {**given_set, **dict(apply_overrides(data, overrides))}
+
+
+def scene_path(path: Path, scene: str) -> Path:
+    """The scene a study, catalogue or calibration file names: a file relative to it, or (a bare name, as the
+    command line takes it: scene = "agar2d") a bundled scene; `BadInput` at its `scene` key otherwise."""
+    scene_file = path.parent / scene
+    if scene_file.is_file():
+        return scene_file
+    bare = len(Path(scene).parts) == 1 and Path(scene).suffix in ("", ".toml")
+    if bare:
+        for candidate in (studies_dir() / scene, studies_dir() / f"{scene}.toml"):
+            if candidate.is_file():
+                return candidate
+    also = " nor a bundled scene of that name (`biostudy scenes` lists them)" if bare else ""
+    raise BadInput(f"scene file {scene!r} not found (looked for {scene_file}){also}", path, "scene")
 
 
 def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
@@ -140,10 +155,14 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
 M = TypeVar("M", bound=OnScene)
 
 
+PETAB_SUFFIXES = (".yaml", ".yml")  # a PEtab problem, read as a calibration file (`inputs.petab_problem`)
+
+
 def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "") -> M:
-    """A study, catalogue or calibration file validated as `model`; wrong_kind(data) says why the file is not of
-    this kind ("" if it is), before it is validated."""
-    data = read_toml(path)
+    """A study, catalogue or calibration file validated as `model` (a PEtab problem.yaml: as the calibration file
+    it describes); wrong_kind(data) says why the file is not of this kind ("" if it is), before it is
+    validated."""
+    data = calibration_data(path) if path.suffix.lower() in PETAB_SUFFIXES else read_toml(path)
     problem = wrong_kind(data)
     if problem:
         raise BadInput(problem, path)
