@@ -1,7 +1,7 @@
 """A PEtab problem as a calibration file (``biostudy calibrate problem.yaml``; docs/calibrate.md, "PEtab").
 
 `calibration_data` reads PEtab v1's problem.yaml and its tables into the data a calibration file (TOML) holds,
-which the calibration then validates as its own (`plans.calibration`):
+which the calibration then validates as its own (`calibration.problem`):
 
 * the scene: the ``biostudy`` section's ``scene``, else the problem's model entry (``sbml_files``), which must
   be a scene file (or a bundled scene's name): biostudy simulates scenes, not SBML;
@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import BadInput
-from .files import TOML_BYTES, read_text
+from ..inputs.files import TOML_BYTES, read_text
 from .measurements import NOISE_NAME, TABLE_BYTES, read_measurements
 
 SEPARATOR = "__"  # a dotted key's dots in its PEtab id
