@@ -11,15 +11,11 @@ from pathlib import Path
 from ..data.reading import open_result
 from ..errors import BadInput
 
-FORMATS = ("vtu", "tiff")
 
-
-def export(path: str | Path, directory: str | Path, *, format: str = "vtu") -> list[Path]:  # noqa: A002
-    """Write a run's fields (a run or one case of a sweep) into `directory` in `format` (`FORMATS`); returns the
-    files written."""
-    if format not in FORMATS:
-        raise BadInput(f"unknown format {format!r}; formats are {', '.join(FORMATS)}", None, "--format")
-    path, directory = Path(path), Path(directory)
+def export(result: str | Path, directory: str | Path, *, format: str = "vtu") -> list[Path]:  # noqa: A002
+    """Write a run's fields (a run or one case of a sweep) into `directory` in `format` (one of
+    `declared.FORMATS`); returns the files written."""
+    path, directory = Path(result), Path(directory)
     ds = open_result(path, ("run",), "export writes one run's fields")
     try:
         if format == "tiff":
