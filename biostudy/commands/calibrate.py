@@ -25,7 +25,7 @@ from ..calibration.report import dataset, table_text
 from ..data import claims, reading, writing
 from ..errors import BadInput
 from ..execution.backends import Kept
-from ..execution.jobs import Execution
+from ..execution.jobs import Execution, backend
 from ..execution.ownership import Owner
 from ..execution.targets import owned
 from ..inputs import bundled
@@ -48,6 +48,10 @@ class Calibrate:
     @property
     def title(self) -> str:
         return f"calibrate {self.plan.spec.name}"
+
+    @property
+    def summary(self) -> Path:
+        return self.directory / "calibration.nc"
 
     def owner(self) -> Owner:
         return Owner("calibration", self.plan.spec.name, str(self.plan.scene_file.resolve()),
@@ -105,24 +109,21 @@ def _warnings(runs: Evaluator, method: Method, result: Result) -> list[str]:
 
 
 def _backend(execution: Execution) -> Kept | None:
-    """The calibration's workers, started once for all its rounds (None: here, one simulation at a time)."""
-    if execution.scheduler or execution.scheduler_file:
-        from ..execution.dask import DaskCluster  # lazily: Dask only when a cluster is asked for
-
-        return Kept(DaskCluster(execution.scheduler, scheduler_file=execution.scheduler_file))
-    if execution.workers:
-        from ..execution.pool import LocalPool  # lazily: workers only when asked for
-
-        return Kept(LocalPool(execution.workers))
-    return None
+    """The calibration's workers, started once for all its rounds, where `run_jobs` would start them
+    (`execution.jobs.backend`; None: here, one simulation at a time)."""
+    if not (execution.workers or execution.scheduler or execution.scheduler_file):
+        return None
+    notify = execution.notify
+    return Kept(backend(execution, None if notify is None else lambda message: notify("note", "", message)))
 
 
-def load(calibration: str | Path, *, output: Path | None = None,
-         overrides: tuple[str, ...] | list[str] = (), runs_here: bool = False) -> Calibrate:
-    """Read and validate a calibration file (a path or a bundled name), its scene, conditions and measurements;
-    bad input is `BadInput` (`runs_here`: as for `commands.sweep.load`)."""
-    plan = load_calibration(bundled.resolve(calibration), overrides, Preflight(runs=runs_here))
+def load(calibration: str | Path, *, directory: Path | None = None,
+         set: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Calibrate:  # noqa: A002
+    """Read and validate a calibration file (a path or a bundled name), its scene with the overrides `set`, its
+    conditions and measurements (the options: `declared.CALIBRATE`); bad input is `BadInput` (`runs_here`: as
+    for `commands.sweep.load`)."""
+    plan = load_calibration(bundled.resolve(calibration), set, Preflight(runs=runs_here))
     too_costly = cost.problems(plan, runs_here)
     if too_costly:
         raise BadInput.every(too_costly)
-    return Calibrate(plan, Path(output) if output is not None else Path(plan.spec.name))
+    return Calibrate(plan, Path(directory) if directory is not None else Path(plan.spec.name))
