@@ -14,7 +14,9 @@ script wrote: `docs/gallery/runs.md` and `docs/gallery/findings.md`
 (`scripts/gallery.py`: the bundled scenes at paper size, and the paper's
 section-4 statements measured on them with their verdicts, `scripts/findings.py`),
 `docs/measured/agar-tension.txt` (`benchmarks/agar_tension.py`: where the colony
-on agar is in tension) and `docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine).
+on agar is in tension), `docs/measured/model-laws.txt` (`benchmarks/model_laws.py`:
+the bundled scenes under each form of the model's laws) and
+`docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine).
 """
 from __future__ import annotations
 
@@ -24,10 +26,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-PAGES = (README, *(ROOT / "docs" / f"{page}.md" for page in ("gallery", "paper")))  # the pages with blocks
+PAGES = (README, *(ROOT / "docs" / f"{page}.md" for page in ("gallery", "paper", "model")))  # pages with blocks
 RUNS = ROOT / "docs" / "gallery" / "runs.md"
 FINDINGS = ROOT / "docs" / "gallery" / "findings.md"
 TENSION = ROOT / "docs" / "measured" / "agar-tension.txt"
+LAWS = ROOT / "docs" / "measured" / "model-laws.txt"
 SUITE = ROOT / "docs" / "measured" / "suite.md"
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
 
@@ -70,7 +73,7 @@ def suite_time() -> str:
 
 
 BLOCKS = {"gallery-runs": gallery_runs, "paper-findings": paper_findings, "agar-tension": lambda: table_lines(TENSION),
-          "setup-time": setup_time, "suite-time": suite_time}
+          "model-laws": lambda: table_lines(LAWS), "setup-time": setup_time, "suite-time": suite_time}
 
 
 def synced(text: str) -> tuple[str, list[str]]:
