@@ -139,7 +139,7 @@ REGISTRY: dict[str, Observable] = {o.name: o for o in (
     Observable("tension_max", "Pa", "largest tension of the biofilm: max p (hydrostatic stress)",
                lambda ds: measures.stress_extremes(ds)[1], ("p",)),
     *(_on_substratum(q) for q in substratum.QUANTITIES.values()),
-    Observable("dead_end_biofilm", "um3", "biofilm (phi >= 0.5) in dead ends off the route from the colony to the "
+    Observable("dead_end_biofilm", VOLUME, "biofilm (phi >= 0.5) in dead ends off the route from the colony to the "
                "nutrient", dead_ends.biofilm, ("phi", "obstacle", "nutrient_source"), granularity=cell_volume,
                applies=dead_ends.applies),
     Observable("dead_end_reach", "um", "how deep phi >= 0.5 reaches into a dead end beyond the route's corridor",
@@ -200,7 +200,10 @@ def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES) -> dict[str, xr.
     fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})]
     # lazy fields (a sweep's case files, a streamed run) are read in this thread: the HDF5 library is not
     # thread-safe, and a dataset a notebook left open may be closed by the garbage collector at any moment
-    names = [n for n, o in REGISTRY.items() if available(ds, o)]
+    import dask  # lazily: dask only where fields are measured
+
+    with dask.config.set(scheduler="synchronous"):  # what `applies` reads of the fields too
+        names = [n for n, o in REGISTRY.items() if available(ds, o)]
     blocks = _blocks(fields, block_bytes)
     if len(blocks) == 1:
         fields = fields.load(scheduler="synchronous")
