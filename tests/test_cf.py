@@ -111,7 +111,6 @@ def test_the_declared_units_of_every_other_dataset_parse_too():
     """stability.nc, convergence.nc and the observables, whose datasets cost too much to make here."""
     import cf_xarray.units
 
-    from biostudy.inputs.scene import SCENE_KEYS, key_info  # noqa: F401
     from biostudy.quantities import observables
     from biostudy.reports import convergence, stability
     from solver.output import cf_units
