@@ -21,7 +21,6 @@ import xarray as xr
 
 from .problem import AXES, PRESSURES, Problem, parameter_infos
 from .series import BIOFILM_THRESHOLD, SERIES, SLAB_THICKNESS, cell_volume
-from .sink import Held
 from .transport.bounds import ROUNDOFF
 
 if TYPE_CHECKING:
@@ -170,14 +169,6 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
             if isinstance(value, (int, float, str)) and not isinstance(value, bool):
                 attrs[f"mechanics_{key}"] = value
     return attrs
-
-
-def to_dataset(problem: Problem, snapshots: list[Snapshot], report: dict) -> xr.Dataset:
-    """The run as a Dataset from its snapshots held in memory (`assemble`)."""
-    held = Held()
-    for snapshot in snapshots:
-        held.add(snapshot)
-    return assemble(problem, [record(problem, s) for s in snapshots], held.fields(), report)
 
 
 def assemble(problem: Problem, records: list[Record], fields: dict[str, Any], report: dict) -> xr.Dataset:

@@ -117,7 +117,7 @@ BAD_INPUT = [
     ("both --workers and --scheduler", ["sweep", "{study}", "--workers", "2", "--scheduler", "tcp://x:1"],
      ["--workers", "not both"]),
     ("tls:// without a TLS configuration", ["sweep", "{study}", "--scheduler", "tls://127.0.0.1:9"],
-     ["--scheduler: tls://127.0.0.1:9 needs a TLS configuration", "distributed.comm.tls.ca-file", "README"]),
+     ["--scheduler: tls://127.0.0.1:9 needs a TLS configuration", "distributed.comm.tls.ca-file", "docs/clusters.md"]),
     ("misspelled bundled scene", ["run", "directonal"],
      ["directonal: no such file", "did you mean 'directional'?", "`biostudy scenes`"]),
     ("misspelled bundled study", ["sweep", "directional-swep"], ["did you mean 'directional-sweep'?"]),

@@ -50,8 +50,8 @@ from ..inputs.files import read_toml
 from ..inputs.keys import dimension
 from ..inputs.real_time import apart, check_agree, exact
 from ..inputs.resources import Preflight
-from ..inputs.scene import Scene, scene_from_data
-from ..plans.cases import base_scene, case_scene, compile_cases, not_varied, origins_of, read_spec
+from ..inputs.scene import Scene
+from ..plans.cases import case_scene, compile_cases, read_based
 from ..plans.designs import Range
 from ..quantities import observables
 from .measurements import Measurement, read_measurements, refusal
@@ -236,16 +236,14 @@ def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = 
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
     `BadInput` (every problem of the table at once; `preflight`: as for `cases.load_plan`)."""
     path = Path(path)
-    spec = read_spec(path, Calibration, _wrong_kind, read=_calibration_data)
-    scene_file, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
-    origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, preflight)
-    spec.check(base_data, scene_file, path)
-    not_varied(spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace "
-               "it; change its bounds instead", spec.set, path, overrides)
-    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, preflight)
+    based = read_based(path, Calibration, overrides, _wrong_kind, preflight, lambda spec: (
+        spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace it; change "
+                               "its bounds instead"), read=_calibration_data)
+    spec, scene_file, base_data = based.spec, based.scene_file, based.data
+    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, based.origins, preflight)
     data_file, rows, times = _measurements(spec, scenes, scene_file, path)
-    return CalibrationPlan(path, spec, scene_file, base, scenes, base_data, _parameters(spec), rows, times, data_file)
+    return CalibrationPlan(path, spec, scene_file, based.scene, scenes, base_data, _parameters(spec), rows, times,
+                           data_file)
 
 
 def _wrong_kind(data: dict) -> str:

@@ -94,8 +94,8 @@ def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str
             raise BadInput(f"Dask's TLS configuration cannot be used: {error}", "--scheduler") from None
         if context is None:
             raise BadInput(f"{scheduler} needs a TLS configuration: Dask's distributed.comm.tls.ca-file, "
-                           ".client.cert and .client.key (a YAML file in DASK_CONFIG; README, 'Sweeps on a "
-                           "Dask cluster')", "--scheduler")
+                           ".client.cert and .client.key (a YAML file in DASK_CONFIG; docs/clusters.md, 'Local "
+                           "workers and a Dask cluster')", "--scheduler")
 
 
 def _refused(address: str, timeout: float) -> bool:

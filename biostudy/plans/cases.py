@@ -190,6 +190,33 @@ def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Pa
     return scenes
 
 
+@dataclass(frozen=True)
+class Based:
+    """A file of many cases of one scene, read and checked: its spec, its base scene (the file, its raw data with
+    [set] and --set applied, validated), the overrides every case has and where each came from."""
+
+    spec: Any
+    scene_file: Path
+    data: dict
+    scene: Scene
+    common: dict
+    origins: Origins
+
+
+def read_based(path: Path, model: type[M], overrides, wrong_kind: Callable[[dict], str], preflight: Preflight | None,
+               varies: Callable[[Any], tuple[list[str], str]], read: Callable[[Path], dict] = read_toml) -> Based:
+    """A study's, catalogue's or calibration's file and its base scene (`Based`), the spec's own checks against
+    the base data done, and no override of a key its cases vary (varies(spec): those keys, and who varies them
+    as `not_varied` says it; `read`: as for `read_spec`)."""
+    spec = read_spec(path, model, wrong_kind, read)
+    scene_file, data, common = base_scene(path, spec.scene, spec.set, overrides)
+    origins = origins_of(spec.set, path, overrides)
+    scene = scene_from_data(data, scene_file, origins, preflight)
+    spec.check(data, scene_file, path)
+    not_varied(*varies(spec), spec.set, path, overrides)
+    return Based(spec, scene_file, data, scene, common, origins)
+
+
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
               wrong_kind: Callable[[dict], str] = lambda data: "", preflight: Preflight | None = None) -> Plan:
     """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
@@ -199,13 +226,11 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
     cases run here, not on a Dask cluster), made before a case's masks are.
     """
     path = Path(path)
-    spec = read_spec(path, model, wrong_kind)
-    scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
-    origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, preflight)
-    spec.check(base_data, scene_file, path)
-    not_varied(spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace "
-               "it; change the study's values instead", spec.set, path, overrides)
+    based = read_based(path, model, overrides, wrong_kind, preflight, lambda spec: (
+        spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace it; "
+                            "change the study's values instead"))
+    spec, scene_file, base_data, base, common, origins = (based.spec, based.scene_file, based.data, based.scene,
+                                                           based.common, based.origins)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)

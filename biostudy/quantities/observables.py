@@ -73,10 +73,14 @@ class Observable:
     needs_attrs: tuple[str, ...] = ()  # attributes of the dataset it is computed from (the substratum)
     granularity: Callable[[float, int], float] | None = None  # (h, ndim) -> its step: it counts cells; None: sub-cell
     applies: Callable[[xr.Dataset], bool] | None = None  # whether the run has what it measures (None: every run)
+    described: Callable[[xr.Dataset], dict] | None = None  # what it says of itself on a dataset (a height's top)
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
+        """Its units and long name (a volume of a 2-D run is per µm of thickness), and on a dataset what it says
+        there (`described`; ValueError where it cannot be measured)."""
         volume = self.units == VOLUME and ds is not None and "z" not in ds.dims
-        return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if volume else "")}
+        said = self.described(ds) if self.described is not None and ds is not None else {}
+        return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if volume else ""), **said}
 
 
 def _vertical(ds: xr.Dataset) -> str:
@@ -84,9 +88,19 @@ def _vertical(ds: xr.Dataset) -> str:
 
 
 def _height(axis: str | None) -> Observable:
+    """The height along `axis` (None: the vertical one), with the domain's top: a height there is saturated."""
     where = f"along {axis}" if axis else "along the vertical axis (z in 3-D, y in 2-D)"
-    return Observable(f"height_{axis}" if axis else "height", "um", f"top of phi >= 0.5 {where}",
-                      lambda ds: measures.height(ds, axis or _vertical(ds)))
+    name = f"height_{axis}" if axis else "height"
+
+    def top(ds: xr.Dataset) -> dict:
+        along = axis or _vertical(ds)
+        if along not in ds.dims:
+            raise ValueError(f"{name}: the dataset has no axis {along}")
+        return {SATURATION: measures.top(ds, along), "comment": f"{SATURATION}: the domain's top along {along}; a "
+                "height equal to it is saturated (the biofilm reaches the top: a lower bound)"}
+
+    return Observable(name, "um", f"top of phi >= 0.5 {where}", lambda ds: measures.height(ds, axis or _vertical(ds)),
+                      described=top)
 
 
 SUBSTRATUM_ATTRS = ("substratum_face", "substratum_threshold")
@@ -166,13 +180,6 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     """The observable over time (and over a study's case dimensions) from the dataset's fields."""
     observable = get(name)
     attrs = observable.attrs(ds)
-    if name == "height" or name.startswith("height_"):
-        axis = name.removeprefix("height_") if name != "height" else _vertical(ds)
-        if axis not in ds.dims:
-            raise ValueError(f"{name}: the dataset has no axis {axis}")
-        attrs = {**attrs, SATURATION: measures.top(ds, axis),
-                 "comment": f"{SATURATION}: the domain's top along {axis}; a height equal to it is saturated (the "
-                            "biofilm reaches the top: a lower bound)"}
     missing = [v for v in observable.needs if v not in ds]
     if missing:
         raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
