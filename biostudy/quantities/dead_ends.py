@@ -122,25 +122,28 @@ def _cached(key: bytes, obstacle: bytes, colony: bytes, source: bytes, shape: tu
 def of(ds: xr.Dataset) -> DeadEnds:
     """The dead ends of a run's dataset (its obstacle, nutrient_source and phi at the first output), computed once
     per geometry."""
-    def cells(name: str, **where) -> np.ndarray:  # (a study's case dimensions: its first case)
-        field = ds[name].isel(**where, **{d: 0 for d in ds[name].dims if d not in ("y", "x", *where)})
-        return field.transpose("y", "x").values
-
-    obstacle, source = cells("obstacle").astype(bool), cells("nutrient_source").astype(bool)
-    colony = np.nan_to_num(cells("phi", time=0)) >= THRESHOLD
+    obstacle, source = _cells(ds, "obstacle").astype(bool), _cells(ds, "nutrient_source").astype(bool)
+    colony = np.nan_to_num(_cells(ds, "phi", time=0)) >= THRESHOLD
     parts = [np.ascontiguousarray(a).tobytes() for a in (obstacle, colony, source)]
     key = hashlib.sha256(b"".join(parts)).digest()
     return _cached(key, *parts, obstacle.shape, spacing(ds))
 
 
+def _cells(ds: xr.Dataset, name: str, **where) -> np.ndarray:
+    """One 2-D field of the dataset (a study's case dimensions: its first case), read in this thread: a lazily
+    opened file is never read from dask's thread pool (HDF5 is not thread-safe; `observables.variables`)."""
+    field = ds[name].isel(**where, **{d: 0 for d in ds[name].dims if d not in ("y", "x", *where)})
+    return field.transpose("y", "x").load(scheduler="synchronous").values
+
+
 def applies(ds: xr.Dataset) -> bool:
     """Whether the run has a route with dead ends to measure: 2-D, obstacles, held nutrient cells, a colony."""
     return "z" not in ds.dims and all(v in ds for v in ("obstacle", "nutrient_source", "phi")) and \
-        bool(ds["obstacle"].any()) and bool(ds["nutrient_source"].any()) and of(ds).area.size > 0
+        bool(_cells(ds, "obstacle").any()) and bool(_cells(ds, "nutrient_source").any()) and of(ds).area.size > 0
 
 
 def _fields(ds: xr.Dataset) -> np.ndarray:
-    return np.nan_to_num(ds["phi"].transpose("time", "y", "x").values)
+    return np.nan_to_num(ds["phi"].transpose("time", "y", "x").load(scheduler="synchronous").values)
 
 
 def biofilm(ds: xr.Dataset) -> np.ndarray:
