@@ -191,17 +191,9 @@ def test_bad_stacks_are_one_line_each(tmp_path, monkeypatch):
 def test_a_stack_declaring_more_than_the_memory_is_refused_before_a_pixel_is_read(tmp_path, monkeypatch):
     """A 300-byte tiled TIFF whose header says 20000 x 20000 pixels; measuring it would need the values (1 byte
     each) and 8 bytes a voxel more: refused from the header."""
-    path = tmp_path / "huge.tif"
-    tifffile.imwrite(path, np.zeros((16, 16), np.uint8), tile=(16, 16), compression="zlib", metadata=None)
-    with tifffile.TiffFile(path, mode="r+b") as tif:
-        tif.pages[0].tags["ImageWidth"].overwrite(20000)
-        tif.pages[0].tags["ImageLength"].overwrite(20000)
+    from test_images_files import huge_tiff
 
-    def never(*args, **kwargs):
-        raise AssertionError("the pixels were read")
-
-    for reader in (tifffile.TiffPageSeries, tifffile.TiffPage, tifffile.TiffFile):
-        monkeypatch.setattr(reader, "asarray", never)
+    path = huge_tiff(tmp_path / "huge.tif", monkeypatch)
     monkeypatch.setenv("BIOSTUDY_MEMORY", "2 GB")
     assert "[1, 20000, 20000] voxels: reading and measuring it needs ~3.6 GB of memory, 2 GB available" in one_line(
         lambda: stacks.load(path, [1.0, 1.0]))
