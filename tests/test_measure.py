@@ -228,3 +228,28 @@ def test_the_petab_table_of_a_time_series_is_read_by_a_calibration_and_by_petab(
     from petab.v1.lint import check_measurement_df
 
     check_measurement_df(petab.get_measurement_df(tmp_path / "m.tsv"))
+
+
+def test_the_measurement_table_is_a_new_file_never_one_that_is_there(tmp_path, monkeypatch):
+    """--petab refuses a file that is there, and keeps one that appears while the stacks are measured (linked into
+    place, not renamed over); nothing else is left in the folder."""
+    from biostudy.commands import measure
+    from biostudy.reports import measured
+
+    stack = imagej(tmp_path / "s.tif", blobs(14))
+    (tmp_path / "mine.tsv").write_text("my table")
+    with pytest.raises(BadInput, match=r"mine.tsv: --petab: exists; the measurement table is written as a new file"):
+        measure.measure([stack], threshold=100, petab=tmp_path / "mine.tsv", time=[1.0])
+    with pytest.raises(BadInput, match=r"--time: gives 2 times for 1 frames"):
+        measure.measure([stack], threshold=100, petab=tmp_path / "m.tsv", time=[1.0, 2.0])
+    made = measured.petab_text
+
+    def meanwhile(*args, **kwargs):
+        (tmp_path / "m.tsv").write_text("a colleague's table")
+        return made(*args, **kwargs)
+
+    monkeypatch.setattr(measured, "petab_text", meanwhile)
+    with pytest.raises(BadInput, match=r"m.tsv: --petab: appeared while the stacks were measured; it is kept"):
+        measure.measure([stack], threshold=100, petab=tmp_path / "m.tsv", time=[1.0])
+    assert (tmp_path / "m.tsv").read_text() == "a colleague's table"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.tsv", "mine.tsv", "s.tif"]
