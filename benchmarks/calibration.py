@@ -56,7 +56,8 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from biostudy.commands import calibrate, twin  # noqa: E402
+from biostudy.calibration import twin  # noqa: E402
+from biostudy.commands import calibrate  # noqa: E402
 from biostudy.execution.jobs import Execution  # noqa: E402
 from biostudy.inputs import bundled  # noqa: E402
 
@@ -237,8 +238,8 @@ def noise() -> None:
 
 
 def posterior_grid(workers: int | None) -> None:
-    from biostudy.execution.evaluator import Evaluator
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.evaluator import Evaluator
+    from biostudy.calibration.problem import load_calibration
 
     plan = load_calibration(bundled.resolve("calibrate-agar"))
     low, high = np.log10([1e7, 20.0]), np.log10([1e10, 400.0])  # the calibration's [estimate] ranges

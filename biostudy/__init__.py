@@ -6,8 +6,8 @@ processes or a Dask cluster.  Data flows one way: scene file -> `Scene` ->
 `solver.Problem` -> `solver.simulate` -> xarray Dataset -> netCDF.
 
 The packages are stages whose imports run one way (`tests/test_layout.py` holds the order): fitting (plain
-maths), inputs, quantities, data, plans, execution, reports, plots, commands, cli; each imports only the
-stages before it (and `solver`, `formatting`, `errors`).
+maths), inputs, quantities, data, plans, execution, reports, plots, calibration (a feature in one place),
+commands, cli; each imports only the stages before it (and `solver`, `formatting`, `errors`).
 
 From Python (a notebook, a script; docs/results.md):
 

@@ -120,10 +120,10 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
     worker.pin_solvers()
     with netcdf.called(_call("run", scene if not isinstance(scene, Mapping) else dict(scene), set=set,
                              output=output, continue_from=continue_from)):
-        loaded = command.load(dict(scene) if isinstance(scene, Mapping) else scene, overrides=overrides,
-                              output=None if output is None else Path(output), force=force,
-                              continue_from=continue_from, write=output is not None)
-        result = command.compute(loaded, progress=progress)
+        with command.load(dict(scene) if isinstance(scene, Mapping) else scene, overrides=overrides,
+                          output=None if output is None else Path(output), force=force,
+                          continue_from=continue_from, write=output is not None) as loaded:
+            result = command.compute(loaded, progress=progress)
     ds = result.dataset.load()  # a written run comes back from its file, read whole and closed as before
     ds.close()
     attrs = ds.attrs

@@ -1,4 +1,4 @@
-"""Write a twin experiment's measurement table: the model at known parameters plus noise (`biostudy.commands.twin`).
+"""Write a twin experiment's measurement table: the model at known parameters plus noise (`biostudy.calibration.twin`).
 
 The bundled example's table was made by
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 os.environ.setdefault("FIPY_SOLVERS", "scipy")
 
-from biostudy.commands.twin import table  # noqa: E402
+from biostudy.calibration.twin import table  # noqa: E402
 
 
 def main() -> None:

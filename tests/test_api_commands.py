@@ -166,7 +166,7 @@ def test_convergence_and_stability_return_what_the_command_reports(made):
 
 @pytest.mark.filterwarnings("ignore:1 of its simulations lost")  # the tiny colony retreats where it starves
 def test_calibrate_returns_what_the_command_reports(made):
-    from biostudy.commands import twin
+    from biostudy.calibration import twin
 
     (made / "twin.tsv").write_text(twin.table(made / "tiny.toml", truth={"r": 80.0}, observables_measured=["biomass"],
                                               times=[0.1, 0.2], noise=0.05, seed=3))

@@ -3,7 +3,7 @@ and a calibration killed at a random moment and run again.
 
 The twin: the 2-D agar colony on 12 x 16 cells of 1 µm (front velocity, 40 steps to T* = 0.2: the front moves
 at most r/2 = 125 µm/T* at the upper bound of r, a Courant number of 0.6; its top stays below 9 µm, clear of
-the lid), measured by the model itself at g = 1e9, r = 100 (`commands.twin`): biomass and max_thickness at 1-4 h
+the lid), measured by the model itself at g = 1e9, r = 100 (`calibration.twin`): biomass and max_thickness at 1-4 h
 with t_ref = 20 h, 5 % noise.  From two starts of a Latin hypercube (one in the lower, one in the upper part of
 each range) least squares with profiles must find intervals that hold the truth.  The simulations (~0.1 s
 each) make up most of this file's time; the kill-and-rerun test fits r alone from one start without profiles,
@@ -27,8 +27,8 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
+from biostudy.calibration import twin
 from biostudy.cli import app
-from biostudy.commands import twin
 
 SCENE = """\
 name = "agar-twin"
@@ -353,8 +353,8 @@ def test_a_calibration_file_shows_what_one_simulation_needs(folder):
 
 
 def test_the_bundled_example_validates():
+    from biostudy.calibration.problem import load_calibration
     from biostudy.inputs import bundled
-    from biostudy.plans.calibration import load_calibration
 
     plan = load_calibration(bundled.resolve("calibrate-agar"))
     assert [p.name for p in plan.parameters] == ["g", "r"] and len(plan.measurements) >= 10
@@ -362,7 +362,7 @@ def test_the_bundled_example_validates():
 
 
 def test_conditions_share_parameters_unless_they_estimate_their_own(write_toml):
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.problem import load_calibration
 
     write_toml("agar.toml", SCENE)
     write_toml("t.tsv", "observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters\n"
@@ -419,7 +419,7 @@ def test_calibrated_rates_carry_their_units_per_t_star_and_per_hour(folder, fit_
     table = (folder / "fit-once" / "calibration.md").read_text()
     assert f"| r | {r:.4g} µm/T*" in table.replace("e+0", "e").replace("e-0", "e-")
     assert "Rates in real time (t_ref = 20 h)" in table and f"| r | {r / 20:.4g} µm/h | - |" in table
-    from biostudy.plots.calibration import profiles_figure
+    from biostudy.calibration.pictures import profiles_figure
 
     figure = profiles_figure(ds)
     assert figure.axes[0].get_xlabel() == "r (µm/T*)"  # was "r (µm)"

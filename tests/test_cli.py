@@ -104,6 +104,8 @@ BAD_INPUT = [
     ("unknown shape", ["run", "{scene}", "--set", "biofilm.0.shape='cone'"], ["biofilm[0]", "unknown shape 'cone'"]),
     ("unknown consumption law", ["run", "{scene}", "--set", "model.consumption=second-order"],
      ["model.consumption: must be 'first-order' or 'zero-order'"]),
+    ("unknown expansion law", ["run", "{scene}", "--set", "model.expansion=eq35"],
+     ["model.expansion: must be 'eq36' or 'table1'"]),
     ("malformed --set", ["run", "{scene}", "--set", "params.g"], ["--set", "expected KEY=VALUE"]),
     ("missing scene file", ["run", "{dir}/nowhere.toml"], ["nowhere.toml: no such file"]),
     ("TOML syntax error", ["run", "{dir}/broken.toml"], ["broken.toml: not valid TOML", "line 2"]),

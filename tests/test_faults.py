@@ -403,7 +403,7 @@ def test_a_case_out_of_memory_is_recorded_as_such_and_the_others_go_on(tiny_stud
 def test_an_oversized_grid_is_refused_before_allocating(tiny_scene, tmp_path, monkeypatch, shape):
     import tracemalloc
 
-    monkeypatch.setattr(resources, "available_memory", lambda: 16e9)  # the same answer on any machine
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "16 GB")  # the same answer on any machine
     began = time.perf_counter()
     tracemalloc.start()
     try:
@@ -412,15 +412,17 @@ def test_an_oversized_grid_is_refused_before_allocating(tiny_scene, tmp_path, mo
     finally:
         tracemalloc.stop()
     line = one_line_error(result)
-    assert line.startswith("error: --set: grid.shape: ") and "of memory, 16 GB available; running would need ~" in line
+    assert line.startswith("error: --set: grid.shape: ")
+    assert "of memory, 16 GB available (BIOSTUDY_MEMORY=16 GB); running would need ~" in line
     assert peak < 50e6 and time.perf_counter() - began < 5  # refused before any array of the grid's size
 
 
 def test_too_many_outputs_workers_or_bytes_are_refused_before_running(tiny_scene, tiny_study, tmp_path, monkeypatch,
                                                                      no_simulation):
-    monkeypatch.setattr(resources, "available_memory", lambda: 0.5e9)
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "500 MB")
     line = one_line_error(invoke("run", tiny_scene, "-o", tmp_path / "o.nc", "--set", "time.outputs=1000000"))
-    assert line.startswith("error: --set: time.outputs: needs ~") and "of memory, 500 MB available (tiny: " in line
+    assert line.startswith("error: --set: time.outputs: needs ~") and "of memory (tiny: " in line
+    assert line.endswith(", 500 MB available (BIOSTUDY_MEMORY=500 MB)")
     assert "outputs ~" in line
     out = tmp_path / "out"
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test

@@ -35,7 +35,7 @@ from biostudy.commands.sweep import run_study
 from biostudy.data import case_files, combine, netcdf_io, reading
 from biostudy.execution import backends, dask, pool
 from biostudy.execution.jobs import Execution
-from biostudy.inputs import files, resources
+from biostudy.inputs import files
 from biostudy.plans.study import load_study
 from biostudy.reports.sensitivity import analyze as indices
 
@@ -336,7 +336,7 @@ def test_a_mask_that_is_no_regular_file_is_one_line(kind, tmp_path, hang_guard):
 @pytest.mark.parametrize("command", ["run", "sweep"])
 def test_a_run_or_sweep_too_big_for_this_machine_is_refused_before_its_arrays_are_built(command, tmp_path,
                                                                                          monkeypatch):
-    monkeypatch.setattr(resources, "available_memory", lambda: 8e9)
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "8 GB")
     scene = tmp_path / "cube.toml"
     scene.write_text(CUBE_SCENE)
     given = scene
@@ -351,7 +351,7 @@ def test_a_run_or_sweep_too_big_for_this_machine_is_refused_before_its_arrays_ar
         tracemalloc.stop()
     line = one_line(result)
     assert line.startswith("error: --set: grid.shape: needs ~")
-    assert "of memory, 8 GB available (cube: transport ~" in line
+    assert "of memory (cube: transport ~" in line and line.endswith(", 8 GB available (BIOSTUDY_MEMORY=8 GB)")
     assert peak < 400 ** 3  # not even one boolean array of the grid (64 MB) was made
     assert sorted(os.listdir(tmp_path)) == sorted({"cube.toml", given.name})
 
@@ -435,27 +435,6 @@ def test_a_scheduler_lost_mid_sweep_says_what_was_kept_and_how_to_resume(tmp_pat
 # 7. A full disk: one line naming the disk and what was kept
 
 
-@pytest.fixture
-def small_disk(tmp_path):
-    """A 2 MB tmpfs; fill() leaves it about full."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small tmpfs needs root")
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(disk)], capture_output=True)
-    if mounted.returncode:
-        pytest.skip(f"cannot mount a tmpfs here ({mounted.stderr.decode().strip()})")
-
-    def fill():
-        with open(disk / "filler", "ab") as handle:
-            handle.write(b"\0" * shutil.disk_usage(disk).free)
-
-    try:
-        yield disk, fill
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=True)
-
-
 def _full(disk: Path) -> str:
     return f"the disk is full (the file system at {disk}, 0 kB free)"
 
@@ -510,7 +489,7 @@ def test_refused_sweeps_leave_no_claim_behind(finished, tmp_path, monkeypatch):
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
     line = one_line(invoke("sweep", finished["study"], "-o", ".", "-q", "--scheduler", "tcp://127.0.0.1:9"))
     assert "nothing listens at tcp://127.0.0.1:9" in line and os.listdir(here) == []
-    monkeypatch.setattr(resources, "available_memory", lambda: 4.5e8)  # one run (~320 MB) fits, two do not
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "450 MB")  # one run (~320 MB) fits, two do not
     for target in (".", "new/deeper"):
         line = one_line(invoke("sweep", finished["study"], "-o", target, "-q", "--workers", "2"))
         assert "use fewer workers" in line and os.listdir(here) == []

@@ -6,7 +6,8 @@ ROOT = Path(__file__).resolve().parents[1]
 # bottom to top: a module may import its own stage and the stages below it, never one above
 STAGES = ["solver", "biostudy.formatting", "biostudy.errors", "biostudy.fitting", "biostudy.inputs",
           "biostudy.quantities", "biostudy.data",
-          "biostudy.plans", "biostudy.execution", "biostudy.reports", "biostudy.plots", "biostudy.commands",
+          "biostudy.plans", "biostudy.execution", "biostudy.reports", "biostudy.plots", "biostudy.calibration",
+          "biostudy.commands",
           "biostudy.cli", "biostudy"]
 
 
@@ -118,3 +119,15 @@ def test_the_check_sees_a_cycle_and_an_upward_import():
                                                                                           "biostudy.plans.study"}
     finally:
         source.unlink()
+
+
+def test_a_fitting_method_is_asked_for_its_name_only_in_its_declaration():
+    """A fitting method is declared once (`calibration.methods`): the rest of biostudy asks the declaration what
+    the method needs and makes, never compares its name (issue 38.1)."""
+    from biostudy.calibration.methods import METHODS
+
+    found = [f"{path.relative_to(ROOT)}:{node.lineno} {node.value!r}" for name, path in modules().items()
+             if name.startswith("biostudy") and name != "biostudy.calibration.methods"
+             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+             if isinstance(node, ast.Constant) and node.value in METHODS]
+    assert not found, found

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from solver import Grid, MechanicsSetup, Parameters, Problem, simulate
+from solver import Grid, Laws, MechanicsSetup, Parameters, Problem, simulate
 from solver.output import cf_units, on_output_times
 
 
@@ -76,7 +76,7 @@ def test_the_dataset_says_what_the_solver_projected_onto_the_bounds_and_how_c_wa
     assert (attrs["projected_phi_count"] > 0) == (attrs["projected_phi_largest"] > 0)  # counted where it happened
     assert attrs["projected_phi_largest"] <= attrs["bounds_roundoff"]
     assert attrs["nutrient_active_set_iterations"] == 0  # first-order consumption: no active set
-    zero = simulate(replace(base, consumption="zero-order", params=Parameters(g=1e10)))
+    zero = simulate(replace(base, laws=Laws(consumption="zero-order"), params=Parameters(g=1e10)))
     assert zero.attrs["nutrient_active_set_iterations"] > zero.attrs["steps_taken"]  # every solve iterates
 
 

@@ -93,13 +93,10 @@ def run(
     with guarded():
         from ..commands import run as command  # lazily (module docstring)
 
-        loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from)
-        try:
+        with command.load(scene, overrides=overrides, output=output, force=force,
+                          continue_from=continue_from) as loaded:
             with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
                 result = command.compute(loaded, progress=report)
-        finally:  # interrupted before `compute` took the claim over: its temporary goes now, not at exit
-            if loaded.claim is not None:
-                loaded.claim.release()
         for warning in result.warnings():
             typer.echo(f"warning: {warning}", err=True)
         progress.err().print(result.message(), markup=False, highlight=False, soft_wrap=True)

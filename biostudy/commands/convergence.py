@@ -20,6 +20,7 @@ from ..execution.ownership import Owner
 from ..execution.targets import owned
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by
+from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, overrides_text, read_scene_data, scene_from_data
 from ..plans.refinement import FIRST_TOLERANCE, SERIES, check_refinable, chosen_series, plan, refined
 from ..plots.accuracy import work_precision
@@ -89,7 +90,7 @@ def load(scene: str | Path, *, output: Path | None = None, levels: int = 3, seri
     path = bundled.resolve(scene)
     data = read_scene_data(path)
     common = dict(apply_overrides(data, overrides))
-    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"))
+    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"), Preflight())
     check_refinable(base, path)
     directory = Path(output) if output is not None else Path(f"{path.stem}-convergence")
     given = None if reference is None else load_reference(reference, base, time)

@@ -14,6 +14,7 @@ from ..data import claims, provenance, writing
 from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
+from ..inputs.resources import Preflight
 from ..plans import catalogue
 from ..plans.cases import Plan
 from ..reports.stability import table_text, verdicts
@@ -62,5 +63,5 @@ def load(path: str | Path, *, output: Path | None = None, overrides: tuple[str, 
     """Read and validate a catalogue (a path or a bundled name) and every case; bad input is `BadInput`
     (`runs_here`: as for `commands.sweep.load`)."""
     path = bundled.resolve(path)
-    return Stability(catalogue.load(path, overrides, runs_here), path,
+    return Stability(catalogue.load(path, overrides, Preflight(runs=runs_here)), path,
                      Path(output) if output is not None else Path(f"{path.stem}-results"))

@@ -26,6 +26,7 @@ from ..errors import BadInput
 from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
+from ..inputs.resources import Preflight
 from ..plans.cases import Plan
 from ..plans.study import load_study
 from .finished import Finished
@@ -168,7 +169,7 @@ def load(study: str | Path, *, output: Path | None = None, overrides: tuple[str,
     """Read and validate a study (a path or a bundled name) and every case, and which cases to run (`cases`,
     or share `task` of `tasks`; `combine_only`: none); bad input is `BadInput`.  `runs_here`: the cases run on
     this machine, so one too big for its memory is refused by its estimate before its masks are made."""
-    plan = load_study(bundled.resolve(study), overrides, runs_here and not combine_only)
+    plan = load_study(bundled.resolve(study), overrides, Preflight(runs=runs_here and not combine_only))
     share = None
     if cases or task is not None or tasks is not None:
         if cases and (task is not None or tasks is not None):

@@ -70,7 +70,7 @@ def scheduler_address(scheduler_file: str | Path) -> str:
 
 def runs_here(scheduler: str | None, scheduler_file: str | Path | None = None) -> bool:
     """True when the jobs run on this machine (serially or on local processes), not on a Dask cluster: then a
-    case too big for this machine's memory is refused while it is validated (`plans.cases.load_plan`)."""
+    case too big for this machine's memory is refused by the command's pre-flight (`inputs.resources.Preflight`)."""
     return not (scheduler or scheduler_file)
 
 

@@ -15,7 +15,7 @@ length in (0, `VOXEL_MAX`] µm); a bad one is told, naming the file and the
 metadata field, only when the scene does not give `voxel` (which wins).
 
 Memory: a file is refused when reading and averaging it would not fit in the
-memory a run may use (`resources.available_memory`: the machine's, a batch
+memory a run may use (`resources.memory_limits`: the machine's, a batch
 job's cgroup limit, or BIOSTUDY_MEMORY), judged by the size its header
 declares before any pixel is read.
 """

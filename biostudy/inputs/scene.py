@@ -7,12 +7,13 @@ times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
 ``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
 validates; `Scene.problem()` builds the solver's plain description.
 
-Besides the model's own keys, the ``[numerics]`` and ``[mechanics]`` tables and
+Besides the model's own keys, the ``[model]``, ``[numerics]`` and ``[mechanics]`` tables and
 ``[time] output_times`` map onto the solver's settings (`NumericsSpec`,
 `MechanicsSpec`, `Time`: each field says what it does; the README lists them
-all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[numerics]``
-and ``[mechanics]`` are derived from the solver's declarations (`declared`), so an
-option added to `solver.Numerics` or `solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
+all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[model]``,
+``[numerics]`` and ``[mechanics]`` are derived from the solver's declarations
+(`declared`), so an option added to `solver.Laws`, `solver.Numerics` or
+`solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
 threshold) says where and how the COMSTAT observables are measured
 (`biostudy.quantities.substratum`); it changes nothing in the simulation, and
 the datasets record it (`Scene.substratum_attrs`).
@@ -21,13 +22,13 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
 import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
-from solver.problem import Consumption, Face, blocked_problem, face_problem, held_faces_problem, inside_problem
+from solver.problem import Face, blocked_problem, face_problem, held_faces_problem, inside_problem
 from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
@@ -38,11 +39,11 @@ from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
-from .resources import estimate, run_problem, validation_problem
 from .substratum_face import resting_face
 from .tomltext import dumps as toml_dumps
 
-STREAMED = "streamed"  # runs_here of a run that writes its file as it goes: its outputs stream to disk
+if TYPE_CHECKING:
+    from .resources import Preflight
 
 class GridSpec(BaseModel):
     """Structured grid of cubic cells, origin at 0."""
@@ -59,15 +60,8 @@ class GridSpec(BaseModel):
 Params = parameters_model()
 
 
-class Model(BaseModel):
-    """Which form of the model's laws."""
-
-    model_config = CONFIG
-    consumption: Consumption = Field(
-        "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
-                                   "Eq. 35, with c held >= 0")
-
-
+Model = settings_model(solver.Laws, "Model", "Which form of the model's laws (solver.Laws; docs/model.md): the "
+                       "defaults are Eqs. 34-36 with first-order consumption and a quasi-steady nutrient.")
 NumericsSpec = settings_model(solver.Numerics, "NumericsSpec", "How the equations are discretised "
                               "(solver.Numerics); the defaults are the robust choice.")
 MechanicsSpec = settings_model(
@@ -146,9 +140,12 @@ class Scene(BaseModel):
 
     @model_validator(mode="after")
     def _fits_the_grid(self, info: ValidationInfo):
-        """The rules between tables, each a step: memory first (before any array of the grid's size is made), then
-        the regions, the nutrient sources, the clock and the faces the scene names."""
-        self._fits_memory((info.context or {}).get("runs_here", False))
+        """The rules between tables, each a step: a command's memory check first, if it gives one
+        (`resources.Preflight`: before any array of the grid's size is made; what the machine holds is no rule of
+        the scene), then the regions, the nutrient sources, the clock and the faces the scene names."""
+        preflight = (info.context or {}).get("preflight")
+        if preflight is not None:
+            preflight(self)
         grid = self.grid.solver_grid()
         self._regions_fit(grid)
         self._sources_free(grid)
@@ -158,19 +155,6 @@ class Scene(BaseModel):
         self._faces_exist(grid)
         self.substratum_face()  # an ambiguous default is bad input before anything runs
         return self
-
-    def _fits_memory(self, runs_here: bool | str) -> None:
-        """Validating fits in memory; a run here (`runs_here`) fits as a whole (its estimate, before the masks)."""
-        too_big = validation_problem(self)
-        if too_big:
-            raise InvalidAt("grid.shape", too_big)
-        if runs_here:
-            found = estimate(self, streamed=runs_here == STREAMED)
-            too_big = run_problem({self.name: found}, 1)
-            if too_big:
-                outputs = "time.output_times" if self.time.output_times is not None else "time.outputs"
-                raise InvalidAt("grid.shape" if found.transport + found.mechanics >= found.snapshots else outputs,
-                                too_big)
 
     def _regions_fit(self, grid: solver.Grid) -> None:
         """Every region inside the grid and covering a cell; grey values only for biofilm; a cell left open."""
@@ -243,7 +227,7 @@ class Scene(BaseModel):
         return solver.Problem(
             grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
-            params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
+            params=solver.Parameters(**self.params.model_dump()), laws=self.model.solver_settings(),
             numerics=self.numerics.solver_settings(), mechanics=mechanics, name=self.name)
 
     def substratum_face(self) -> str:
@@ -313,17 +297,16 @@ def key_info(key: str) -> tuple[str, str]:
 
 
 def scene_from_data(data: dict, file: str | Path, origins: Origins | None = None,
-                    runs_here: bool | str = False) -> Scene:
+                    preflight: Preflight | None = None) -> Scene:
     """Validate raw TOML data of a scene; `file` names it in errors and anchors relative paths; an error in a
-    value that an override gave names that override instead (`origins`).  `runs_here`: the scene is to run
-    in this process, so a run that could not fit in its memory is refused before the grid's arrays are made
-    (`STREAMED`: a run that writes its file as it goes, `resources.estimate`)."""
+    value that an override gave names that override instead (`origins`).  `preflight`: a command's check that
+    the scene fits this machine, made before the grid's arrays are (`resources.Preflight`)."""
     file = Path(file)
     data = copy.deepcopy(data)
     if isinstance(data.get("name", ""), str) and not data.get("name"):
         data["name"] = file.stem
     try:
-        return Scene.model_validate(data, context={"base": file.parent, "runs_here": runs_here})
+        return Scene.model_validate(data, context={"base": file.parent, "preflight": preflight})
     except ValidationError as error:
         raise blame(from_validation_error(error, file, known_keys=SCENE_KEYS, tags=SHAPE_TAGS), origins) from None
 
@@ -336,11 +319,12 @@ def read_scene_data(path: str | Path) -> dict:
     return data
 
 
-def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool | str = False) -> Scene:
-    """Read, override and validate a scene file: the only way a scene file becomes a `Scene` (`runs_here`: see
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+               preflight: Preflight | None = None) -> Scene:
+    """Read, override and validate a scene file: the only way a scene file becomes a `Scene` (`preflight`: see
     `scene_from_data`)."""
     data = read_scene_data(path)
-    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"), runs_here)
+    return scene_from_data(data, path, given_by(apply_overrides(data, overrides), "--set"), preflight)
 
 
 def overrides_text(pairs: list[tuple[str, Any]] | dict) -> str:

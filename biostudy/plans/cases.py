@@ -21,6 +21,7 @@ from ..inputs.bundled import studies_dir
 from ..inputs.files import read_toml
 from ..inputs.keys import Origins, apply_overrides, flatten, given_by, key_parts, parse_override, set_key
 from ..inputs.petab_problem import calibration_data
+from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, read_scene_data, scene_from_data
 
 
@@ -137,15 +138,15 @@ def scene_path(path: Path, scene: str) -> Path:
 
 
 def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
-               origins: Origins | None = None, runs_here: bool = False) -> Scene:
+               origins: Origins | None = None, preflight: Preflight | None = None) -> Scene:
     """One case's validated scene: the base data with the case's values; errors name the case, and the
-    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault (`runs_here`:
+    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault (`preflight`:
     as for `scene_from_data`)."""
     data = copy.deepcopy(base_data)
     try:
         for key, value in values.items():
             set_key(data, key, value)
-        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)}, runs_here)
+        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)}, preflight)
     except BadInput as error:
         raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
                               lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
@@ -178,13 +179,13 @@ def origins_of(given_set: dict[str, Any], path: Path, overrides) -> Origins:
 
 
 def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Path, origins: Origins,
-                  runs_here: bool) -> dict[str, Scene]:
+                  preflight: Preflight | None) -> dict[str, Scene]:
     """Every case's validated scene; every bad case told at once (as a scene tells every bad key)."""
     scenes, problems = {}, []
     for case in cases:
         try:
             scenes[case.id] = case_scene(base_data, case.values, scene_file, path,
-                                         case.attrs.get("case_id", case.id), origins, runs_here)
+                                         case.attrs.get("case_id", case.id), origins, preflight)
         except BadInput as error:
             problems.append(error)
     if problems:
@@ -193,18 +194,18 @@ def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Pa
 
 
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
-              wrong_kind: Callable[[dict], str] = lambda data: "", runs_here: bool = False) -> Plan:
+              wrong_kind: Callable[[dict], str] = lambda data: "", preflight: Preflight | None = None) -> Plan:
     """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
 
     wrong_kind(data) says why the file is not of this kind ("" if it is), before it is validated.
-    runs_here: the cases are to run on this machine (not on a Dask cluster), so a case too big for its
-    memory is refused by its estimate before its masks are made (`scene_from_data`).
+    preflight: the command's check that every case fits this machine (`resources.Preflight`: with `runs`, the
+    cases run here, not on a Dask cluster), made before a case's masks are.
     """
     path = Path(path)
     spec = read_spec(path, model, wrong_kind)
     scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
     origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, runs_here)
+    base = scene_from_data(base_data, scene_file, origins, preflight)
     spec.check(base_data, scene_file, path)
     not_varied(spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace "
                "it; change the study's values instead", spec.set, path, overrides)
@@ -217,7 +218,7 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
                        f"cases {' and '.join(map(str, twins[:2]))} collide as file names: both are case "
                        f"{repeated} (a case id keeps letters, digits and . + -; others become -)", path,
                        spec.case_noun())
-    scenes = compile_cases(cases, base_data, scene_file, path, origins, runs_here)
+    scenes = compile_cases(cases, base_data, scene_file, path, origins, preflight)
     return Plan(path, spec, scene_file, base, cases, scenes, common)
 
 

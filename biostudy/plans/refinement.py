@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..errors import BadInput
 from ..inputs.keys import set_key
+from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, scene_from_data
 
 SERIES = ("space", "time", "both", "adaptive")
@@ -78,7 +79,7 @@ def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:
     set_key(data, "time.steps", level.steps)
     if level.tolerance is not None:
         set_key(data, "numerics.time_tolerance", level.tolerance)
-    return scene_from_data(data, scene_file)
+    return scene_from_data(data, scene_file, preflight=Preflight())  # validating a finer grid fits here
 
 
 def check_refinable(base: Scene, scene_file: Path) -> None:

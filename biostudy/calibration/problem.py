@@ -1,4 +1,6 @@
-"""A calibration file (docs/calibrate.md): a base scene, a measurement table, the keys to estimate and how.
+"""A calibration file read (docs/calibrate.md): a base scene, a measurement table, the keys to estimate and how;
+its schema is `spec`'s, what it becomes a `CalibrationPlan` (the parameters: names, bounds, scales; the measurements
+in T*; the noise parameters).
 
 ::
 
@@ -6,7 +8,7 @@
     [set]
     "time.steps" = 200
     [data]
-    measurements = "agar.tsv"        # PEtab's measurement-table columns (`inputs.measurements`)
+    measurements = "agar.tsv"        # PEtab's measurement-table columns (`measurements`)
     time_unit = "h"                  # the table's times: any unit of time pint reads
     t_ref = "48 h"                   # the real time of T* = 1
     [estimate]                       # any real-valued scene key: [low, high] or [low, high, "log"]
@@ -17,7 +19,7 @@
     [conditions.half.estimate]       # optional: keys this condition estimates for itself alone
     r = [20.0, 400.0, "log"]
     [method]
-    name = "least-squares"           # or "posterior": samples on a GP surrogate (design, held_out, walkers, ...)
+    name = "least-squares"           # a method of `methods` (or samples of the posterior on a GP surrogate)
     starts = 4                       # multi-start from a Latin hypercube inside the bounds
     profiles = true                  # a profile likelihood per parameter (95 % intervals)
 
@@ -29,186 +31,33 @@ every bound by the scene's own schema (as a study's sample ranges,
 `designs.check_ends`), each condition's scene, every row of the table (its
 observable, its condition, its time within the run), each problem one line
 (`BadInput`); σ named in `noiseParameters` is estimated
-(`calibration_noise`).  `CalibrationPlan.scene_at` makes the scene of one
+(`noise`).  `CalibrationPlan.scene_at` makes the scene of one
 simulation: a condition at given parameter values, its outputs at that
 condition's measurement times.
 """
 from __future__ import annotations
 
-import copy
-import difflib
 import functools
-import typing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
-from ..inputs.keys import dimension, field_of, flatten, id_text, key_parts, set_key, takes_integers
-from ..inputs.measurements import Measurement, read_measurements, refusal
+from ..inputs.keys import dimension
 from ..inputs.real_time import apart, check_agree, exact
-from ..inputs.scene import SCENE_KEYS, Scene, scene_from_data
+from ..inputs.resources import Preflight
+from ..inputs.scene import Scene, scene_from_data
+from ..plans.cases import base_scene, case_scene, compile_cases, not_varied, origins_of, read_spec
+from ..plans.designs import Range
 from ..quantities import observables
-from .calibration_method import MethodSpec
-from .calibration_noise import NoiseParameter, noise_parameters, noise_problems
-from .calibration_table import DataSpec, extreme_numbers, unknown_observable
-from .cases import Case, OnScene, base_scene, case_scene, compile_cases, not_varied, origins_of, read_spec
-from .designs import Range, check_ends, parse_range
-
-SCENE = "scene"  # the condition of a calibration without [conditions]
-
-
-def _ranges(table: Any, where: str) -> dict[str, Range]:
-    """The bounds of a table of estimated keys; a key given twice under two spellings (g, params.g) is
-    `InvalidAt`, as in a study's [sample]."""
-    if not isinstance(table, dict):
-        raise InvalidAt(where, f"must be a table of keys and [low, high] bounds (got {value_text(table)})")
-    ranges = {key: parse_range(key, given, where) for key, given in flatten(table).items()}
-    seen: dict[tuple[str, ...], str] = {}
-    for key in ranges:
-        twin = seen.setdefault(_spelled(key), key)
-        if twin != key:
-            raise InvalidAt(f"{where}.{key}", f"is the same key as {twin}")
-    return ranges
-
-
-class Condition(BaseModel):
-    """One simulationConditionId: overrides of the scene, and the keys it estimates for itself."""
-
-    model_config = ConfigDict(extra="forbid")
-    set: dict[str, Any] = Field({}, description="scene overrides (dotted keys, as in [set])")
-    estimate: dict[str, Range] = Field({}, description="keys estimated for this condition alone")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _split(cls, data: Any):
-        if not isinstance(data, dict):
-            raise InvalidAt("", f"must be a table of scene overrides (got {value_text(data)})")
-        data = dict(data)
-        estimate = data.pop("estimate", {})
-        return {"set": flatten(data), "estimate": _ranges(estimate, "estimate")}
-
-
-class Calibration(OnScene):
-    """A base scene, measurements, the keys to estimate (shared or per condition), and the method."""
-
-    data: DataSpec
-    estimate: dict[str, Range] = Field({}, description="estimated dotted scene key -> [low, high] or [low, high, "
-                                                       "\"log\"], shared by every condition")
-    conditions: dict[str, Condition] = Field({}, description="simulationConditionId -> scene overrides")
-    method: MethodSpec = Field(default_factory=MethodSpec)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _estimate(cls, data: Any):
-        if isinstance(data, dict) and "estimate" in data:
-            data = {**data, "estimate": _ranges(data["estimate"], "estimate")}
-        return data
-
-    @model_validator(mode="after")
-    def _something_estimated(self):
-        if not self.estimate and not any(c.estimate for c in self.conditions.values()):
-            raise InvalidAt("estimate", "estimates no key: add e.g. g = [1e7, 1e10, \"log\"]")
-        if self.method.name == "posterior":
-            k = len(self.parameter_names())
-            if self.method.walkers < 2 * k:
-                raise InvalidAt("method.walkers", f"emcee needs at least twice as many walkers as parameters: "
-                                                  f"{self.method.walkers} < 2 x {k}")
-            if self.method.design < k + 2:
-                raise InvalidAt("method.design", f"a surrogate of {k} parameters needs at least {k + 2} training runs "
-                                                 f"(got {self.method.design})")
-        for name in self.conditions:
-            if not name or name != name.strip():
-                raise InvalidAt(f"conditions.{name}", "a condition needs a name without surrounding spaces")
-        labels: dict[str, str] = {}
-        for name in self.conditions:
-            twin = labels.setdefault(label(name), name)
-            if twin != name:
-                raise InvalidAt(f"conditions.{name}", f"conditions {twin} and {name} collide as file names: both "
-                                f"are {label(name)} in a case id (a case id keeps letters, digits and . _ + -; "
-                                "others become -)")
-        return self
-
-    def condition_names(self) -> list[str]:
-        return list(self.conditions) or [SCENE]
-
-    def condition_cases(self) -> list[Case]:
-        """One case per condition, at the scene's own values of the estimated keys: validated before anything
-        runs."""
-        return [Case(name, dict(self.conditions[name].set) if name in self.conditions else {}, (i,),
-                     {"case_id": f"condition {name}"}) for i, name in enumerate(self.condition_names())]
-
-    def estimated_keys(self) -> list[str]:
-        """Every estimated scene key, once."""
-        return list(dict.fromkeys([*self.estimate, *(k for c in self.conditions.values() for k in c.estimate)]))
-
-    def parameter_names(self) -> list[str]:
-        """One entry per estimated parameter (a key estimated per condition counts once per condition)."""
-        return [*self.estimate, *(f"{k}[{n}]" for n, c in self.conditions.items() for k in c.estimate)]
-
-    def check(self, base_data: dict, scene_file: Path, path: Path) -> None:
-        problems = []
-        tables = [("estimate", self.estimate, base_data)]
-        for name, condition in self.conditions.items():
-            data = copy.deepcopy(base_data)
-            for key, value in condition.set.items():
-                try:
-                    set_key(data, key, value)
-                except BadInput as error:
-                    problems.append(BadInput(error.problem, path, f"conditions.{name}.{key}"))
-            tables.append((f"conditions.{name}.estimate", condition.estimate, data))
-            estimated = {_spelled(k) for k in (*self.estimate, *condition.estimate)}
-            problems += [BadInput(f"sets {key}, which is estimated", path, f"conditions.{name}.{key}")
-                         for key in condition.set if _spelled(key) in estimated]
-        for table, ranges, data in tables:
-            for key in ranges:
-                problem = _estimable(key)
-                if problem:
-                    problems.append(BadInput(problem, path, f"{table}.{key}"))
-                    continue
-                try:
-                    check_ends({key: ranges[key]}, data, scene_file, path, table)
-                except BadInput as error:
-                    problems.append(error)
-        shared = [k for k in self.estimate if self.conditions and all(
-            _spelled(k) in {_spelled(own) for own in c.estimate} for c in self.conditions.values())]
-        problems += [BadInput("every condition estimates it for itself: leave it out of [estimate]", path,
-                              f"estimate.{key}") for key in shared]
-        if problems:
-            raise BadInput(problems[0].problem, problems[0].file, problems[0].key, tuple(problems[1:]))
-
-
-def label(name: str) -> str:
-    """A condition's name in case ids and file names: spelled as a sweep spells a text value (`id_text`: a
-    path's / and every character but letters, digits and . + - become -), its underscores kept."""
-    return "_".join(id_text(part) for part in name.split("_"))
-
-
-def _spelled(key: str) -> tuple[str, ...]:
-    """A dotted key as the scene reads it (g and params.g are the same key)."""
-    try:
-        return tuple(key_parts(key))
-    except BadInput:
-        return (key,)
-
-
-def _estimable(key: str) -> str:
-    """'' if a dotted key names a real number of the scene, else why not."""
-    try:
-        parts = key_parts(key)
-    except BadInput as error:
-        return error.problem
-    found = field_of(Scene, key)
-    if found is None:
-        close = difflib.get_close_matches(parts[-1], sorted(SCENE_KEYS), n=1)
-        return f"the scene has no key {'.'.join(parts)}" + (f" (did you mean '{close[0]}'?)" if close else "")
-    if takes_integers(Scene, key) or float not in (found.annotation, *typing.get_args(found.annotation)):
-        return f"{'.'.join(parts)} is not a real number: only real-valued keys can be estimated"
-    return ""
+from .measurements import Measurement, read_measurements, refusal
+from .methods import METHODS
+from .noise import NoiseParameter, noise_parameters, noise_problems
+from .spec import SCENE, Calibration, label, spelled
+from .table import extreme_numbers, unknown_observable
 
 
 @dataclass(frozen=True)
@@ -288,8 +137,8 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     names = spec.condition_names()
     found = []
     for key, rng in spec.estimate.items():
-        own = {n: {_spelled(k) for k in spec.conditions[n].estimate} for n in spec.conditions}
-        sharing = tuple(n for n in names if _spelled(key) not in own.get(n, set()))
+        own = {n: {spelled(k) for k in spec.conditions[n].estimate} for n in spec.conditions}
+        sharing = tuple(n for n in names if spelled(key) not in own.get(n, set()))
         found.append(Parameter(dimension(key), key, rng, sharing, dimension(key)))
     for name, condition in spec.conditions.items():
         found += [Parameter(f"{dimension(key)}[{name}]", key, rng, (name,), f"{dimension(key)}[{label(name)}]")
@@ -342,7 +191,7 @@ def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
             problems.append(BadInput(f"{told}, {when}: the scene runs over T* = 0 to {exact(t_end)} "
                                      "(time.t_end)", data_file, f"line {m.line}: time"))
     problems += _runs_too_short(spec, rows, times, data_file, path)
-    problems += noise_problems(rows, spec.method.name, spec.parameter_names(), data_file, path)
+    problems += noise_problems(rows, METHODS[spec.method.name], spec.parameter_names(), data_file, path)
     named = {m.condition for m in rows}
     problems += [BadInput("no row of the measurement table names it (simulationConditionId): nothing to fit", path,
                           f"conditions.{name}") for name in spec.conditions if name not in named]
@@ -357,7 +206,7 @@ def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarra
     measurement: a simulation there could not be compared with it."""
     problems = []
     for p in _parameters(spec):
-        if _spelled(p.key) != ("time", "t_end"):
+        if spelled(p.key) != ("time", "t_end"):
             continue
         measured = [(t, m.line) for m, t in zip(rows, times) if _condition(m) in p.conditions]
         if not measured:
@@ -373,18 +222,18 @@ def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarra
 
 
 def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                     runs_here: bool = False) -> CalibrationPlan:
+                     preflight: Preflight | None = None) -> CalibrationPlan:
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
-    `BadInput` (every problem of the table at once; `runs_here`: as for `cases.load_plan`)."""
+    `BadInput` (every problem of the table at once; `preflight`: as for `cases.load_plan`)."""
     path = Path(path)
     spec = read_spec(path, Calibration, _wrong_kind)
     scene_file, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
     origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, runs_here)
+    base = scene_from_data(base_data, scene_file, origins, preflight)
     spec.check(base_data, scene_file, path)
     not_varied(spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace "
                "it; change its bounds instead", spec.set, path, overrides)
-    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, runs_here)
+    scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, preflight)
     data_file, rows, times = _measurements(spec, scenes, scene_file, path)
     return CalibrationPlan(path, spec, scene_file, base, scenes, base_data, _parameters(spec), rows, times, data_file)
 
