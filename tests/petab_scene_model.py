@@ -2,7 +2,7 @@
 every check it makes on an SBML problem, the cross-table ones included (every parameter a table names is in the
 parameter table, none is extraneous, condition columns are model entities, observable formulas use only known
 symbols), which it skips when no model is given.  The scene's entities are its real-valued keys (dotted, list
-indices included) as PEtab ids (`reports.petab_problem.petab_id`: nutrient.0.value is nutrient__0__value), and the
+indices included) as PEtab ids (`calibration.petab_out.petab_id`: nutrient.0.value is nutrient__0__value), and the
 model parameters under their bare names too (g for params.g); symbols allowed in formulas are the observables."""
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from typing import Any, Iterable
 
 from petab.v1.models.model import Model
 
+from biostudy.calibration.petab_out import SEPARATOR
 from biostudy.inputs.keys import PARAMETER_NAMES
 from biostudy.quantities import observables
-from biostudy.reports.petab_problem import SEPARATOR
 
 
 def _flat(node: Any, prefix: str = "") -> dict[str, float]:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from biostudy.calibration.problem import load_calibration
 from biostudy.errors import BadInput
 from biostudy.inputs.bundled import studies_dir
-from biostudy.plans.calibration import load_calibration
 from biostudy.plans.study import load_study
 
 

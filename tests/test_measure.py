@@ -204,7 +204,7 @@ def test_the_petab_table_of_a_time_series_is_read_by_a_calibration_and_by_petab(
     reads (its σ named per observable, estimated) and that petab's own check takes."""
     from test_calibration_hostile import SCENE
 
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.problem import load_calibration
     from biostudy.reports import measured
 
     series = np.stack([blobs(seed) for seed in (11, 12, 13)])

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from test_calibration_hostile import SCENE
 
+from biostudy.calibration.petab_out import NotPetab, problem_texts
+from biostudy.calibration.problem import load_calibration
 from biostudy.errors import BadInput
-from biostudy.plans.calibration import load_calibration
-from biostudy.reports.petab_problem import NotPetab, problem_texts
 
 petab = pytest.importorskip("petab.v1")
 

@@ -56,6 +56,7 @@ from ..quantities import observables
 from .measurements import Measurement, read_measurements, refusal
 from .methods import METHODS
 from .noise import NoiseParameter, noise_parameters, noise_problems
+from .petab_in import PETAB_SUFFIXES, calibration_data
 from .spec import SCENE, Calibration, label, spelled
 from .table import extreme_numbers, unknown_observable
 
@@ -226,7 +227,8 @@ def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = 
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
     `BadInput` (every problem of the table at once; `preflight`: as for `cases.load_plan`)."""
     path = Path(path)
-    spec = read_spec(path, Calibration, _wrong_kind)
+    spec = read_spec(path, Calibration, _wrong_kind,
+                     calibration_data(path) if path.suffix.lower() in PETAB_SUFFIXES else None)
     scene_file, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
     origins = origins_of(spec.set, path, overrides)
     base = scene_from_data(base_data, scene_file, origins, preflight)

@@ -20,7 +20,6 @@ from ..errors import BadInput, from_validation_error
 from ..inputs.bundled import studies_dir
 from ..inputs.files import read_toml
 from ..inputs.keys import Origins, apply_overrides, flatten, given_by, key_parts, parse_override, set_key
-from ..inputs.petab_problem import calibration_data
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, read_scene_data, scene_from_data
 
@@ -155,14 +154,12 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
 M = TypeVar("M", bound=OnScene)
 
 
-PETAB_SUFFIXES = (".yaml", ".yml")  # a PEtab problem, read as a calibration file (`inputs.petab_problem`)
-
-
-def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "") -> M:
-    """A study, catalogue or calibration file validated as `model` (a PEtab problem.yaml: as the calibration file
-    it describes); wrong_kind(data) says why the file is not of this kind ("" if it is), before it is
-    validated."""
-    data = calibration_data(path) if path.suffix.lower() in PETAB_SUFFIXES else read_toml(path)
+def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "",
+              data: dict | None = None) -> M:
+    """A study, catalogue or calibration file validated as `model` (`data`: its contents read already, e.g. a PEtab
+    problem's as a calibration file's, `calibration.petab_in`); wrong_kind(data) says why the file is not of this
+    kind ("" if it is), before it is validated."""
+    data = read_toml(path) if data is None else data
     problem = wrong_kind(data)
     if problem:
         raise BadInput(problem, path)

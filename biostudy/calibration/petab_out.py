@@ -30,10 +30,10 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
-from ..inputs.measurements import NOISE_NAME, Measurement
+from .measurements import NOISE_NAME, Measurement
 
 if TYPE_CHECKING:
-    from ..plans.calibration import CalibrationPlan
+    from .problem import CalibrationPlan
 
 PETAB_ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 SEPARATOR = "__"  # a dotted key's dots in its PEtab id

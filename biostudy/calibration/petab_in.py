@@ -1,7 +1,7 @@
 """A PEtab problem as a calibration file (``biostudy calibrate problem.yaml``; docs/calibrate.md, "PEtab").
 
 `calibration_data` reads PEtab v1's problem.yaml and its tables into the data a calibration file (TOML) holds,
-which the calibration then validates as its own (`plans.calibration`):
+which the calibration then validates as its own (`calibration.problem`):
 
 * the scene: the ``biostudy`` section's ``scene``, else the problem's model entry (``sbml_files``), which must
   be a scene file (or a bundled scene's name): biostudy simulates scenes, not SBML;
@@ -31,9 +31,10 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import BadInput
-from .files import TOML_BYTES, read_text
+from ..inputs.files import TOML_BYTES, read_text
 from .measurements import NOISE_NAME, TABLE_BYTES, read_measurements
 
+PETAB_SUFFIXES = (".yaml", ".yml")  # a PEtab problem's file, read as a calibration file
 SEPARATOR = "__"  # a dotted key's dots in its PEtab id
 SHARED = "__shared"  # the id of a key's parameter shared by the conditions that do not estimate it for themselves
 LISTS = ("condition_files", "measurement_files", "observable_files")
