@@ -38,7 +38,7 @@ condition's measurement times.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -99,6 +99,7 @@ class CalibrationPlan:
     measurements: list[Measurement]
     times: np.ndarray  # T* of every measurement, in the table's order
     data_file: Path
+    common: dict = field(default_factory=dict)  # the overrides of every simulation: [set], then --set
 
     @property
     def conditions(self) -> list[str]:
@@ -229,7 +230,7 @@ def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = 
     path = Path(path)
     spec = read_spec(path, Calibration, _wrong_kind,
                      calibration_data(path) if path.suffix.lower() in PETAB_SUFFIXES else None)
-    scene_file, base_data, _ = base_scene(path, spec.scene, spec.set, overrides)
+    scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
     origins = origins_of(spec.set, path, overrides)
     base = scene_from_data(base_data, scene_file, origins, preflight)
     spec.check(base_data, scene_file, path)
@@ -237,7 +238,8 @@ def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = 
                "it; change its bounds instead", spec.set, path, overrides)
     scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, preflight)
     data_file, rows, times = _measurements(spec, scenes, scene_file, path)
-    return CalibrationPlan(path, spec, scene_file, base, scenes, base_data, _parameters(spec), rows, times, data_file)
+    return CalibrationPlan(path, spec, scene_file, base, scenes, base_data, _parameters(spec), rows, times, data_file,
+                           common)
 
 
 def _wrong_kind(data: dict) -> str:
