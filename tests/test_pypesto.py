@@ -75,3 +75,38 @@ def test_sigma_to_estimate_is_refused_and_a_failed_simulation_is_a_penalty():
     found = pypesto_objective.Residuals(objective(fail=lambda a, b: a > 5.0), BOUNDS)
     np.testing.assert_array_equal(found.res(np.array([6.0, 0.0])), np.full(T.size, PENALTY))
     assert not found.sres(np.array([6.0, 0.0])).any()
+
+
+def test_pypesto_problem_runs_biostudys_simulations_and_finds_what_calibrate_finds(tmp_path):
+    """A calibration file's pyPESTO problem (`calibration.pypesto.pypesto_problem`): its residuals are the
+    simulations' (data made by the model at r = 100 give zero there, so chi²_min = 0); pyPESTO's least squares
+    ends within biostudy's own convergence tolerance of it (chi² < `least_squares.TOLERANCE`), near r = 100 as
+    the standard error there says; `biostudy calibrate` into the same directory (the same owner: its case files
+    are the same simulations) does the same."""
+    import pypesto.optimize as optimize
+    import xarray as xr
+    from test_calibration_hostile import calibration, invoke
+
+    from biostudy.calibration.pypesto import pypesto_problem
+    from biostudy.fitting.least_squares import TOLERANCE
+
+    rows = "observableId\ttime\tmeasurement\tnoiseParameters\nbiomass\t0.05\t{}\t0.2\nbiomass\t0.1\t{}\t0.2\n"
+    path = calibration(tmp_path, rows.format(1.0, 1.0), "[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\n"
+                                                        "profiles = false\n")
+    with pypesto_problem(path, tmp_path / "out") as problem:
+        model = 1.0 + 0.2 * problem.objective(np.array([100.0]), mode="mode_res")  # data + σ r at r = 100
+    (tmp_path / "t.tsv").write_text(rows.format(*model))
+    with pypesto_problem(path, tmp_path / "out") as problem:
+        assert problem.objective(np.array([100.0]), mode="mode_res") == pytest.approx([0.0, 0.0], abs=1e-12)
+        problem.set_x_guesses([[70.0]])
+        result = optimize.minimize(problem, optimizer=optimize.ScipyOptimizer(method="ls_trf"), n_starts=1,
+                                   progress_bar=False)
+        best = result.optimize_result.list[0]
+        jacobian = problem.objective(best.x, sensi_orders=(1,), mode="mode_res")
+    assert 2 * best.fval < TOLERANCE  # chi² = 2 fval
+    standard_error = 1.0 / np.sqrt(float(np.sum(jacobian**2)))
+    assert abs(best.x[0] - 100.0) < np.sqrt(TOLERANCE) * standard_error * 1.01  # chi² = ((r - 100) / SE)² there
+    done = invoke("calibrate", path, "-o", tmp_path / "out", "-q")
+    assert done.exit_code == 0, done.output
+    with xr.open_dataset(tmp_path / "out" / "calibration.nc") as ds:
+        assert float(ds.attrs["chi2"]) < TOLERANCE

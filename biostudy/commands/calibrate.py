@@ -18,14 +18,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..calibration import cost, petab_out
-from ..calibration.evaluator import Evaluator
+from ..calibration.evaluator import Evaluator, backend_for
 from ..calibration.methods import FIT, Method, Result, chosen
 from ..calibration.petab import simulation_table
 from ..calibration.problem import CalibrationPlan, load_calibration
 from ..calibration.report import dataset, table_text
 from ..data import claims, reading, writing
 from ..errors import BadInput
-from ..execution.backends import Kept
 from ..execution.jobs import Execution
 from ..execution.ownership import Owner
 from ..execution.targets import owned
@@ -68,7 +67,7 @@ class Calibrate:
             execution.notify("note", "", said)
         with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports(),
                    digested=(SIMULATIONS, *(f"{petab_out.FOLDER}/{name}" for name in petab_out.NAMES))):
-            backend = _backend(execution)
+            backend = backend_for(execution)
             runs = Evaluator(self.plan, self.directory, execution, backend)
             try:
                 result = method(runs.objective())
@@ -116,19 +115,6 @@ def _petab(plan: CalibrationPlan, folder: Path) -> tuple[dict[str, str], list[st
         return petab_out.problem_texts(plan, folder, plan.common), []
     except petab_out.NotPetab as error:
         return {}, [f"{folder} not written: {error}"]
-
-
-def _backend(execution: Execution) -> Kept | None:
-    """The calibration's workers, started once for all its rounds (None: here, one simulation at a time)."""
-    if execution.scheduler or execution.scheduler_file:
-        from ..execution.dask import DaskCluster  # lazily: Dask only when a cluster is asked for
-
-        return Kept(DaskCluster(execution.scheduler, scheduler_file=execution.scheduler_file))
-    if execution.workers:
-        from ..execution.pool import LocalPool  # lazily: workers only when asked for
-
-        return Kept(LocalPool(execution.workers))
-    return None
 
 
 def load(calibration: str | Path, *, output: Path | None = None,
