@@ -232,6 +232,10 @@ def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = 
     spec.check(base_data, scene_file, path)
     not_varied(spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace "
                "it; change its bounds instead", spec.set, path, overrides)
+    try:
+        spec.data.time_factor()  # a unit that is no time before the table's rows
+    except InvalidAt as error:
+        raise BadInput(error.problem, path, f"data.{error.key}") from None
     rows = read_measurements(path.parent / spec.data.measurements)
     spec = _named_scene(spec, rows)
     scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, origins, preflight)
