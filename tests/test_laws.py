@@ -147,7 +147,7 @@ def test_a_study_sweeps_the_laws(tiny_scene, write_toml, tmp_path):
 def test_a_calibration_sets_the_laws_per_condition(tiny_scene, write_toml):
     """A calibration's [set] and its conditions choose the laws as any scene key: each simulation's problem has
     them (a full calibration with both, 32 simulations, is in the note of this change)."""
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.problem import load_calibration
 
     write_toml("t.tsv", "observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters\n"
                         "biofilm_volume\tpaper\t0.1\t30\t1\nbiofilm_volume\tequations\t0.1\t30\t1\n")

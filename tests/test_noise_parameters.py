@@ -284,9 +284,9 @@ def test_a_named_sigma_the_model_fits_exactly_is_said_in_words_not_a_crash(tmp_p
 
 
 def test_an_exact_fit_that_moves_with_the_parameters_is_said_to_draw_the_fit():
+    from biostudy.calibration.noise import NoiseParameter
+    from biostudy.calibration.report_noise import _exact
     from biostudy.fitting.likelihood import Sigma
-    from biostudy.plans.calibration_noise import NoiseParameter
-    from biostudy.reports.noise import _exact
 
     plan = SimpleNamespace(noise=[NoiseParameter("s", (0, 1), "um", 1.0)])
     for column, said in ((0.0, "they do not move with the parameters"), (0.5, "the fit is drawn to where the model "

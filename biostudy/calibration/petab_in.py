@@ -34,7 +34,6 @@ from ..errors import BadInput
 from ..inputs.files import TOML_BYTES, read_text
 from .measurements import NOISE_NAME, TABLE_BYTES, read_measurements
 
-PETAB_SUFFIXES = (".yaml", ".yml")  # a PEtab problem's file, read as a calibration file
 SEPARATOR = "__"  # a dotted key's dots in its PEtab id
 SHARED = "__shared"  # the id of a key's parameter shared by the conditions that do not estimate it for themselves
 LISTS = ("condition_files", "measurement_files", "observable_files")

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
+from ..inputs.files import read_toml
 from ..inputs.keys import dimension
 from ..inputs.real_time import apart, check_agree, exact
 from ..inputs.resources import Preflight
@@ -53,7 +54,7 @@ from ..quantities import observables
 from .measurements import Measurement, read_measurements, refusal
 from .methods import METHODS
 from .noise import NoiseParameter, noise_parameters, noise_problems
-from .petab_in import PETAB_SUFFIXES, calibration_data
+from .petab_in import calibration_data
 from .spec import SCENE, Calibration, Condition, label, spelled
 from .table import extreme_numbers, unknown_observable
 
@@ -219,13 +220,20 @@ def _runs_too_short(spec: Calibration, rows: list[Measurement], times: np.ndarra
     return problems
 
 
+PETAB_SUFFIXES = (".yaml", ".yml")  # a PEtab problem, read as the calibration file it describes (`petab_in`)
+
+
+def _calibration_data(path: Path) -> dict:
+    """A calibration file's data: TOML, or a PEtab problem.yaml (`petab_in.calibration_data`)."""
+    return calibration_data(path) if path.suffix.lower() in PETAB_SUFFIXES else read_toml(path)
+
+
 def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
                      preflight: Preflight | None = None) -> CalibrationPlan:
     """Read a calibration file, its base scene, every condition and the measurement table; any bad input is a
     `BadInput` (every problem of the table at once; `preflight`: as for `cases.load_plan`)."""
     path = Path(path)
-    spec = read_spec(path, Calibration, _wrong_kind,
-                     calibration_data(path) if path.suffix.lower() in PETAB_SUFFIXES else None)
+    spec = read_spec(path, Calibration, _wrong_kind, read=_calibration_data)
     scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
     origins = origins_of(spec.set, path, overrides)
     base = scene_from_data(base_data, scene_file, origins, preflight)

@@ -155,11 +155,11 @@ M = TypeVar("M", bound=OnScene)
 
 
 def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "",
-              data: dict | None = None) -> M:
-    """A study, catalogue or calibration file validated as `model` (`data`: its contents read already, e.g. a PEtab
-    problem's as a calibration file's, `calibration.petab_in`); wrong_kind(data) says why the file is not of this
-    kind ("" if it is), before it is validated."""
-    data = read_toml(path) if data is None else data
+              read: Callable[[Path], dict] = read_toml) -> M:
+    """A study, catalogue or calibration file validated as `model`; `read` turns the file into its data (TOML; a
+    calibration also reads a PEtab problem.yaml); wrong_kind(data) says why the file is not of this kind ("" if it
+    is), before it is validated."""
+    data = read(path)
     problem = wrong_kind(data)
     if problem:
         raise BadInput(problem, path)
