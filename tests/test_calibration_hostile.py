@@ -84,7 +84,7 @@ def test_conditions_named_like_paths_write_their_case_files_under_cases(tmp_path
     path = calibration(folder, rows, "[conditions.a.estimate]\nr = [50.0, 150.0]\n"
                        + "".join(f'[conditions."{name}"]\n"params.k" = 2.0\n' for name in hostile))
     out = folder / "out"
-    simulations = Evaluator(load(path, output=out).plan, out, Execution())
+    simulations = Evaluator(load(path, directory=out).plan, out, Execution())
     [residuals] = simulations.evaluate([np.array([0.5])])
     assert residuals is not None and np.all(np.isfinite(residuals))
     assert _digest(victim) == before and not (tmp_path / "elsewhere").exists()

@@ -115,9 +115,10 @@ def test_every_units_string_parses_with_udunits_plain_pint_and_cf_xarray_alike(m
 def test_the_declared_units_of_every_other_dataset_parse_too():
     """stability.nc, convergence.nc, calibration.nc and the observables, whose datasets cost too much to make
     here (a calibration's own file is checked in tests/test_calibration.py)."""
+    from biostudy.calibration import units as parameter_units
     from biostudy.inputs.real_time import real_time
     from biostudy.quantities import observables
-    from biostudy.reports import convergence, parameter_units, stability
+    from biostudy.reports import convergence, stability
     from solver.output import cf_units
     from solver.problem import parameter_infos
 

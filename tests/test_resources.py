@@ -268,9 +268,10 @@ def test_a_scene_is_valid_whatever_memory_is_free_and_a_run_is_refused_before_it
     assert load_scene(tiny_scene).problem().phi0.shape == (16, 16)
     monkeypatch.setenv("BIOSTUDY_MEMORY", "100 MB")
     refused = CliRunner().invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "t.nc"), "-q"])
-    line = f"error: {tiny_scene}: grid.shape: needs ~320 MB of memory, 100 MB available (tiny: transport"
+    line = f"error: {tiny_scene}: grid.shape: needs ~320 MB of memory (tiny: transport"
     assert refused.exit_code == 2 and refused.stderr.startswith(line) and refused.stderr.count("\n") == 1, \
         refused.stderr
+    assert refused.stderr.endswith("100 MB available (BIOSTUDY_MEMORY=100 MB)\n"), refused.stderr
     with pytest.raises(BadInput) as caught:
         biostudy.run(tiny_scene, output=tmp_path / "t.nc")
     assert f"error: {caught.value}\n" == refused.stderr

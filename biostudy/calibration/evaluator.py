@@ -159,16 +159,3 @@ class Evaluator:
         """What the simulations cost: counts and wall times (calibration.nc's attributes)."""
         return {"simulations": len(self.ran), "simulations_reused": len(self.reused), "rounds": self.rounds,
                 "wall_time_simulations": self.seconds_running, "wall_time_reading": self.seconds_reading}
-
-
-def backend_for(execution: Execution) -> Kept | None:
-    """The calibration's workers, started once for all its rounds (None: here, one simulation at a time)."""
-    if execution.scheduler or execution.scheduler_file:
-        from ..execution.dask import DaskCluster  # lazily: Dask only when a cluster is asked for
-
-        return Kept(DaskCluster(execution.scheduler, scheduler_file=execution.scheduler_file))
-    if execution.workers:
-        from ..execution.pool import LocalPool  # lazily: workers only when asked for
-
-        return Kept(LocalPool(execution.workers))
-    return None

@@ -13,13 +13,14 @@ import contextlib
 from pathlib import Path
 from typing import Iterator, Sequence
 
-from ..execution.jobs import Execution
+from ..execution.backends import Kept
+from ..execution.jobs import Execution, backend
 from ..execution.ownership import Owner
 from ..execution.targets import owned
 from ..fitting import pypesto_objective
 from ..inputs import bundled
 from ..inputs.resources import Preflight
-from .evaluator import Evaluator, backend_for
+from .evaluator import Evaluator
 from .problem import load_calibration
 
 
@@ -37,11 +38,11 @@ def pypesto_problem(calibration: str | Path, directory: str | Path, *, workers: 
     execution = Execution(workers=workers, scheduler=scheduler)
     owner = Owner("calibration", plan.spec.name, str(plan.scene_file.resolve()), tuple(p.name for p in plan.parameters))
     with owned(Path(directory), owner, "calibration.nc") as claimed:
-        backend = backend_for(execution)
+        kept = Kept(backend(execution)) if workers or scheduler else None  # started once, as calibrate's
         try:
-            runs = Evaluator(plan, claimed, execution, backend)
+            runs = Evaluator(plan, claimed, execution, kept)
             yield pypesto_objective.problem(runs.objective(), [(p.range.low, p.range.high, p.log)
                                                                for p in plan.parameters])
         finally:
-            if backend is not None:
-                backend.end()
+            if kept is not None:
+                kept.end()

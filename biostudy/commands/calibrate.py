@@ -18,14 +18,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..calibration import cost, petab_out
-from ..calibration.evaluator import Evaluator, backend_for
+from ..calibration.evaluator import Evaluator
 from ..calibration.methods import FIT, Method, Result, chosen
 from ..calibration.petab import simulation_table
 from ..calibration.problem import CalibrationPlan, load_calibration
 from ..calibration.report import dataset, table_text
 from ..data import claims, reading, writing
 from ..errors import BadInput
-from ..execution.jobs import Execution
+from ..execution.backends import Kept
+from ..execution.jobs import Execution, backend
 from ..execution.ownership import Owner
 from ..execution.targets import owned
 from ..inputs import bundled
@@ -49,6 +50,10 @@ class Calibrate:
     def title(self) -> str:
         return f"calibrate {self.plan.spec.name}"
 
+    @property
+    def summary(self) -> Path:
+        return self.directory / "calibration.nc"
+
     def owner(self) -> Owner:
         return Owner("calibration", self.plan.spec.name, str(self.plan.scene_file.resolve()),
                      tuple(p.name for p in self.plan.parameters))
@@ -67,7 +72,7 @@ class Calibrate:
             execution.notify("note", "", said)
         with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports(),
                    digested=(SIMULATIONS, *(f"{petab_out.FOLDER}/{name}" for name in petab_out.NAMES))):
-            backend = backend_for(execution)
+            backend = _backend(execution)
             runs = Evaluator(self.plan, self.directory, execution, backend)
             try:
                 result = method(runs.objective())
@@ -117,12 +122,22 @@ def _petab(plan: CalibrationPlan, folder: Path) -> tuple[dict[str, str], list[st
         return {}, [f"{folder} not written: {error}"]
 
 
-def load(calibration: str | Path, *, output: Path | None = None,
-         overrides: tuple[str, ...] | list[str] = (), runs_here: bool = False) -> Calibrate:
-    """Read and validate a calibration file (a path or a bundled name), its scene, conditions and measurements;
-    bad input is `BadInput` (`runs_here`: as for `commands.sweep.load`)."""
-    plan = load_calibration(bundled.resolve(calibration), overrides, Preflight(runs=runs_here))
+def _backend(execution: Execution) -> Kept | None:
+    """The calibration's workers, started once for all its rounds, where `run_jobs` would start them
+    (`execution.jobs.backend`; None: here, one simulation at a time)."""
+    if not (execution.workers or execution.scheduler or execution.scheduler_file):
+        return None
+    notify = execution.notify
+    return Kept(backend(execution, None if notify is None else lambda message: notify("note", "", message)))
+
+
+def load(calibration: str | Path, *, directory: Path | None = None,
+         set: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Calibrate:  # noqa: A002
+    """Read and validate a calibration file (a path or a bundled name), its scene with the overrides `set`, its
+    conditions and measurements (the options: `declared.CALIBRATE`); bad input is `BadInput` (`runs_here`: as
+    for `commands.sweep.load`)."""
+    plan = load_calibration(bundled.resolve(calibration), set, Preflight(runs=runs_here))
     too_costly = cost.problems(plan, runs_here)
     if too_costly:
         raise BadInput.every(too_costly)
-    return Calibrate(plan, Path(output) if output is not None else Path(plan.spec.name))
+    return Calibrate(plan, Path(directory) if directory is not None else Path(plan.spec.name))

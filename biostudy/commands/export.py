@@ -11,23 +11,20 @@ from pathlib import Path
 
 from ..data.reading import open_result
 from ..errors import BadInput
+from .declared import FORMATS
 
-FORMATS = ("vti", "vtu", "tiff")  # the first is the default
 
-
-def export(path: str | Path, directory: str | Path, *, format: str = FORMATS[0]) -> list[Path]:  # noqa: A002
-    """Write a run's fields (a run or one case of a sweep) into `directory` in `format` (`FORMATS`); returns the
-    files written."""
-    if format not in FORMATS:
-        raise BadInput(f"unknown format {format!r}; formats are {', '.join(FORMATS)}", None, "--format")
-    path, directory = Path(path), Path(directory)
+def export(result: str | Path, directory: str | Path, *, format: str = FORMATS[0]) -> list[Path]:  # noqa: A002
+    """Write a run's fields (a run or one case of a sweep) into `directory` in `format` (one of
+    `declared.FORMATS`); returns the files written."""
+    path, directory = Path(result), Path(directory)
     ds = open_result(path, ("run",), "export writes one run's fields")
     try:
         if format == "tiff":
             from ..data.tiff import export_tiff  # lazily: tifffile only for TIFF
 
             return export_tiff(ds, directory, str(path))
-        from ..data.export import export as write  # lazily: meshio only for VTU
+        from ..data.export import export as write  # lazily: VTK's writers only for VTK files
 
         return write(ds, directory, format)
     except ValueError as error:

@@ -91,11 +91,13 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
     return Path(re.sub(r"[^\w.+-]", "-", scene.name) + ".nc")
 
 
-def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (), output: Path | None = None,
-         force: bool = False, continue_from: str | Path | None = None, write: bool = True) -> Loaded:
-    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
-    it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
-    NAME.nc); bad input is `BadInput`."""
+def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
+         output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
+         write: bool = True) -> Loaded:
+    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
+    run it continues, and its output before anything is computed (the options: `declared.RUN`; `write`: the
+    dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
+    overrides = set
     preflight = Preflight(runs=True, streamed=write or output is not None)  # a run that writes streams its outputs
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}

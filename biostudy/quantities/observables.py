@@ -28,6 +28,8 @@ max_thickness         µm     largest biofilm thickness above the substratum (CO
 roughness             1      roughness coefficient Ra* of the thickness (COMSTAT)
 coverage              1      fraction of the substratum's first cell layer that is biofilm
 surface_to_biovolume  µm⁻¹   biofilm-liquid interface per biovolume (COMSTAT)
+dead_end_biofilm      µm³    phi >= 0.5 in dead ends off the route from colony to nutrient (2-D)
+dead_end_reach        µm     how deep phi >= 0.5 reaches into a dead end beyond the route's corridor
 ====================  =====  ======================================================
 
 The last six are measured on the substratum the run's dataset records (attributes
@@ -36,7 +38,10 @@ the scene's ``[substratum]``) by `biostudy.quantities.substratum`; they change
 continuously with the parameters (sub-cell level sets), so they are the ones to
 fit; with ``estimator = "voxel"`` they are COMSTAT's voxel counts instead
 (`biostudy.quantities.comstat`).  A dataset written before they existed lacks
-those attributes and has none of them.
+those attributes and has none of them.  The two dead-end observables
+(`biostudy.quantities.dead_ends`: paper 4.4's invasion of dead ends and
+retraction from them) apply to 2-D runs whose route from the colony to a held
+nutrient region passes dead ends; other runs leave them out.
 """
 from __future__ import annotations
 
@@ -50,7 +55,7 @@ import xarray as xr
 from solver.series import PER_THICKNESS, SERIES, VOLUME, Series, cell_volume
 
 from ..inputs.resources import BLOCK_BYTES
-from . import comstat, measures, substratum
+from . import comstat, dead_ends, measures, substratum
 from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
@@ -67,6 +72,7 @@ class Observable:
     needs: tuple[str, ...] = ("phi",)
     needs_attrs: tuple[str, ...] = ()  # attributes of the dataset it is computed from (the substratum)
     granularity: Callable[[float, int], float] | None = None  # (h, ndim) -> its step: it counts cells; None: sub-cell
+    applies: Callable[[xr.Dataset], bool] | None = None  # whether the run has what it measures (None: every run)
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
         volume = self.units == VOLUME and ds is not None and "z" not in ds.dims
@@ -133,6 +139,12 @@ REGISTRY: dict[str, Observable] = {o.name: o for o in (
     Observable("tension_max", "Pa", "largest tension of the biofilm: max p (hydrostatic stress)",
                lambda ds: measures.stress_extremes(ds)[1], ("p",)),
     *(_on_substratum(q) for q in substratum.QUANTITIES.values()),
+    Observable("dead_end_biofilm", VOLUME, "biofilm (phi >= 0.5) in dead ends off the route from the colony to the "
+               "nutrient", dead_ends.biofilm, ("phi", "obstacle", "nutrient_source"), granularity=cell_volume,
+               applies=dead_ends.applies),
+    Observable("dead_end_reach", "um", "how deep phi >= 0.5 reaches into a dead end beyond the route's corridor",
+               dead_ends.reach, ("phi", "obstacle", "nutrient_source"), granularity=lambda h, ndim: h,
+               applies=dead_ends.applies),
 )}
 
 # The columns `show` gives each case of a study, and the outputs a sweep's picture draws by default.
@@ -164,6 +176,8 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     missing = [v for v in observable.needs if v not in ds]
     if missing:
         raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
+    if observable.applies is not None and not observable.applies(ds):
+        raise ValueError(f"{name}: the run has none to measure (see biostudy/quantities/observables.py)")
     unrecorded = [a for a in observable.needs_attrs if a not in ds.attrs]
     if unrecorded:
         raise ValueError(f"{name} needs the attribute {', '.join(unrecorded)} (the scene's [substratum]), which "
@@ -211,8 +225,9 @@ def _blocks(fields: xr.Dataset, block_bytes: float) -> list[list[int]]:
 
 
 def available(ds: xr.Dataset, observable: Observable) -> bool:
-    """Whether the dataset has what the observable is computed from."""
-    return all(v in ds for v in observable.needs) and all(a in ds.attrs for a in observable.needs_attrs)
+    """Whether the dataset has what the observable is computed from (and the run what it measures)."""
+    return all(v in ds for v in observable.needs) and all(a in ds.attrs for a in observable.needs_attrs) and \
+        (observable.applies is None or observable.applies(ds))
 
 
 def value(ds: xr.Dataset, name: str, index: int = -1) -> float:
