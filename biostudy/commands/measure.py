@@ -37,24 +37,24 @@ class Measured:
 def _petab_target(path: Path) -> Path:
     if link_loop(path) or os.path.lexists(path):
         raise BadInput("exists; the measurement table is written as a new file (choose another name, or remove "
-                       "it first)", path, "--petab")
+                       "it first)", path, "petab")
     if not path.parent.is_dir():
-        raise BadInput(f"its folder {path.parent} does not exist", path, "--petab")
+        raise BadInput(f"its folder {path.parent} does not exist", path, "petab")
     return path
 
 
 def _times(time: Sequence[float] | None, frames: int, petab: Path | None) -> list[float] | None:
     if time is None:
         if petab is not None:
-            raise BadInput("the measurement table needs the time of every frame: give --time T1,T2,... in the "
-                           "unit the calibration names as its time_unit", None, "--time")
+            raise BadInput("the measurement table needs the time of every frame: give time (T1,T2,..., in the unit "
+                           "the calibration names as its time_unit)", None, "time")
         return None
     found = [float(t) for t in time]
     if len(found) != frames:
         raise BadInput(f"gives {len(found)} times for {frames} frames (one per frame, in the order of the stacks)",
-                       None, "--time")
+                       None, "time")
     if not all(math.isfinite(t) and t >= 0 for t in found):
-        raise BadInput("times are numbers >= 0", None, "--time")
+        raise BadInput("times are numbers >= 0", None, "time")
     return found
 
 
@@ -64,21 +64,25 @@ def _link(temporary: Path, path: Path) -> None:
         os.link(temporary, path)
     except FileExistsError:
         raise BadInput("appeared while the stacks were measured; it is kept (nothing written)", path,
-                       "--petab") from None
+                       "petab") from None
 
 
 def measure(stacks: Sequence[str | Path], *, voxel: Sequence[float] | None = None, threshold: float | None = None,
             substratum: str | None = None, connected: bool = False, petab: str | Path | None = None,
             time: Sequence[float] | None = None, condition: str = "",
             noise: dict[str, float] | None = None) -> Measured:
-    """Measure every stack (module docstring); `petab`: also write the measurement table there, `time` one per
-    frame, `condition` its simulationConditionId, `noise` σ per observable (default: a noise parameter each)."""
+    """Measure every stack (module docstring; the options: `declared.MEASURE`); `petab`: also write the measurement
+    table there, `time` one per frame, `condition` its simulationConditionId, `noise` σ per observable (default: a
+    noise parameter each)."""
     if not stacks:
         raise BadInput("no stack given: biostudy measure STACK.tif [STACK.tif ...]")
     target = _petab_target(Path(petab)) if petab is not None else None
     unknown = sorted(set(noise or {}) - set(OBSERVABLES))
     if unknown:
-        raise BadInput(f"{unknown[0]} is not measured here ({', '.join(OBSERVABLES)})", None, "--noise")
+        raise BadInput(f"{unknown[0]} is not measured here ({', '.join(OBSERVABLES)})", None, "noise")
+    bad = [name for name, sigma in (noise or {}).items() if not 0 < sigma < math.inf]
+    if bad:
+        raise BadInput(f"σ of {bad[0]} must be > 0 (got {noise[bad[0]]:g})", None, "noise")
     found = [measured_frames(load(path, None if voxel is None else list(voxel)), threshold, substratum, connected)
              for path in stacks]
     times = _times(time, sum(len(m.rows) for m in found), target)
