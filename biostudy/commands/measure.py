@@ -77,19 +77,20 @@ def measure(stacks: Sequence[str | Path], *, voxel: Sequence[float] | None = Non
     if not stacks:
         raise BadInput("no stack given: biostudy measure STACK.tif [STACK.tif ...]")
     target = _petab_target(Path(petab)) if petab is not None else None
-    unknown = sorted(set(noise or {}) - set(OBSERVABLES))
+    sigmas = dict(noise or {})
+    unknown = sorted(set(sigmas) - set(OBSERVABLES))
     if unknown:
         raise BadInput(f"{unknown[0]} is not measured here ({', '.join(OBSERVABLES)})", None, "noise")
-    bad = [name for name, sigma in (noise or {}).items() if not 0 < sigma < math.inf]
+    bad = [name for name, sigma in sigmas.items() if not 0 < sigma < math.inf]
     if bad:
-        raise BadInput(f"σ of {bad[0]} must be > 0 (got {noise[bad[0]]:g})", None, "noise")
+        raise BadInput(f"σ of {bad[0]} must be > 0 (got {sigmas[bad[0]]:g})", None, "noise")
     found = [measured_frames(load(path, None if voxel is None else list(voxel)), threshold, substratum, connected)
              for path in stacks]
     times = _times(time, sum(len(m.rows) for m in found), target)
     records = measured.records(found, times)
     written = None
     if target is not None:
-        text = measured.petab_text(records, condition, noise)
+        text = measured.petab_text(records, condition, sigmas)
         temporary = temporary_name(target)
         written = atomic(target, lambda into: into.write_text(text, encoding="utf-8"), temporary=temporary,
                          rename=lambda: _link(temporary, target))
