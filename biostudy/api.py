@@ -142,7 +142,10 @@ def _analyze(values: dict[str, Any]) -> xr.Dataset:
 
     written, _ = command(**values)
     log.info("wrote %s", ", ".join(str(p) for p in written))
-    return reading.open_dataset(written[0])
+    found = reading.open_dataset(written[0])
+    if found.attrs.get("warning"):  # Sobol' indices from too few samples
+        warnings.warn(str(found.attrs["warning"]), stacklevel=3)
+    return found
 
 
 def _plot(values: dict[str, Any]) -> list[Path]:

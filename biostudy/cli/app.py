@@ -113,6 +113,11 @@ def analyze(options: dict, as_json: bool = False) -> None:
 
         written, table = command(**options)
         output.emit(output.written(written[0])) if as_json else typer.echo(table)  # [0]: analysis.nc
+        from ..data.reading import attributes
+
+        said = (attributes(written[0]) or {}).get("warning")  # Sobol' indices from too few samples
+        if said:
+            typer.echo(f"warning: {said}", err=True)
         progress.err().print("wrote " + ", ".join(str(p) for p in written))
 
 
