@@ -9,6 +9,7 @@ Kept to the standard library and constants: the command line is built from this 
 from __future__ import annotations
 
 from ..plans.refinement import FIRST_TOLERANCE, SERIES
+from .kinds import Named, Numbers
 from .options import (
     REQUIRED,
     Choice,
@@ -17,8 +18,6 @@ from .options import (
     Flag,
     Function,
     Many,
-    Named,
-    Numbers,
     Option,
     Overrides,
     Real,
