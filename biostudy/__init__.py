@@ -34,7 +34,8 @@ import logging
 logging.getLogger("biostudy").addHandler(logging.NullHandler())
 
 _API = {"run": "run", "sweep": "sweep", "calibrate": "calibrate", "convergence": "convergence",
-        "stability": "stability", "analyze": "analyze", "plot": "plot", "export": "export", "show": "show",
+        "stability": "stability", "analyze": "analyze", "plot": "plot", "export": "export", "measure": "measure",
+        "show": "show",
         "scenes": "scenes", "open": "open_result"}
 __all__ = [*_API, "BadInput", "Failed"]
 

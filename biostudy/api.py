@@ -1,7 +1,7 @@
 """The Python API: every command of the command line as a function, called from a notebook or a script.
 
 `run`, `sweep`, `calibrate`, `convergence`, `stability`, `analyze`, `plot`,
-`export`, `show` and `scenes` are made from the same declarations as the
+`export`, `measure`, `show` and `scenes` are made from the same declarations as the
 command line (`commands.declared`): the same options by the same names (``--set``
 is ``set=``, ``-o`` of a job command its second argument ``directory``), the
 same defaults, the same rules, and for the same mistake the same words.  They call
@@ -142,7 +142,10 @@ def _analyze(values: dict[str, Any]) -> xr.Dataset:
 
     written, _ = command(**values)
     log.info("wrote %s", ", ".join(str(p) for p in written))
-    return reading.open_dataset(written[0])
+    found = reading.open_dataset(written[0])
+    if found.attrs.get("warning"):  # Sobol' indices from too few samples
+        warnings.warn(str(found.attrs["warning"]), stacklevel=3)
+    return found
 
 
 def _plot(values: dict[str, Any]) -> list[Path]:
@@ -167,6 +170,15 @@ def _show(values: dict[str, Any]) -> Shown:
     return command(values["paths"])
 
 
+def _measure(values: dict[str, Any]) -> list[dict]:
+    from .commands.measure import measure as command  # lazily, as in `run`
+
+    found = command(**values)
+    if found.written is not None:
+        log.info("wrote %s", found.written)
+    return found.records
+
+
 def _scenes(values: dict[str, Any]) -> dict:
     from .commands.scenes import scenes as command  # lazily, as in `run`
 
@@ -182,6 +194,7 @@ analyze = _function(declared.ANALYZE, _analyze)
 plot = _function(declared.PLOT, _plot)
 export = _function(declared.EXPORT, _export)
 show = _function(declared.SHOW, _show)
+measure = _function(declared.MEASURE, _measure)
 scenes = _function(declared.SCENES, _scenes)
 
 

@@ -79,7 +79,7 @@ def made(tmp_path_factory):
 def test_every_command_of_the_command_line_is_a_function():
     commands = {command.name or command.callback.__name__ for command in app.registered_commands}
     assert commands == {"run", "sweep", "calibrate", "convergence", "stability", "analyze", "plot", "export",
-                        "show", "scenes"}
+                        "measure", "show", "scenes"}
     assert all(callable(getattr(biostudy, name)) for name in commands) and callable(biostudy.open)
 
 

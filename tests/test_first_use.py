@@ -68,3 +68,21 @@ def test_show_prints_what_the_readme_says(tiny_scene, tmp_path):
     assert header.count("T* = ") == 2 and "T* = 0 " in header and "T* = 0.2" in header  # 3 outputs: first, last
     record = json.loads(invoke("show", tmp_path / "r.nc", "--json").stdout)
     assert len(record["time"]) == 3 and len(record["observables"]["biofilm_volume"]["values"]) == 3
+
+
+def test_a_table_naming_one_condition_needs_no_conditions_table(tmp_path):
+    """PEtab gives every row a simulationConditionId; a calibration without [conditions] takes one name as the
+    scene's own condition (it refused it unless an empty [conditions.agar] was added); two names still need
+    [conditions], and a row left empty beside named ones is told."""
+    rows = "observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters\n"
+    (tmp_path / "c.toml").write_text('scene = "agar2d"\n[data]\nmeasurements = "t.tsv"\n[estimate]\n'
+                                     'g = [1e7, 1e10, "log"]\n')
+    (tmp_path / "t.tsv").write_text(rows + "biomass\tagar\t0.1\t3.0\t0.2\nbiomass\tagar\t0.2\t4.0\t0.2\n")
+    plan = load_calibration(tmp_path / "c.toml")
+    assert plan.conditions == ["agar"] and [p.conditions for p in plan.parameters] == [("agar",)]
+    (tmp_path / "t.tsv").write_text(rows + "biomass\tagar\t0.1\t3.0\t0.2\nbiomass\t\t0.2\t4.0\t0.2\n")
+    with pytest.raises(BadInput, match=r"line 3: simulationConditionId: empty; the calibration has conditions agar"):
+        load_calibration(tmp_path / "c.toml")
+    (tmp_path / "t.tsv").write_text(rows + "biomass\tagar\t0.1\t3.0\t0.2\nbiomass\thalf\t0.2\t4.0\t0.2\n")
+    with pytest.raises(BadInput, match=r"unknown condition 'agar' \(the calibration has no \[conditions\]"):
+        load_calibration(tmp_path / "c.toml")

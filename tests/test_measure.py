@@ -108,10 +108,10 @@ def test_the_substratum_is_found_as_a_scenes_and_a_tie_asks_for_it(tmp_path):
     assert stack_measures.measure(frames, threshold=100).face == "z-"  # the mat covers z = 0 most
     slab = np.zeros((4, 6, 6), np.uint8)
     slab[:, :, 0] = slab[:, :, -1] = 1  # two walls, x- and x+ alike
-    with pytest.raises(BadInput, match=r"--substratum: the initial biofilm rests on x- and x\+ alike .*: give "
-                                       r"--substratum FACE"):
+    with pytest.raises(BadInput, match=r"substratum: the initial biofilm rests on x- and x\+ alike .*: give the "
+                                       r"substratum \(its face"):
         stack_measures.measure(stacks.load(imagej(tmp_path / "tie.tif", slab)))
-    with pytest.raises(BadInput, match=r"--substratum: 'q-' is not a face of a 3-D stack"):
+    with pytest.raises(BadInput, match=r"substratum: 'q-' is not a face of a 3-D stack"):
         stack_measures.measure(frames, threshold=100, face="q-")
 
 
@@ -147,7 +147,7 @@ def test_a_segmented_stack_needs_no_threshold_a_greyscale_one_does(tmp_path):
     segmented = stacks.load(imagej(tmp_path / "seg.tif", (values >= 100).astype(np.uint8) * 255))
     grey = stacks.load(imagej(tmp_path / "grey.tif", values))
     assert stack_measures.measure(segmented).rows == stack_measures.measure(grey, threshold=100).rows
-    with pytest.raises(BadInput, match=r"--threshold: .*grey.tif is greyscale \(\d+ voxels neither 0 nor 250\)"):
+    with pytest.raises(BadInput, match=r"threshold: .*grey.tif is greyscale \(\d+ voxels neither 0 nor 250\)"):
         stack_measures.measure(grey)
 
 
@@ -172,9 +172,9 @@ def test_bad_stacks_are_one_line_each(tmp_path, monkeypatch):
     (tmp_path / "text.txt").write_text("x")
     cases = {
         lambda: stacks.load(tmp_path / "plain.tif"): "plain.tif states no voxel size (no ImageJ or OME metadata); "
-                                                     "give --voxel dz,dy,dx in µm",
-        lambda: stacks.load(tmp_path / "plain.tif", [0.5, 0.2]): "--voxel: has 2 entries; ",
-        lambda: stacks.load(tmp_path / "plain.tif", [0.5, 0.2, -1.0]): "--voxel: -1 is not a voxel size",
+                                                     "give the voxel size (voxel: dz,dy,dx in µm)",
+        lambda: stacks.load(tmp_path / "plain.tif", [0.5, 0.2]): "voxel: has 2 entries; ",
+        lambda: stacks.load(tmp_path / "plain.tif", [0.5, 0.2, -1.0]): "voxel: -1 is not a voxel size",
         lambda: stacks.load(tmp_path / "short.tif"): "short.tif: its ImageJ metadata declares 7 images, the file "
                                                      "holds 1",
         lambda: stacks.load(tmp_path / "channels.tif"): "measure takes one greyscale or segmented z-y-x stack or "
@@ -191,17 +191,9 @@ def test_bad_stacks_are_one_line_each(tmp_path, monkeypatch):
 def test_a_stack_declaring_more_than_the_memory_is_refused_before_a_pixel_is_read(tmp_path, monkeypatch):
     """A 300-byte tiled TIFF whose header says 20000 x 20000 pixels; measuring it would need the values (1 byte
     each) and 8 bytes a voxel more: refused from the header."""
-    path = tmp_path / "huge.tif"
-    tifffile.imwrite(path, np.zeros((16, 16), np.uint8), tile=(16, 16), compression="zlib", metadata=None)
-    with tifffile.TiffFile(path, mode="r+b") as tif:
-        tif.pages[0].tags["ImageWidth"].overwrite(20000)
-        tif.pages[0].tags["ImageLength"].overwrite(20000)
+    from test_images_files import huge_tiff
 
-    def never(*args, **kwargs):
-        raise AssertionError("the pixels were read")
-
-    for reader in (tifffile.TiffPageSeries, tifffile.TiffPage, tifffile.TiffFile):
-        monkeypatch.setattr(reader, "asarray", never)
+    path = huge_tiff(tmp_path / "huge.tif", monkeypatch)
     monkeypatch.setenv("BIOSTUDY_MEMORY", "2 GB")
     assert "[1, 20000, 20000] voxels: reading and measuring it needs ~3.6 GB of memory, 2 GB available" in one_line(
         lambda: stacks.load(path, [1.0, 1.0]))
@@ -236,3 +228,60 @@ def test_the_petab_table_of_a_time_series_is_read_by_a_calibration_and_by_petab(
     from petab.v1.lint import check_measurement_df
 
     check_measurement_df(petab.get_measurement_df(tmp_path / "m.tsv"))
+
+
+def test_the_measurement_table_is_a_new_file_never_one_that_is_there(tmp_path, monkeypatch):
+    """--petab refuses a file that is there, and keeps one that appears while the stacks are measured (linked into
+    place, not renamed over); nothing else is left in the folder."""
+    from biostudy.commands import measure
+    from biostudy.reports import measured
+
+    stack = imagej(tmp_path / "s.tif", blobs(14))
+    (tmp_path / "mine.tsv").write_text("my table")
+    with pytest.raises(BadInput, match=r"mine.tsv: petab: exists; the measurement table is written as a new file"):
+        measure.measure([stack], threshold=100, petab=tmp_path / "mine.tsv", time=[1.0])
+    with pytest.raises(BadInput, match=r"time: gives 2 times for 1 frames"):
+        measure.measure([stack], threshold=100, petab=tmp_path / "m.tsv", time=[1.0, 2.0])
+    made = measured.petab_text
+
+    def meanwhile(*args, **kwargs):
+        (tmp_path / "m.tsv").write_text("a colleague's table")
+        return made(*args, **kwargs)
+
+    monkeypatch.setattr(measured, "petab_text", meanwhile)
+    with pytest.raises(BadInput, match=r"m.tsv: petab: appeared while the stacks were measured; it is kept"):
+        measure.measure([stack], threshold=100, petab=tmp_path / "m.tsv", time=[1.0])
+    assert (tmp_path / "m.tsv").read_text() == "a colleague's table"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.tsv", "mine.tsv", "s.tif"]
+
+
+def test_measure_from_the_command_line_and_from_python_alike(tmp_path):
+    """`biostudy measure` (--json, --petab with --time) and `biostudy.measure` give the same records and tables;
+    a mistake is one line, keyed by the flag on the command line and by the name in Python."""
+    import json
+
+    import biostudy
+
+    series = np.stack([blobs(seed) for seed in (15, 16)])
+    stack = imagej(tmp_path / "t.tif", series, axes="TZYX")
+    result = invoke("measure", stack, "--threshold", "100", "--substratum", "z-", "--json", "--petab",
+                    tmp_path / "cli.tsv", "--time", "0,12", "--noise", "biomass=0.2")
+    assert result.exit_code == 0, result.output
+    records = biostudy.measure(stack, threshold=100, substratum="z-", petab=tmp_path / "api.tsv", time=[0, 12],
+                               noise={"biomass": 0.2})
+    assert json.loads(result.stdout) == records and [r["time"] for r in records] == [0.0, 12.0]
+    assert (tmp_path / "cli.tsv").read_text() == (tmp_path / "api.tsv").read_text()
+    written = (tmp_path / "cli.tsv").read_text()
+    assert "biomass\t\t0.0\t" in written and "\t0.2\tt\n" in written
+    assert f"wrote {tmp_path / 'cli.tsv'}" in result.stderr
+    table = invoke("measure", stack, "--threshold", "100").stdout
+    assert table.startswith("| file | frame | time | biomass (µm) |")
+    assert "substratum z-, biofilm: values >= 100" in table
+    for args, line in ((["--petab", tmp_path / "x.tsv"], "error: --time: the measurement table needs the time"),
+                       (["--voxel", "0.5,-1,2"], "error: --voxel: give voxel sizes: numbers > 0"),
+                       (["--substratum", "w+"], "error: --substratum: unknown face 'w+'")):
+        bad = invoke("measure", stack, "--threshold", "100", *args)
+        assert bad.exit_code == 2 and bad.stderr.strip().startswith(line) and len(bad.stderr.splitlines()) == 1, \
+            bad.stderr
+    with pytest.raises(BadInput, match=r"^time: the measurement table needs the time"):
+        biostudy.measure(stack, threshold=100, petab=tmp_path / "x.tsv")

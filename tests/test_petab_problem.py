@@ -137,3 +137,36 @@ def bad(folder: Path, name: str, old: str, new: str) -> str:
 def test_a_problem_biostudy_cannot_compute_is_one_line(calibration, tmp_path, name, old, new, expected):
     folder = written(load_calibration(calibration), tmp_path / "out" / "petab")
     assert expected in bad(folder, name, old, new)
+
+
+def test_calibrate_writes_its_petab_problem_reads_it_back_and_keeps_a_users_edit(tmp_path):
+    """`biostudy calibrate` writes DIR/petab/ (calibration.nc recording each file's sha256); `biostudy calibrate
+    DIR/petab/problem.yaml` is the same calibration (the same estimate from the same table); an edited file of
+    DIR/petab/ is the user's: refused, --force or not."""
+    import hashlib
+
+    import xarray as xr
+    from test_calibration_hostile import calibration, invoke, one_line
+
+    from biostudy.calibration.petab_out import NAMES
+
+    rows = "observableId\ttime\tmeasurement\tnoiseParameters\nbiomass\t0.05\t3.1\t0.2\nbiomass\t0.1\t3.6\t0.2\n"
+    path = calibration(tmp_path, rows, "[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n")
+    first = invoke("calibrate", path, "-o", tmp_path / "out", "-q")
+    assert first.exit_code == 0, first.output
+    folder = tmp_path / "out" / "petab"
+    assert sorted(p.name for p in folder.iterdir()) == sorted(NAMES)
+    with xr.open_dataset(tmp_path / "out" / "calibration.nc") as ds:
+        for name in NAMES:
+            assert ds.attrs[f"{name.replace('.', '_')}_sha256"] == hashlib.sha256((folder / name).read_bytes()
+                                                                                  ).hexdigest(), name
+        estimate = float(ds.estimate.values[0])
+    again = invoke("calibrate", folder / "problem.yaml", "-o", tmp_path / "back", "-q")
+    assert again.exit_code == 0, again.output
+    with xr.open_dataset(tmp_path / "back" / "calibration.nc") as ds:
+        assert float(ds.estimate.values[0]) == pytest.approx(estimate, rel=1e-9)
+    with (folder / "parameters.tsv").open("a") as handle:
+        handle.write("mine\tmine\tlin\t0\t1\t0.5\t0\n")
+    for force in ([], ["--force"]):
+        one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q", *force),
+                 "parameters.tsv: exists and is not a file biostudy wrote")

@@ -22,7 +22,9 @@
 
 PEtab ids are letters, digits and _, not starting with a digit; a calibration whose condition names, keys or
 condition values PEtab cannot hold (a condition setting a list, a name with a '-') is `NotPetab`, said in words.
-The texts are returned, not written (`calibrate` writes them).
+`problem_texts` returns the texts; `digests` and `write` put them into DIR/petab/ as calibrate puts
+simulation.tsv: a TSV or YAML file carries no mark, so calibration.nc records each one's sha256
+(`data.claims.digested`) and a file of these names is replaced only while its bytes are those.
 """
 from __future__ import annotations
 
@@ -41,6 +43,8 @@ FILES = {"condition_files": "conditions.tsv", "measurement_files": "measurements
          "observable_files": "observables.tsv"}
 PARAMETERS = "parameters.tsv"
 PROBLEM = "problem.yaml"
+FOLDER = "petab"  # DIR/petab/ of a calibration
+NAMES = (PROBLEM, *FILES.values(), PARAMETERS)
 SCENE_ID = "scene"  # the condition of a calibration without [conditions] whose table names none
 NOISE_BOUNDS = (1e-300, 1e300)  # σ > 0; biostudy does not bound it (it is estimated in closed form)
 
@@ -207,3 +211,24 @@ def problem_texts(plan: CalibrationPlan, directory: Path, given_set: dict[str, A
         FILES["observable_files"]: observables_table(names, long_names),
         PARAMETERS: parameters_table(rows, noise),
     }
+
+
+def digests(texts: dict[str, str], folder: Path, before: dict | None) -> dict[str, str]:
+    """The attributes calibration.nc records of the files (`claims.digested`), each with the digest of the file
+    it replaces where `before` (the calibration.nc it replaces) proves that file biostudy's."""
+    from ..data import claims
+
+    found: dict[str, str] = {}
+    for name, text in texts.items():
+        present = claims.sha256(folder / name)
+        found.update(claims.digested(name, text, present if present in claims.recorded(before, name) else ""))
+    return found
+
+
+def write(texts: dict[str, str], folder: Path, before: dict | None) -> list[Path]:
+    """Write the files into `folder` (made if absent), each refused where a file is whose sha256 `before` does not
+    record (`claims.write_digested`)."""
+    from ..data import claims
+
+    folder.mkdir(exist_ok=True)
+    return [claims.write_digested(folder / name, text, before, "calibration.nc") for name, text in texts.items()]

@@ -23,22 +23,19 @@ in T*; the noise parameters).
     starts = 4                       # multi-start from a Latin hypercube inside the bounds
     profiles = true                  # a profile likelihood per parameter (95 % intervals)
 
-Without `[conditions]` every measurement is of the scene itself (an empty
-`simulationConditionId`).  An estimated key is shared by every condition unless
-a condition estimates it itself, then that condition has its own parameter
-(named ``r[half]``).  Everything is checked before anything runs: both ends of
-every bound by the scene's own schema (as a study's sample ranges,
-`designs.check_ends`), each condition's scene, every row of the table (its
-observable, its condition, its time within the run), each problem one line
-(`BadInput`); σ named in `noiseParameters` is estimated
-(`noise`).  `CalibrationPlan.scene_at` makes the scene of one
-simulation: a condition at given parameter values, its outputs at that
-condition's measurement times.
-"""
+Without `[conditions]` every measurement is of the scene itself: its `simulationConditionId` empty, or one
+name on every row (PEtab asks for one: that name is then the scene's condition, as an empty
+`[conditions.NAME]`). An estimated key is shared by every condition unless a condition estimates it itself,
+then that condition has its own parameter (named ``r[half]``). Everything is checked before anything runs:
+both ends of every bound by the scene's own schema (as a study's sample ranges, `designs.check_ends`), each
+condition's scene, every row of the table (its observable, its condition, its time within the run), each
+problem one line (`BadInput`); σ named in `noiseParameters` is estimated (`noise`). `CalibrationPlan.scene_at`
+makes the scene of one simulation: a condition at given parameter values, its outputs at that condition's
+measurement times."""
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -58,7 +55,7 @@ from .measurements import Measurement, read_measurements, refusal
 from .methods import METHODS
 from .noise import NoiseParameter, noise_parameters, noise_problems
 from .petab_in import calibration_data
-from .spec import SCENE, Calibration, label, spelled
+from .spec import SCENE, Calibration, Condition, label, spelled
 from .table import extreme_numbers, unknown_observable
 
 
@@ -100,6 +97,7 @@ class CalibrationPlan:
     measurements: list[Measurement]
     times: np.ndarray  # T* of every measurement, in the table's order
     data_file: Path
+    common: dict = field(default_factory=dict)  # the overrides of every simulation: [set], then --set
 
     @property
     def conditions(self) -> list[str]:
@@ -148,9 +146,9 @@ def _parameters(spec: Calibration) -> list[Parameter]:
     return found
 
 
-def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
-                  path: Path) -> tuple[Path, list[Measurement], np.ndarray]:
-    """The table, read and checked against the conditions' scenes; every problem at once."""
+def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path, path: Path,
+                  rows: list[Measurement]) -> tuple[Path, list[Measurement], np.ndarray]:
+    """The table's rows checked against the conditions' scenes; every problem at once."""
     data_file = path.parent / spec.data.measurements
     try:
         factor = spec.data.time_factor()
@@ -158,7 +156,6 @@ def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
             check_agree(spec.data.t_ref, scene.time.t_ref, scene_file.name)
     except InvalidAt as error:
         raise BadInput(error.problem, path, f"data.{error.key}") from None
-    rows = read_measurements(data_file)
     unit = f" {spec.data.time_unit}" if spec.data.time_unit else ""
     problems, times = [], np.array([m.time * factor for m in rows])
     for m, t in zip(rows, times):
@@ -240,10 +237,25 @@ def load_calibration(path: str | Path, overrides: list[str] | tuple[str, ...] = 
         spec.estimated_keys(), "estimated by this calibration ({key}), so every simulation would replace it; change "
                                "its bounds instead"), read=_calibration_data)
     spec, scene_file, base_data = based.spec, based.scene_file, based.data
+    try:
+        spec.data.time_factor()  # a unit that is no time before the table's rows
+    except InvalidAt as error:
+        raise BadInput(error.problem, path, f"data.{error.key}") from None
+    rows = read_measurements(path.parent / spec.data.measurements)
+    spec = _named_scene(spec, rows)
     scenes = compile_cases(spec.condition_cases(), base_data, scene_file, path, based.origins, preflight)
-    data_file, rows, times = _measurements(spec, scenes, scene_file, path)
+    data_file, rows, times = _measurements(spec, scenes, scene_file, path, rows)
     return CalibrationPlan(path, spec, scene_file, based.scene, scenes, base_data, _parameters(spec), rows, times,
-                           data_file)
+                           data_file, based.common)
+
+
+def _named_scene(spec: Calibration, rows: list[Measurement]) -> Calibration:
+    """A calibration without [conditions] whose table names one condition (PEtab asks every row for one): that
+    condition is the scene itself, as an empty [conditions.NAME] says."""
+    named = {m.condition for m in rows if m.condition}
+    if spec.conditions or len(named) != 1:
+        return spec
+    return spec.model_copy(update={"conditions": {named.pop(): Condition.model_validate({})}})
 
 
 def _wrong_kind(data: dict) -> str:

@@ -17,9 +17,10 @@ from typing import Annotated
 import typer
 
 from ..commands import declared
+from ..errors import BadInput
 from ..execution import worker
 from . import logs, output, progress
-from .build import command, own
+from .build import command, flag, own
 from .guard import OneLineErrors, guarded
 from .jobs import job_command
 from .options import FLAG, Json, Quiet, Verbose
@@ -112,6 +113,11 @@ def analyze(options: dict, as_json: bool = False) -> None:
 
         written, table = command(**options)
         output.emit(output.written(written[0])) if as_json else typer.echo(table)  # [0]: analysis.nc
+        from ..data.reading import attributes
+
+        said = (attributes(written[0]) or {}).get("warning")  # Sobol' indices from too few samples
+        if said:
+            typer.echo(f"warning: {said}", err=True)
         progress.err().print("wrote " + ", ".join(str(p) for p in written))
 
 
@@ -122,6 +128,21 @@ def export(options: dict) -> None:
 
         written = command.export(**options)
         progress.out().print(command.said(written, options["directory"], options["format"]))
+
+
+@command(app, declared.MEASURE, JSON)
+def measure(options: dict, as_json: bool = False) -> None:
+    with guarded():
+        from ..commands.measure import measure as command  # lazily (module docstring)
+
+        flags = {option.name: flag(option) for option in declared.MEASURE.options}
+        try:
+            found = command(**options)
+        except BadInput as error:  # the command's own checks name the options as Python does: here, their flags
+            raise error.relocated(lambda file: file, lambda key: flags.get(key, key)) from None
+        output.emit(found.records) if as_json else typer.echo(found.table)
+        if found.written is not None:
+            progress.err().print(f"wrote {found.written}", markup=False, highlight=False)
 
 
 @command(app, declared.CONVERGENCE, QUIET, VERBOSE, JSON)

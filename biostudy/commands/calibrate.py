@@ -5,8 +5,9 @@ The calibration (`biostudy.calibration`) is read into a plan (`calibration.probl
 `calibration.evaluator.Evaluator` (points of the unit cube -> weighted residuals, every simulation a case file
 under DIR/cases/, reused by its fingerprint, so a re-run or a resumed calibration never repeats one).  The
 method's one `Result` becomes DIR/calibration.nc and calibration.md (`calibration.report`), the pictures the
-method declares (`Method.pictures`), and PEtab's simulation table simulation.tsv (`calibration.petab`: a TSV
-carries no mark, so calibration.nc records its sha256, `claims.digested`).  DIR belongs to this calibration
+method declares (`Method.pictures`), PEtab's simulation table simulation.tsv (`calibration.petab`: a TSV
+carries no mark, so calibration.nc records its sha256, `claims.digested`) and the calibration as a PEtab problem in
+DIR/petab/ (`calibration.petab_out`; its files proven the same way).  DIR belongs to this calibration
 (`targets.owned`: locked, owned).
 `load` and `Calibrate.run` take keyword-only options, so a Python API can wrap them.
 """
@@ -16,7 +17,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..calibration import cost
+from ..calibration import cost, petab_out
 from ..calibration.evaluator import Evaluator
 from ..calibration.methods import FIT, Method, Result, chosen
 from ..calibration.petab import simulation_table
@@ -70,7 +71,7 @@ class Calibrate:
         if said and execution.notify is not None:
             execution.notify("note", "", said)
         with owned(self.directory, self.owner(), "calibration.nc", execution.force, reports=self.reports(),
-                   digested=(SIMULATIONS,)):
+                   digested=(SIMULATIONS, *(f"{petab_out.FOLDER}/{name}" for name in petab_out.NAMES))):
             backend = _backend(execution)
             runs = Evaluator(self.plan, self.directory, execution, backend)
             try:
@@ -86,15 +87,20 @@ class Calibrate:
             present = claims.sha256(self.directory / SIMULATIONS)
             ds.attrs.update(claims.digested(SIMULATIONS, simulations,
                                             present if present in claims.recorded(before, SIMULATIONS) else ""))
+            problem, unwritten = _petab(self.plan, self.directory / petab_out.FOLDER)
+            ds.attrs.update(petab_out.digests(problem, self.directory / petab_out.FOLDER, before))
             writing.write_atomic(ds, self.directory / "calibration.nc")
             claims.write_report(self.directory / "calibration.md", table)
             for picture in (FIT, *method.pictures()):
                 save(picture.draw(ds), self.directory / picture.file)
             claims.write_digested(self.directory / SIMULATIONS, simulations, before, "calibration.nc")
+            if problem:
+                petab_out.write(problem, self.directory / petab_out.FOLDER, before)
         summary = (f"{len(runs.ran)} simulations run, {len(runs.reused)} reused (finished before); "
-                   f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}, {SIMULATIONS}")
+                   f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}, {SIMULATIONS}"
+                   + (f", {petab_out.FOLDER}/ (the PEtab problem)" if problem else ""))
         return Finished(summary, {}, len(runs.ran) + len(runs.reused), table, self.noun,
-                        _warnings(runs, method, result), result=ds)
+                        [*_warnings(runs, method, result), *unwritten], result=ds)
 
 
 def _warnings(runs: Evaluator, method: Method, result: Result) -> list[str]:
@@ -106,6 +112,14 @@ def _warnings(runs: Evaluator, method: Method, result: Result) -> list[str]:
         warnings.append(f"{len(runs.failed)} simulations failed and counted as penalties: "
                         + "; ".join(f"{k}: {v}" for k, v in list(runs.failed.items())[:2]))
     return warnings
+
+
+def _petab(plan: CalibrationPlan, folder: Path) -> tuple[dict[str, str], list[str]]:
+    """The PEtab problem's texts (`calibration.petab_out`), or none and why PEtab cannot hold this calibration."""
+    try:
+        return petab_out.problem_texts(plan, folder, plan.common), []
+    except petab_out.NotPetab as error:
+        return {}, [f"{folder} not written: {error}"]
 
 
 def _backend(execution: Execution) -> Kept | None:

@@ -9,6 +9,7 @@ Kept to the standard library and constants: the command line is built from this 
 from __future__ import annotations
 
 from ..plans.refinement import FIRST_TOLERANCE, SERIES
+from .kinds import Named, Numbers
 from .options import (
     REQUIRED,
     Choice,
@@ -187,5 +188,32 @@ SHOW = Command("show", "Print a readable summary: scene, parameters, run time, f
 SCENES = Command("scenes", "List the bundled scenes and studies with their descriptions.", (),
                  "the bundled files: `directory`, `entries` (`file`, `kind`, `description`), as --json prints them")
 
-COMMANDS = (RUN, SWEEP, SCENES, SHOW, PLOT, ANALYZE, EXPORT, CONVERGENCE, STABILITY, CALIBRATE)
+FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
+MEASURE = Command("measure", "Measure confocal stacks with the model's own COMSTAT code: biomass, mean and maximum "
+                             "thickness, roughness, coverage, surface to biovolume, one row per frame "
+                             "(docs/comstat.md, 'A lab's stacks').", (
+    Option("stacks", File(), REQUIRED, "TIFF stack (z-y-x; a hyperstack's frames are times), or PNG/TIFF picture, "
+           "segmented or greyscale; several: one after the other", metavar="STACK...", positional=True,
+           variadic=True),
+    Option("voxel", Numbers("voxel sizes", positive=True), None, "voxel size dz,dy,dx (a picture: dy,dx); default: "
+           "the file's ImageJ or OME metadata", ("--voxel",), "DZ,DY,DX", unit="µm"),
+    Option("threshold", Real(), None, "biofilm: values >= this (default: the stack must be segmented, 0 and one "
+           "other value)", ("--threshold",), "T"),
+    Option("substratum", Choice(FACES, "face"), None, "the face the biofilm grows on (default: the face the first "
+           "frame's biofilm rests on, as for a scene)", ("--substratum",), "FACE"),
+    Option("connected", Flag(), False, "COMSTAT's connected-volume filtering: only biofilm connected to the "
+           "substratum counts", ("--connected",)),
+    Option("petab", File(), None, "also write the PEtab measurement table a calibration reads (a new file: one that "
+           "is there is never replaced)", ("--petab",), "OUT.tsv"),
+    Option("time", Numbers("times"), None, "the time of every frame, in the order of the stacks (with --petab; in "
+           "the unit the calibration names as its time_unit)", ("--time",), "T1,T2,..."),
+    Option("condition", Text("a condition id"), "", "the measurement table's simulationConditionId",
+           ("--condition",), "ID"),
+    Option("noise", Named(), {}, "σ of an observable in its units (biomass=0.2; repeatable); default: a noise "
+           "parameter per observable (sigma_biomass, ...) that the calibration estimates", ("--noise",),
+           "OBS=SIGMA"),
+), "one record per frame (file, frame, time, the six observables, substratum, threshold, voxel, shape, sha256), "
+   "as --json prints them")
+
+COMMANDS = (RUN, SWEEP, SCENES, SHOW, PLOT, ANALYZE, EXPORT, MEASURE, CONVERGENCE, STABILITY, CALIBRATE)
 JOBS = (SWEEP, CONVERGENCE, STABILITY, CALIBRATE)  # `jobs.started`: their cases run here, on workers or a cluster

@@ -54,15 +54,15 @@ def _voxel(given: list[float] | None, path: Path, ndim: int, stated, problem: st
     wanted = "dz,dy,dx" if ndim == 3 else "dy,dx"
     if given is not None:
         if len(given) != ndim:
-            raise BadInput(f"has {len(given)} entries; {path} is {ndim}-D (give {wanted} in µm)", None, "--voxel")
+            raise BadInput(f"has {len(given)} entries; {path} is {ndim}-D (give {wanted} in µm)", None, "voxel")
         bad = [v for v in given if not (math.isfinite(v) and 0 < v <= VOXEL_MAX)]
         if bad:
             raise BadInput(f"{value_text(bad[0])} is not a voxel size (a length in (0, {VOXEL_MAX:g}] µm)", None,
-                           "--voxel")
+                           "voxel")
         return tuple(float(v) for v in given)
     if stated is None:
         why = problem or f"{path} states no voxel size (no ImageJ or OME metadata)"
-        raise BadInput(f"{why}; give --voxel {wanted} in µm")
+        raise BadInput(f"{why}; give the voxel size (voxel: {wanted} in µm)")
     return tuple(stated)
 
 
@@ -87,6 +87,6 @@ def region(values: np.ndarray, threshold: float | None, path: Path) -> np.ndarra
         return values >= threshold
     grey, top = grey_voxels(values)
     if grey:
-        raise BadInput(f"{path} is greyscale ({grey} voxels neither 0 nor {top}): give --threshold (biofilm: values "
-                       ">= it)", None, "--threshold")
+        raise BadInput(f"{path} is greyscale ({grey} voxels neither 0 nor {top}): give a threshold (biofilm: values "
+                       ">= it)", None, "threshold")
     return values != 0

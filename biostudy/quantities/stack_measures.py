@@ -41,13 +41,13 @@ def substratum(voxels: np.ndarray, face: str | None) -> str:
     if face is not None:
         if face not in faces:
             raise BadInput(f"{face!r} is not a face of a {voxels.ndim}-D stack ({', '.join(faces)})", None,
-                           "--substratum")
+                           "substratum")
         return face
     try:
         return resting_face(voxels, held=())
     except InvalidAt as error:  # a tie: the biofilm rests on two faces alike
-        raise BadInput(error.problem.split(": name the substratum")[0] + ": give --substratum FACE", None,
-                       "--substratum") from None
+        tied = error.problem.split(": name the substratum")[0]
+        raise BadInput(f"{tied}: give the substratum (its face: x-, x+, ..., z+)", None, "substratum") from None
 
 
 def frame_observables(voxels: np.ndarray, voxel: tuple[float, ...], face: str, connected: bool) -> dict[str, float]:
