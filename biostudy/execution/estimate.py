@@ -31,6 +31,7 @@ class Estimate:
     variables: dict[str, xr.DataArray]
     attrs: dict[str, str | float]
     runs: dict[str, xr.Dataset] = field(default_factory=dict)  # the companions that ran, by name
+    notes: dict[str, str] = field(default_factory=dict)  # what each companion ran, or why it did not
 
     def applied(self, ds: xr.Dataset) -> xr.Dataset:
         """`ds` with the error variables and attributes (replacing earlier ones)."""
@@ -71,4 +72,4 @@ def estimate(scene: Scene, file: str | Path, ds: xr.Dataset,
     attrs = {**attrs, "error_estimate_wall_time": seconds,
              "error_estimate_cost": seconds / float(ds.attrs["wall_time"]) if ds.attrs.get("wall_time") else
              float("nan")}
-    return Estimate(variables, attrs, runs)
+    return Estimate(variables, attrs, runs, notes)

@@ -1,7 +1,7 @@
 """Error bars of a run: each observable's estimated discretisation error at every output time, from companions.
 
 Given the run's dataset at (h, dt) and its companions' (`plans.companions`:
-`coarse` at (2h, 2dt), `slow` at (2h, 4dt), `coarser` at (4h, 2dt)), all with
+`coarse` at (2h, 2dt), `slow` at (2h, 4dt), `coarser` at (4h, 4dt)), all with
 the same output times, for every observable Q of the run's dataset
 (`richardson`, docs/accuracy.md "Error bars on a run"):
 
@@ -12,7 +12,8 @@ the same output times, for every observable Q of the run's dataset
 where rho is the ratio of the run's accepted steps to the companion's (2 and 4
 with fixed steps that land on the outputs; measured, so that bisected or
 sub-stepped steps count as they were taken).  p is observed from `coarser`
-when it ran (`richardson.space_order`, believed between `LOWEST` and the
+when it ran, its extra time error T (rho_coarser - rho_coarse) taken off
+(`richardson.space_order`, believed between `LOWEST` and the
 scheme's formal order), the scheme's formal order otherwise.  Without `slow`
 the time part is not separated: Q_error = |Q_coarse - Q_run| / (2^p - 1).
 
@@ -100,7 +101,8 @@ def estimate(run: xr.Dataset, companions: Mapping[str, xr.Dataset | None], notes
             difference = coarse - q
         observed = float("nan")
         if "coarser" in kept and "slow" in kept:
-            observed = richardson.space_order(difference, kept["coarser"][name].values, coarse)
+            extra = time * (rho["coarser"] - rho["coarse"])  # coarser's longer step (q = 1)
+            observed = richardson.space_order(difference, kept["coarser"][name].values, coarse, extra_time=extra)
         order, seen = richardson.believed(observed, richardson.FORMAL.get(scheme, 1.0))
         space = difference / (2.0**order - 1.0)
         error = np.abs(space) + np.abs(time)

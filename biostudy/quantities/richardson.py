@@ -49,11 +49,13 @@ def space_difference(run: np.ndarray, coarse: np.ndarray, time: np.ndarray, rati
     return np.asarray(coarse, float) - np.asarray(run, float) - extra_time
 
 
-def space_order(difference: np.ndarray, coarser: np.ndarray, coarse: np.ndarray, refine: float = 2.0) -> float:
-    """The spatial order observed from three grids at one step: `coarser` at r^2 h and `coarse` at r h differ by
-    a h^p r^p (r^p - 1), r^p times the `difference` a h^p (r^p - 1) between r h and h (`space_difference`).
-    Pooled over the output times (sums of magnitudes: one order per quantity); NaN where nothing differs."""
-    upper = np.abs(np.asarray(coarser, float) - np.asarray(coarse, float))
+def space_order(difference: np.ndarray, coarser: np.ndarray, coarse: np.ndarray, refine: float = 2.0,
+                extra_time: np.ndarray | float = 0.0) -> float:
+    """The spatial order observed from three grids: `coarser` at r^2 h and `coarse` at r h differ by
+    a h^p r^p (r^p - 1) (after `extra_time`, the time error `coarser`'s longer step adds), r^p times the
+    `difference` a h^p (r^p - 1) between r h and h (`space_difference`).  Pooled over the output times (sums of
+    magnitudes: one order per quantity); NaN where nothing differs."""
+    upper = np.abs(np.asarray(coarser, float) - np.asarray(coarse, float) - extra_time)
     lower = np.abs(np.asarray(difference, float))
     ok = np.isfinite(upper) & np.isfinite(lower)
     if not ok.any() or lower[ok].sum() <= 0 or upper[ok].sum() <= 0:

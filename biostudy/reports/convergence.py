@@ -17,10 +17,13 @@ correction itself.  Or a given run
 Errors at every output time (dimension ``time``), fields restricted to the
 series' common coarsest grid (`convergence_levels`); observed orders at every
 output time from the differences of successive levels (unbiased by the
-reference), |Q_l - Q_(l+1)| ~ size^p, leaving out the levels that solve a
-different model than the series' finest (`resolution.differences`: a region
-that covers another volume on their cells) — flagged in the ``resolved``
-variable and said in ``different_model_<series>_<level>``.  Quantities a series
+reference), |Q_l - Q_(l+1)| ~ size^p.  A level whose grid does not hold the
+scene's regions as the study's finest grid does (`resolution.differences`: a
+region that covers another volume on its cells, or a colony one cell thick)
+solves a different model: flagged in the ``resolved`` variable, said in
+``different_model_<series>_<level>``, and left out of the reference and, where
+it differs from its own series' finest level, of the series' orders (a time
+series on such a grid is one model throughout).  Quantities a series
 reproduces to round-off get no order: they are reported as exact.
 """
 from __future__ import annotations
@@ -99,15 +102,16 @@ def extrapolated(chain: list[Level]) -> tuple[dict, dict, dict]:
         if len(values) >= 3:  # the extrapolation's change; at one output it can vanish as a front crosses cells
             before, _ = richardson.richardson(values[-2], values[-3], 2.0, r)
             change = np.abs(value - before)
-            correction = np.fmax(change, np.sqrt(np.nanmean(change**2))) if np.isfinite(change).any() else change
+            finite = change[np.isfinite(change)]
+            correction = np.fmax(change, np.sqrt(np.mean(finite**2))) if finite.size else change
         reference[q], error[q], orders[q] = value, correction, r
     for field in ("phi", "p"):
         fields = [getattr(level, field) for level in chain]
         if any(f is None for f in fields):
             continue
-        norms = [np.array([np.nanmean(np.abs(a - b)) for a, b in zip(coarse, fine)])
-                 for coarse, fine in zip(fields, fields[1:])]
-        observed = float(np.log2(np.nansum(norms[-2]) / np.nansum(norms[-1]))) if len(norms) >= 2 else np.nan
+        norms = [_field_norms(coarse, fine)[0] for coarse, fine in zip(fields, fields[1:])]
+        sums = [float(np.nansum(n)) for n in norms[-2:]]
+        observed = float(np.log2(sums[0] / sums[1])) if len(sums) == 2 and min(sums) > 0 else np.nan
         r, _ = richardson.believed(observed, formal)
         reference[field] = richardson.richardson(fields[-1], fields[-2], 2.0, r)[0]
         orders[field] = r
@@ -143,7 +147,8 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
     orders = {q: np.full((len(series), times.size), np.nan) for q in QUANTITIES}
     attrs: dict = {}
     ndim = len(base.grid.shape)
-    chain = [results[lv.job_id] for lv in wanted if lv.series == REFERENCE]
+    flags, within = _flags(wanted, scenes, within=False), _flags(wanted, scenes, within=True)
+    chain = [results[lv.job_id] for lv in wanted if lv.series == REFERENCE and not flags[(lv.series, lv.index)]]
     chain = [level for level in chain if level is not None]
     if given is not None:
         reference, reference_error, used = ({**given.scalars, "phi": given.phi, "p": given.p},
@@ -155,14 +160,13 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
     compared = int(np.argmin(np.abs(times - time))) if time is not None else times.size - 1
     for s, name in enumerate(series):
         mine = [lv for lv in wanted if lv.series == name]
-        finest = scenes.get(mine[-1].job_id) if scenes else None
         kept_sizes, kept = [], []
         for level in mine:
             i, result = level.index, results[level.job_id]
             table["cells"][s, i] = int(np.prod(base.grid.shape)) * level.refine**ndim
             table["h"][s, i] = coarse_h / level.refine
             table["tolerance"][s, i] = level.tolerance if level.tolerance is not None else np.nan
-            different = resolution.differences(scenes[level.job_id], finest) if finest is not None else []
+            different = flags[(name, i)]
             table["resolved"][s, i] = 0 if different else 1
             if different:
                 attrs[f"different_model_{name}_{i}"] = "; ".join(different)
@@ -177,7 +181,7 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
             if reference:
                 for q, value in _errors(result, reference).items():
                     errors[q][s, i] = value
-            if not different:
+            if not within[(name, i)]:
                 size = {"adaptive": level.tolerance, "time": table["dt"][s, i]}.get(name, table["h"][s, i])
                 kept_sizes.append(size)
                 kept.append(result)
@@ -196,6 +200,20 @@ def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[
                 attrs[f"order_{name}_{q}"] = float(orders[q][s, compared])
     return _dataset(series, levels, times, table, errors, values, orders, reference, reference_error, used,
                     attrs, base, given is not None, compared)
+
+
+def _flags(wanted: list[Refinement], scenes: Mapping[str, Scene] | None, within: bool) -> dict:
+    """(series, level) -> the regions a level's grid does not hold as the finest grid does ([] if none): the finest
+    of the study, or (`within`) of the level's own series."""
+    if not scenes:
+        return {(lv.series, lv.index): [] for lv in wanted}
+    out = {}
+    finest_of_all = scenes[max(wanted, key=lambda lv: lv.refine).job_id]
+    for level in wanted:
+        mine = [lv for lv in wanted if lv.series == level.series]
+        finest = scenes[max(mine, key=lambda lv: lv.refine).job_id] if within else finest_of_all
+        out[(level.series, level.index)] = resolution.differences(scenes[level.job_id], finest)
+    return out
 
 
 def _scale(kept: list[Level], q: str, index: int) -> float:
@@ -223,8 +241,8 @@ def _dataset(series, levels, times, table, errors, values, orders, reference, re
         "cost": (sl, table["cpu_time_setup"] + table["cpu_time_loop"],
                  {"units": "s", "long_name": "CPU seconds of the level's set-up and time loop (its first step apart)"}),
         "resolved": (sl, table["resolved"], {"units": "1", "long_name": "1: the level's grid resolves the scene's "
-                                             "regions as the series' finest does; 0: a different model (left out "
-                                             "of the orders)"}),
+                                             "regions as the study's finest does; 0: a different model (left out "
+                                             "of the reference)"}),
         **{f"error_{c.name}": (slt, errors[c.name], {"units": c.units, "long_name": c.long_name}) for c in COMPARED},
         **{f"value_{q}": (slt, values[q], {"units": UNITS[q], "long_name": f"{q} of the level's run"})
            for q in SCALARS},

@@ -76,8 +76,9 @@ def table_text(ds: xr.Dataset) -> str:
     lines.append("set-up s: CPU time of the level's operators and initial nutrient; loop CPU s: its time loop (steps "
                  "and mechanics solves, the first of each apart: they load compiled kernels and build the first "
                  "hierarchies, a one-off like the process start and imports in wall s); cost s = set-up + loop. "
-                 "model: 'different' where the level's grid does not resolve the scene's regions as the series' "
-                 "finest does (left out of the orders).")
+                 "model: 'different' where the level's grid does not hold the scene's regions as the study's finest "
+                 "does: left out of the reference, and of its series' orders where its series' finest holds them "
+                 "otherwise.")
     reference = _reference(ds, at)
     if reference:
         lines += ["", f"The reference at T* = {times[at]:g}:", ""] + reference
