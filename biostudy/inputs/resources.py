@@ -30,7 +30,10 @@ solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
   three times over (the run's snapshots, the dataset, its encoding or
   transfer);
 - a process: ~0.32 GB for an interpreter that runs and writes a scene (each
-  local worker is one), 0.06 GB more with the mechanics' imports.
+  local worker is one), 0.06 GB more with the mechanics' imports;
+- image regions: the file's values, read once and held for the run, and,
+  before the solver's arrays are made, averaging them onto the grid a slab
+  at a time (`image_files.averaging_bytes`).
 
 The sum stays above the measured peaks and within 1.5 times them from 32³ to
 128³ with the mechanics, to 200³ without.  What it does not cover: a
@@ -90,17 +93,21 @@ class Estimate:
     disk: float
     measuring: float = 0.0  # a streamed run's observables, measured from its spool once the solver is freed
     spool: float = 0.0  # a streamed run's spool on disk, beside the dataset until the dataset is written
+    images: float = 0.0  # the image files its regions read, held for the run (`images.Image.memory`)
+    averaging: float = 0.0  # averaging one onto the grid, before the solver's arrays are made
 
     @property
     def memory(self) -> float:
-        return PROCESS + self.snapshots + max(self.transport + self.mechanics, self.measuring)
+        return PROCESS + self.snapshots + self.images + max(self.transport + self.mechanics, self.measuring,
+                                                            self.averaging)
 
     @property
     def validation(self) -> float:
         return VALIDATION_PER_CELL * self.cells
 
     def parts(self) -> str:
-        parts = [("transport", self.transport), ("mechanics", self.mechanics), ("outputs", self.snapshots)]
+        parts = [("transport", self.transport), ("mechanics", self.mechanics), ("outputs", self.snapshots),
+                 ("images", self.images), ("averaging them", self.averaging)]
         text = ", ".join(f"{name} {size(value)}" for name, value in parts if value)
         return text + (f"; then {size(self.measuring)} to measure the outputs, the solver's memory freed"
                        if self.measuring else "")
@@ -133,8 +140,22 @@ def estimate(scene, streamed: bool = False) -> Estimate:
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
         held, measuring = STREAMED * 8.0 * per_output + PER_OUTPUT * outputs, BLOCK_COPIES * block
         return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring,
-                        spool=written)
-    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring)
+                        written, *_images(scene))
+    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring, 0.0,
+                    *_images(scene))
+
+
+def _images(scene) -> tuple[float, float]:
+    """(bytes of the image files the scene's regions read, held for the run: once per file; the most that
+    averaging one onto the grid holds besides), from the regions that read one (`images.Image.memory`)."""
+    held: dict[str, float] = {}
+    averaging = 0.0
+    for kind in ("biofilm", "nutrient", "obstacle"):
+        for region in getattr(scene, kind, None) or ():
+            if hasattr(region, "memory"):
+                path, values, peak = region.memory()
+                held[path], averaging = values, max(averaging, peak)
+    return sum(held.values()), averaging
 
 
 def tangent_bytes(ndim: int) -> float:
