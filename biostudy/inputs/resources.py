@@ -21,7 +21,8 @@ solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
   Newton vectors; a direct factorisation's fill is larger;
 - outputs: a run that writes its file streams its fields to disk as they
   are made, once they exceed `STREAM_ABOVE` (`streams`, `data.spool`): a few outputs' fields at a time (the one being
-  made, the one being written) and a little bookkeeping per output, and
+  made, the one being written; small outputs read back in blocks of `SPOOL_CHUNK_BYTES`) and a little
+  bookkeeping per output (`STREAMED_PER_OUTPUT`), and
   measures its observables from the spool in blocks of at most
   `BLOCK_BYTES` once `solver.simulate` has returned, when the solver's
   arrays are freed (`commands.run`): the larger of the two counts; a sweep's
@@ -77,6 +78,9 @@ STREAM_ABOVE = 64e6  # bytes of output fields beyond which a run that writes its
 BLOCK_BYTES = 4e6  # fields read at once to measure a run's observables (`quantities.observables.variables`)
 BLOCK_COPIES = 6  # the block, and what measuring it makes of it (NaN filled, thresholded): measured 5.5 at 32³
 PER_OUTPUT = 2e3  # bytes of bookkeeping per snapshot and copy (objects, scalars), whatever the grid
+STREAMED_PER_OUTPUT = 4e3  # the same of a streamed run, over all it does per output: 3.6 kB measured (VmHWM of 3001
+# and 6001 outputs of 32², issue 39.7; 17 kB when its spool was read back one dask chunk an output)
+SPOOL_CHUNK_BYTES = 256e3  # a streamed field read back at most this much at a time, one output at least (`data.spool`)
 VALIDATION_PER_CELL = 64  # the masks and initial fields validating a scene builds (bytes per cell)
 DEFAULT_OUTPUTS = 11  # snapshots of a scene that names neither outputs nor output_times
 
@@ -138,7 +142,8 @@ def estimate(scene, streamed: bool = False) -> Estimate:
     held, measuring = COPIES * (written + PER_OUTPUT * outputs), 0.0
     if streamed and written > STREAM_ABOVE:  # the observables are measured after `solver.simulate` returned
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
-        held, measuring = STREAMED * 8.0 * per_output + PER_OUTPUT * outputs, BLOCK_COPIES * block
+        fields_at_once = max(8.0 * per_output, 5 * SPOOL_CHUNK_BYTES)  # an output, or a block of small ones
+        held, measuring = STREAMED * fields_at_once + STREAMED_PER_OUTPUT * outputs, BLOCK_COPIES * block
         return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring,
                         written, *_images(scene))
     return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring, 0.0,
