@@ -6,7 +6,7 @@ the fields in memory) twice, best of `--repeat`: as the scene is now (no substra
 measured from the face 0.4.0 chose for it (the bottom for a floating biofilm, z- / y-; the maze from x+, where its
 colony touches the domain's edge).  The table: the run's wall time (the simulation, mechanics off), both
 observable times, and what leaving them out saves, in seconds and as a share of the run with its mechanics
-(`docs/gallery/runs.md`'s "run s", when the scene is there) and without.
+(the column "run s" of `docs/gallery/runs.md`, when the scene is there) and without.
 
     python benchmarks/comstat_cost.py [--scene NAME]... [--repeat 3]
 """
@@ -26,7 +26,7 @@ SCENES = {"directional": "z-", "directional2d": "y-", "obstacles": "z-", "maze":
 
 
 def gallery_seconds() -> dict[str, float]:
-    """The bundled runs' wall times with their mechanics, from docs/gallery/runs.md ("run s")."""
+    """The bundled runs' wall times with their mechanics, from the column "run s" of docs/gallery/runs.md."""
     path = os.path.join(os.path.dirname(__file__), "..", "docs", "gallery", "runs.md")
     lines = [line.strip("|\n ").split("|") for line in open(path, encoding="utf-8") if line.startswith("|")]
     header = [cell.strip() for cell in lines[0]]

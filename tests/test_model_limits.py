@@ -31,6 +31,7 @@ def test_the_nutrient_is_quasi_steady_while_diffusion_settles_it_within_a_step()
     said = quasi_steady.unsettled(attrs(1e-6))
     assert "L²/d = 4e+08 T* (L = 20 µm, d = 1e-06 µm²/T*)" in said and "dt = 0.001 T*" in said
     assert quasi_steady.unsettled(xr.Dataset()) == ""  # a dataset that does not say: nothing to warn about
+    assert quasi_steady.unsettled(attrs(1e-6).assign_attrs(nutrient_dynamics="transient")) == ""  # not assumed
 
 
 def test_a_run_warns_of_a_nutrient_it_cannot_take_as_settled(tiny_scene, tmp_path):

@@ -8,7 +8,8 @@ step, so the nutrient is quasi-steady when that mode decays within a step: warne
 than 1 % of it is left, exp(-pi^2 d dt / (4 L^2)) > 1 %, i.e. the diffusion time across the domain L^2/d exceeds
 pi^2 / (4 ln 100) dt = 0.54 dt.  L is the domain's longest side and dt the nominal step t_end / steps: with Table
 2's d = 1e10 µm²/T* across the 20 µm directional cube, L^2/d = 4e-8 T* against dt = 1e-3 T*; with d = 1e-6 it is
-4e8 T*.  A warning then says both numbers (`ATTRIBUTE`).
+4e8 T*.  A warning then says both numbers (`ATTRIBUTE`).  A run with the transient nutrient (`[model] nutrient =
+"transient"`, attribute ``nutrient_dynamics``) solves c's own time derivative and assumes nothing of the kind.
 """
 from __future__ import annotations
 
@@ -23,7 +24,8 @@ FACTOR = np.pi**2 / (4 * np.log(1 / LEFT))  # L^2/d above FACTOR * dt leaves mor
 def unsettled(ds: xr.Dataset) -> str:
     """'' if diffusion settles the nutrient across the domain within a step, else the numbers and what to do."""
     attrs = ds.attrs
-    if not all(name in attrs for name in ("d", "grid_shape", "grid_spacing", "t_end", "steps_nominal")):
+    needs = ("d", "grid_shape", "grid_spacing", "t_end", "steps_nominal")
+    if attrs.get("nutrient_dynamics") == "transient" or not all(name in attrs for name in needs):
         return ""
     side = float(np.max(attrs["grid_shape"])) * float(attrs["grid_spacing"])
     d, dt = float(attrs["d"]), float(attrs["t_end"]) / float(attrs["steps_nominal"])
