@@ -31,7 +31,7 @@ from ..data.provenance import stamp
 from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
-from ..execution.worker import provenance
+from ..execution.worker import provenance, with_threads
 from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.scene import STREAMED, Scene, load_scene, overrides_text, scene_from_data
@@ -118,7 +118,7 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
     fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     _first_dataset()
-    problem = loaded.scene.problem()
+    problem = with_threads(loaded.scene.problem())
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:

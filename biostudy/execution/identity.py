@@ -6,7 +6,9 @@ of the dataclasses inside it (`Grid`, `Parameters`, `Numerics`,
 rest is hashed by name, in sorted order, by value (arrays by dtype, shape and
 bytes).  A new option with a default, anywhere in the problem, therefore
 leaves every finished case's identity as it was: sweeps and calibrations
-finished before it are reused, not recomputed.
+finished before it are reused, not recomputed.  An option that changes how a
+run is computed but not what (`solver.declared.changes_result`: the threads)
+is never in it: a case finished on 2 threads is finished for 32.
 
 Case files written by biostudy 0.3.0 and earlier carry the fingerprint of the
 scheme before (nested options hashed by their `repr`); `legacy_fingerprint`
@@ -21,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from solver.declared import changes_result
 from solver.problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
 
 if TYPE_CHECKING:
@@ -43,7 +46,7 @@ def canonical(value: Any, skip: tuple[str, ...] = ()) -> Any:
     if is_dataclass(value) and not isinstance(value, type):
         kept = []
         for part in fields(value):
-            if part.name in skip:
+            if part.name in skip or not changes_result(part):
                 continue
             mine = canonical(getattr(value, part.name))
             if not _is_default(part, mine):
@@ -120,7 +123,7 @@ def _legacy_repr(value: Any) -> str:
 def _known(value: Any, kind: type) -> None:
     """Raise `_Unknown` if `value` sets a field 0.3.0's `kind` did not have away from its default."""
     for part in fields(value):
-        if part.name not in KNOWN_IN_0_3_0[kind] and part.name not in NOT_PART \
+        if part.name not in KNOWN_IN_0_3_0[kind] and part.name not in NOT_PART and changes_result(part) \
                 and not _is_default(part, canonical(getattr(value, part.name))):
             raise _Unknown(part.name)
 

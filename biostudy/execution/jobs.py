@@ -33,7 +33,7 @@ from solver.output import versions
 
 from ..data import case_files, combine, netcdf, netcdf_io, provenance, writing
 from ..errors import BadInput, Failed
-from ..inputs import resources
+from ..inputs import cores, resources
 from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
 from ..quantities import alerts
@@ -228,7 +228,9 @@ def _skipped(report: SweepReport, job_id: str, record: dict) -> None:
 
 def _check_room(scenes: dict[str, Scene], processes: int, out_dir: Path) -> None:
     """`BadInput` before any case runs if the cases to run (by id) do not fit the memory of `processes` at once (0:
-    on a cluster) or the disk: the case files and the summary stacking them."""
+    on a cluster) or the disk: the case files and the summary stacking them; or if BIOSTUDY_THREADS, which the
+    cases run here take their threads from, is no thread count (`inputs.cores`)."""
+    cores.available()
     estimates = {job_id: resources.estimate(scene) for job_id, scene in scenes.items()}
     too_big = resources.run_problem(estimates, processes, out_dir, 2 * sum(e.disk for e in estimates.values()))
     if too_big:

@@ -36,20 +36,31 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..counters import Counters
+from ..parallel import SERIAL, Team
+from ..parallel.rows import blocks, split
 from ..problem import Numerics, Parameters
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
-from .kernels import advection_into, central_differences, face_gradient, face_velocity
-from .linear import jacobi_bicgstab
+from .kernels import (
+    advection_into,
+    biofilm_rows,
+    biofilm_sources,
+    central_differences,
+    clear,
+    face_gradient,
+    face_velocity,
+)
+from .krylov import jacobi_bicgstab
 
 
 class Velocity:
     """Face-normal growth velocity w (µm/T*) per axis from the nutrient field."""
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, gradient_floor: float,
-                 held_faces: list[tuple[str, np.ndarray, float]] = ()):
+                 held_faces: list[tuple[str, np.ndarray, float]] = (), team: Team = SERIAL):
         self.fv = fv
+        self.team = team
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
         self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
@@ -65,7 +76,10 @@ class Velocity:
 
     def central_differences(self, q: np.ndarray) -> np.ndarray:
         """Cell gradient of q, (ndim, n); a missing neighbour takes the cell's own value (zero flux)."""
-        return central_differences(q, self.below, self.above, 2.0 * self.fv.grid.spacing)
+        out = np.empty(self.below.shape)
+        below, above, h2 = self.below, self.above, 2.0 * self.fv.grid.spacing
+        split(self.team, self.fv.n, lambda a, b: central_differences(out, q, below, above, h2, a, b))
+        return out
 
     def cell_gradient(self, c: np.ndarray) -> np.ndarray:
         """Cell gradient of the nutrient, (ndim, n): central differences, and beside a held nutrient face the
@@ -91,13 +105,16 @@ class Velocity:
         normal = [np.empty(f.lower.size) for f in fv.faces]
         magnitude = [np.empty(f.lower.size) for f in fv.faces]
         for f, dn, m in zip(fv.faces, normal, magnitude):
-            face_gradient(dn, m, c, f.lower, f.upper, f.axis, cell_grad, h)
+            split(self.team, dn.size, lambda a, b, f=f, dn=dn, m=m: face_gradient(dn, m, c, f.lower, f.upper, f.axis,
+                                                                                   cell_grad, h, a, b))
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0
         floor = self.floor * largest
-        velocities = [face_velocity(c, f.lower, f.upper, dn, m, self.r, self.k, floor)
-                      for f, dn, m in zip(fv.faces, normal, magnitude)]
+        velocities = [np.empty(f.lower.size) for f in fv.faces]
+        for f, w, dn, m in zip(fv.faces, velocities, normal, magnitude):
+            split(self.team, w.size, lambda a, b, f=f, w=w, dn=dn, m=m: face_velocity(w, c, f.lower, f.upper, dn, m,
+                                                                                       self.r, self.k, floor, a, b))
         return velocities, cell_grad, floor
 
 
@@ -133,14 +150,16 @@ class _Pattern:
 class Biofilm:
     """Implicit Euler step of Eq. 34 on the active cells, matrix filled in place."""
 
-    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics, held_faces=()):
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics, held_faces=(),
+                 team: Team = SERIAL):
         self.fv = fv
+        self.team = team
         self.params = params
         self.tvd = numerics.advection == "tvd"
         self.tolerance = numerics.biofilm_tolerance
-        self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces)
+        self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces, team)
         if numerics.growth_velocity == "front" and params.r > 0:  # no growth: no front to move
-            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band)
+            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band, team)
         self.pattern = _Pattern(fv, fv.laplacian, self.tvd)
         p = self.pattern
         self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
@@ -156,6 +175,8 @@ class Biofilm:
                 p.position(f.lower, out_lower), p.position(f.upper, out_upper)]).astype(np.int64))
         self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr),
                                     shape=p.matrix.shape)  # the phi matrix, its data rewritten every step
+        self.rows = blocks(fv.n, team)  # the team's blocks of rows, and per axis the faces that touch each
+        self.face_ranges = fv.face_ranges(self.rows)
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
@@ -172,15 +193,36 @@ class Biofilm:
 
     def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
         """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
-        source = self.params.k_alpha * alpha
-        matrix = self.matrix
-        data = matrix.data
-        np.add(self.diffusion, self.advection(w, phi), out=data)
-        data[self.pattern.diagonal] += 1.0 / dt
-        rhs = phi / dt + source
-        new, its = jacobi_bicgstab(matrix, rhs, phi, self.tolerance, data[self.pattern.diagonal])
+        rhs, diagonal, upper = self.assemble(phi, alpha, w, dt)
+        new, its = jacobi_bicgstab(self.matrix, rhs, phi, self.tolerance, diagonal, team=self.team)
         self.iterations += its
-        return self._checked(new, upper=float(np.max(phi + dt * source, initial=0.0)))
+        return self._checked(new, upper=upper)
+
+    def assemble(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray],
+                 dt: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """The step's matrix (into `self.matrix`: diffusion + advection + 1/dt on the diagonal), its right-hand
+        side phi/dt + k_alpha alpha, its diagonal and the maximum principle's upper bound max(phi + dt k_alpha
+        alpha): block of rows by block of rows on the team, each entry summed as when made at once."""
+        matrix, rows, faces = self.matrix, self.rows, self.face_ranges
+        data, indptr, h = matrix.data, matrix.indptr, self.fv.grid.spacing
+        w = [np.asarray(wf, dtype=float) for wf in w]
+        rhs, diagonal, largest = np.empty(self.fv.n), np.empty(self.fv.n), np.zeros(rows.size - 1)
+        reciprocal, k_alpha = 1.0 / dt, self.params.k_alpha
+
+        def block(p: int) -> None:
+            if p + 1 >= rows.size:
+                return
+            start, stop = int(rows[p]), int(rows[p + 1])
+            clear(data, indptr[start], indptr[stop])
+            for axis, wf in enumerate(w):
+                advection_into(data, self.faces[axis], self.face_positions[axis], wf, phi, h, self.tvd,
+                               faces[axis][p, 0], faces[axis][p, 1], start, stop)
+            biofilm_rows(data, self.diffusion, self.pattern.diagonal, reciprocal, diagonal, start, stop,
+                         indptr[start], indptr[stop])
+            largest[p] = biofilm_sources(rhs, phi, alpha, k_alpha, dt, start, stop)
+
+        self.team.run(block) if rows.size > 2 else block(0)
+        return rhs, diagonal, float(np.max(largest))
 
     def _checked(self, phi: np.ndarray, upper: float) -> np.ndarray:
         """NaN and maximum-principle check; round-off within ROUNDOFF is projected onto the bounds."""

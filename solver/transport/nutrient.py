@@ -32,6 +32,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..counters import Counters
 from ..errors import StepFailure
+from ..parallel import SERIAL, Team
 from ..problem import Consumption, Parameters
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
@@ -45,7 +46,7 @@ class Nutrient:
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, consumption: Consumption,
                  held: np.ndarray, value: np.ndarray, tolerance: float = 1e-10,
-                 faces: tuple[tuple[str, float], ...] = ()):
+                 faces: tuple[tuple[str, float], ...] = (), team: Team = SERIAL):
         self.fv = fv
         self.consumption = consumption
         self.gamma = params.g / params.d
@@ -64,8 +65,8 @@ class Nutrient:
         lap_free = laplacian[self.free]
         self.stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
         self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held] + face_inflow[self.free]  # b: inflow
-        self.matrix = KeptDiagonal(self.stiffness)  # K + gamma diag(phi), rewritten in place per solve
-        self.amg = ReusedAMG(tolerance)
+        self.matrix = KeptDiagonal(self.stiffness, team)  # K + gamma diag(phi), rewritten in place per solve
+        self.amg = ReusedAMG(tolerance, team=team, places=fv.places(self.free))
         self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
         self.active_set_iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]

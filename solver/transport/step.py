@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..counters import Counters
+from ..parallel import SERIAL, Team
 from ..problem import Problem
 from .biofilm import Biofilm
 from .expansion import grow
@@ -61,14 +62,16 @@ class State:
 
 
 class Transport:
-    """Owns the cached operators of one problem and advances its state."""
+    """Owns the cached operators of one problem and advances its state (on the threads of `team`)."""
 
-    def __init__(self, problem: Problem):
+    def __init__(self, problem: Problem, team: Team = SERIAL):
         self.problem = problem
+        self.team = team
         self.fv = FiniteVolumeGrid(problem.grid, problem.obstacle)
         self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_held,
-                                 problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces)
-        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces)
+                                 problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces,
+                                 team)
+        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces, team)
         self.timings = defaultdict(float)
         self.largest_numerical_diffusion = 0.0
 
