@@ -255,9 +255,14 @@ def test_the_biofilm_step_made_in_blocks_is_the_numpy_form(small_blocks, advecti
     w = [rng.normal(scale=30, size=f.lower.size) for f in transport.fv.faces]
     phi, alpha = np.round(rng.random(transport.fv.n), 1), rng.random(transport.fv.n)
     rhs, diagonal, upper = blocked.assemble(phi, alpha, w, 0.01)
-    data = blocked.diffusion + numpy_advection(blocked, w, phi)
-    data[blocked.pattern.diagonal] += 1.0 / 0.01
+    laplacian, zero = transport.fv.laplacian, blocked.matrix.copy()
+    zero.data[:] = 0.0
+    beta = transport.problem.params.beta
+    diffusion = sp.csr_matrix(zero + sp.csr_matrix((-beta * laplacian.data, laplacian.indices, laplacian.indptr)))
+    assert np.array_equal(diffusion.indices, blocked.matrix.indices)  # -beta lap on the matrix's pattern
+    data = diffusion.data + numpy_advection(blocked, w, phi)
+    data[blocked.diagonal] += 1.0 / 0.01
     source = transport.problem.params.k_alpha * alpha
     assert np.array_equal(blocked.matrix.data, data)
-    assert np.array_equal(diagonal, data[blocked.pattern.diagonal])
+    assert np.array_equal(diagonal, data[blocked.diagonal])
     assert np.array_equal(rhs, phi / 0.01 + source) and upper == np.max(phi + 0.01 * source, initial=0.0)

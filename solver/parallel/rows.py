@@ -108,10 +108,7 @@ def _add_product(indptr, indices, data, e, x, start, stop):
 
 
 @jit
-def with_diagonal(data, base, positions, diagonal, indptr, start, stop):
-    """Rows start .. stop - 1 of a CSR matrix's data: `base`, with `diagonal` added at the diagonal's `positions`
-    (numpy's ``data[:] = base; data[positions] += diagonal``)."""
-    for k in range(np.uint64(indptr[start]), np.uint64(indptr[stop])):
-        data[k] = base[k]
+def with_diagonal(data, base, positions, diagonal, start, stop):
+    """Rows start .. stop - 1 of a CSR matrix's data: its diagonal (at `positions`) base + `diagonal`."""
     for i in range(start, stop):
-        data[positions[i]] += diagonal[i]
+        data[positions[i]] = base[i] + diagonal[i]

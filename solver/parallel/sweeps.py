@@ -47,7 +47,7 @@ class Sweeps:
         if self.count > 1:
             layers = int(layer.max(initial=0)) + 1
             key = chunk * layers + layer
-            self.order = np.lexsort((np.arange(n), key)).astype(np.int64)  # by lane, layer, row
+            self.order = np.lexsort((np.arange(n), key)).astype(np.int32 if n < 2**31 else np.int64)  # lane, layer, row
             keys = np.arange(self.count * layers + 1, dtype=np.int64)
             self.starts = np.searchsorted(key[self.order], keys).astype(np.int64)
             self.layers = layers

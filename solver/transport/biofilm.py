@@ -43,6 +43,7 @@ from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
 from .kernels import (
+    ROWS,
     advection_into,
     biofilm_rows,
     biofilm_sources,
@@ -50,6 +51,7 @@ from .kernels import (
     clear,
     face_gradient,
     face_velocity,
+    row_offsets,
 )
 from .krylov import jacobi_bicgstab
 
@@ -63,13 +65,14 @@ class Velocity:
         self.team = team
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
-        self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
-        self.below = np.stack([below for below, _ in self.neighbours]).astype(np.int64)
-        self.above = np.stack([above for _, above in self.neighbours]).astype(np.int64)
+        neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
+        kind = fv.faces[0].cells.dtype if fv.faces else np.int64
+        self.below = np.stack([below for below, _ in neighbours]).astype(kind)  # (ndim, n)
+        self.above = np.stack([above for _, above in neighbours]).astype(kind)
         self.held_faces = []  # Dirichlet faces of the nutrient: (axis, cells beside it, their inner neighbours,
         for face, cells, value in held_faces:  # +1 on a lower face / -1 on an upper one, held value)
             axis = "xyz".index(face[0])
-            below, above = self.neighbours[axis]
+            below, above = neighbours[axis]
             lower = face[1] == "-"
             self.held_faces.append((axis, cells, above[cells] if lower else below[cells], 1.0 if lower else -1.0,
                                     value))
@@ -118,33 +121,37 @@ class Velocity:
         return velocities, cell_grad, floor
 
 
-class _Pattern:
-    """Fixed CSR sparsity of the biofilm matrix and where each face's entries live in it."""
+def pattern(laplacian: sp.csr_matrix) -> sp.csr_matrix:
+    """The biofilm matrix's sparsity: the Laplacian's and every diagonal, columns sorted, data zero.  TVD's far
+    upwind cell is a face neighbour of the upwind one: its entries are in it too (`Biofilm` checks)."""
+    n = laplacian.shape[0]
+    found = sp.csr_matrix((np.ones(laplacian.nnz), laplacian.indices, laplacian.indptr), shape=laplacian.shape)
+    found = sp.csr_matrix(found + sp.identity(n, format="csr"))
+    found.sort_indices()
+    found.data[:] = 0.0
+    return found
 
-    def __init__(self, fv: FiniteVolumeGrid, laplacian: sp.csr_matrix, tvd: bool):
-        n = fv.n
-        rows, cols = [laplacian.tocoo().row, np.arange(n)], [laplacian.tocoo().col, np.arange(n)]
-        if tvd:
-            for f in fv.faces:
-                for cell, out in ((f.lower, f.lower_out), (f.upper, f.upper_out)):
-                    ok = out >= 0
-                    rows += [cell[ok], out[ok]]
-                    cols += [out[ok], cell[ok]]
-        r, c = np.concatenate(rows), np.concatenate(cols)
-        pattern = sp.csr_matrix((np.zeros(r.size), (r, c)), shape=(n, n))
-        pattern.sum_duplicates()
-        pattern.sort_indices()
-        self.matrix = pattern
-        self.keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(pattern.indptr)) * n + pattern.indices
-        self.n = n
-        self.diagonal = self.position(np.arange(n), np.arange(n))
-        lap = laplacian.tocoo()
-        self.laplacian_positions = self.position(lap.row, lap.col)
-        self.laplacian_values = lap.data
 
-    def position(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
-        """Index into the CSR data array of entries (row, col), which must be in the pattern."""
-        return np.searchsorted(self.keys, np.asarray(row, np.int64) * self.n + col)
+def diffusion(laplacian: sp.csr_matrix, beta: float) -> tuple[float, np.ndarray]:
+    """-beta lap as the biofilm matrix holds it: one value off the diagonal (every off-diagonal entry of the
+    Laplacian is the same, a face's coefficient over the cell volume) and one per row on it (0 where a walled-in
+    cell has none), each as np.bincount placed it before (0 + value)."""
+    rows = np.repeat(np.arange(laplacian.shape[0]), np.diff(laplacian.indptr))
+    on = rows == laplacian.indices
+    values = np.unique(laplacian.data[~on])
+    if values.size > 1:
+        raise ValueError("the Laplacian's off-diagonal entries differ: not a uniform grid's")
+    own = np.zeros(laplacian.shape[0])
+    own[rows[on]] = 0.0 + -beta * laplacian.data[on]
+    return (0.0 + -beta * float(values[0]) if values.size else 0.0), own
+
+
+def offsets(pattern: sp.csr_matrix, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """Where the entries (rows[k], columns[k]) are in their rows of `pattern` (from the row's start), as uint8."""
+    found = row_offsets(pattern.indptr, pattern.indices, np.asarray(rows, np.int64), np.asarray(columns, np.int64))
+    if found.size and found.min() < 0:
+        raise ValueError("an entry of the biofilm's advection is not in its matrix's pattern")
+    return found.astype(np.uint8)
 
 
 class Biofilm:
@@ -157,24 +164,24 @@ class Biofilm:
         self.params = params
         self.tvd = numerics.advection == "tvd"
         self.tolerance = numerics.biofilm_tolerance
+        laplacian = fv.laplacian
+        self.matrix = pattern(laplacian)  # the phi matrix, its data rewritten every step
         self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces, team)
         if numerics.growth_velocity == "front" and params.r > 0:  # no growth: no front to move
-            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band, team)
-        self.pattern = _Pattern(fv, fv.laplacian, self.tvd)
-        p = self.pattern
-        self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
-                                     minlength=p.keys.size)
-        self.faces, self.face_positions = [], []  # per axis: (4, m) cells and (6, m) CSR data positions
+            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band, team,
+                                          (self.matrix.indptr, self.matrix.indices))
+        n, indptr = fv.n, self.matrix.indptr
+        self.diagonal = (indptr[:-1] + offsets(self.matrix, np.arange(n), np.arange(n))).astype(np.int64)
+        self.neighbour, self.own = diffusion(laplacian, params.beta)
+        self.faces, self.offsets = [], []  # per axis: (4, m) cells (the grid's) and (6, m) offsets in their rows
         for f in fv.faces:
-            same = lambda cell: p.position(cell, cell)
             out_lower = np.where(f.lower_out >= 0, f.lower_out, f.lower)
             out_upper = np.where(f.upper_out >= 0, f.upper_out, f.upper)
-            self.faces.append(np.stack([f.lower, f.upper, f.lower_out, f.upper_out]).astype(np.int64))
-            self.face_positions.append(np.stack([
-                same(f.lower), same(f.upper), p.position(f.upper, f.lower), p.position(f.lower, f.upper),
-                p.position(f.lower, out_lower), p.position(f.upper, out_upper)]).astype(np.int64))
-        self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr),
-                                    shape=p.matrix.shape)  # the phi matrix, its data rewritten every step
+            self.faces.append(f.cells)
+            self.offsets.append(np.stack([
+                offsets(self.matrix, row, column) for row, column in ((f.lower, f.lower), (f.upper, f.upper),
+                                                                      (f.upper, f.lower), (f.lower, f.upper),
+                                                                      (f.lower, out_lower), (f.upper, out_upper))]))
         self.rows = blocks(fv.n, team)  # the team's blocks of rows, and per axis the faces that touch each
         self.face_ranges = fv.face_ranges(self.rows)
         self.iterations = 0
@@ -186,10 +193,15 @@ class Biofilm:
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
         """CSR data of the advection operator (per unit volume) for face velocities w (kernels.advection_into)."""
-        data = np.zeros(self.pattern.keys.size)
-        for faces, positions, wf in zip(self.faces, self.face_positions, w):
-            advection_into(data, faces, positions, np.asarray(wf, dtype=float), phi, self.fv.grid.spacing, self.tvd)
+        data = np.zeros(self.matrix.nnz)
+        for faces, offsets_, wf in zip(self.faces, self.offsets, w):
+            advection_into(data, faces, offsets_, self.matrix.indptr, np.asarray(wf, dtype=float), phi,
+                           self.fv.grid.spacing, self.tvd)
         return data
+
+    def positions(self, axis: int) -> np.ndarray:
+        """(6, m) where each face's six entries of one axis are in the matrix's data (`kernels.advection_into`)."""
+        return self.matrix.indptr[self.faces[axis][ROWS]] + self.offsets[axis]
 
     def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
         """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
@@ -215,10 +227,9 @@ class Biofilm:
             start, stop = int(rows[p]), int(rows[p + 1])
             clear(data, indptr[start], indptr[stop])
             for axis, wf in enumerate(w):
-                advection_into(data, self.faces[axis], self.face_positions[axis], wf, phi, h, self.tvd,
+                advection_into(data, self.faces[axis], self.offsets[axis], indptr, wf, phi, h, self.tvd,
                                faces[axis][p, 0], faces[axis][p, 1], start, stop)
-            biofilm_rows(data, self.diffusion, self.pattern.diagonal, reciprocal, diagonal, start, stop,
-                         indptr[start], indptr[stop])
+            biofilm_rows(data, indptr, self.diagonal, self.neighbour, self.own, reciprocal, diagonal, start, stop)
             largest[p] = biofilm_sources(rhs, phi, alpha, k_alpha, dt, start, stop)
 
         self.team.run(block) if rows.size > 2 else block(0)

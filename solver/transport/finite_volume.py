@@ -30,13 +30,29 @@ from ..problem import Grid
 
 @dataclass(frozen=True)
 class Faces:
-    """Interior faces normal to one axis between two active cells (active indices)."""
+    """Interior faces normal to one axis between two active cells (active indices), in order of their lower
+    cell: `cells` (4, m) holds lower, upper, lower_out and upper_out (int32 below 2^31 cells)."""
 
     axis: int  # 0 = x, 1 = y, 2 = z
-    lower: np.ndarray
-    upper: np.ndarray
-    lower_out: np.ndarray  # active neighbour of `lower` further down the axis, or -1
-    upper_out: np.ndarray  # active neighbour of `upper` further up the axis, or -1
+    cells: np.ndarray
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self.cells[0]
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self.cells[1]
+
+    @property
+    def lower_out(self) -> np.ndarray:
+        """Active neighbour of `lower` further down the axis, or -1."""
+        return self.cells[2]
+
+    @property
+    def upper_out(self) -> np.ndarray:
+        """Active neighbour of `upper` further up the axis, or -1."""
+        return self.cells[3]
 
 
 def fipy_mesh(grid: Grid):
@@ -138,7 +154,7 @@ class FiniteVolumeGrid:
         full_to_active[self.cells] = np.arange(self.n)
         self.full_to_active = full_to_active
         self.faces = [self._faces(axis) for axis in range(grid.ndim)]
-        self._laplacian = None
+        self._laplacian: sp.csr_matrix | None = None
 
     def _faces(self, axis: int) -> Faces:
         """Pairs of active cells adjacent along `axis` (0 = x), with their outer neighbours."""
@@ -153,7 +169,8 @@ class FiniteVolumeGrid:
         below = np.concatenate([np.full_like(cut(0, 1), -1), cut(0, n - 2)], axis=array_axis)
         above = np.concatenate([cut(2, n), np.full_like(cut(0, 1), -1)], axis=array_axis)
         keep = (lower >= 0) & (upper >= 0)
-        return Faces(axis, lower[keep], upper[keep], below[keep], above[keep])
+        kind = np.int32 if self.n < np.iinfo(np.int32).max else np.int64
+        return Faces(axis, np.stack([lower[keep], upper[keep], below[keep], above[keep]]).astype(kind))
 
     @property
     def laplacian(self) -> sp.csr_matrix:
@@ -161,6 +178,10 @@ class FiniteVolumeGrid:
         if self._laplacian is None:
             self._laplacian = laplacian(self)
         return self._laplacian
+
+    def release_laplacian(self) -> None:
+        """Forget the Laplacian once the operators made from it are made (it is made again if asked for)."""
+        self._laplacian = None
 
     def to_full(self, values: np.ndarray, fill: float = np.nan) -> np.ndarray:
         """Active-cell values -> array of ``grid.cells_shape`` with `fill` in obstacles."""
@@ -206,7 +227,7 @@ class FiniteVolumeGrid:
         full = self.cells[active]
         lanes = self.grid.cells_shape[1]
         per_layer = int(np.prod(self.grid.cells_shape[1:]))
-        return full // per_layer, (full % per_layer) * lanes // per_layer
+        return (full // per_layer).astype(np.int32), ((full % per_layer) * lanes // per_layer).astype(np.int32)
 
     def describe(self, active_index: int) -> str:
         """Human-readable place of an active cell, for error messages."""

@@ -23,13 +23,14 @@ jit = numba.njit(cache=True, nogil=True)
 
 
 @jit
-def advection_into(out: np.ndarray, faces: np.ndarray, positions: np.ndarray, w: np.ndarray, phi: np.ndarray,
-                   h: float, tvd: bool, first: int = 0, last: int = -1, row_start: int = 0,
+def advection_into(out: np.ndarray, faces: np.ndarray, offsets: np.ndarray, indptr: np.ndarray, w: np.ndarray,
+                   phi: np.ndarray, h: float, tvd: bool, first: int = 0, last: int = -1, row_start: int = 0,
                    row_stop: int = -1) -> None:
     """Add the advection operator's CSR data (biofilm.py, positive-coefficient form) for one axis to `out`.
 
-    faces: (4, m) lower, upper, lower_out, upper_out (-1: none); positions: (6, m) data positions of
-    (lower, lower), (upper, upper), (upper, lower), (lower, upper), (lower, lower_out), (upper, upper_out).
+    faces: (4, m) lower, upper, lower_out, upper_out (-1: none); offsets: (6, m) where in their rows (from
+    the row's start, `indptr`) the entries (lower, lower), (upper, upper), (upper, lower), (lower, upper),
+    (lower, lower_out), (upper, upper_out) are stored (`position`).
     Entries are added in the order of the numpy form (inflow diagonal, inflow off-diagonal, outflow
     diagonal, outflow off-diagonal, each over all faces), so that the sums round alike.
 
@@ -62,20 +63,43 @@ def advection_into(out: np.ndarray, faces: np.ndarray, positions: np.ndarray, w:
     for k in range(m):  # row `down` gets inflow * (phi_down - phi_up)
         f = first + k
         if row_start <= faces[1 if w[f] > 0 else 0, f] < row_stop:
-            out[positions[1, f] if w[f] > 0 else positions[0, f]] += inflow[k]
+            out[position(faces, offsets, indptr, 1 if w[f] > 0 else 0, f)] += inflow[k]
     for k in range(m):
         f = first + k
         if row_start <= faces[1 if w[f] > 0 else 0, f] < row_stop:
-            out[positions[2, f] if w[f] > 0 else positions[3, f]] -= inflow[k]
+            out[position(faces, offsets, indptr, 2 if w[f] > 0 else 3, f)] -= inflow[k]
     if tvd:  # row `up` gets outflow * (phi_up - phi_far)
         for k in range(m):
             f = first + k
             if row_start <= faces[0 if w[f] > 0 else 1, f] < row_stop:
-                out[positions[0, f] if w[f] > 0 else positions[1, f]] += outflow[k]
+                out[position(faces, offsets, indptr, 0 if w[f] > 0 else 1, f)] += outflow[k]
         for k in range(m):
             f = first + k
             if row_start <= faces[0 if w[f] > 0 else 1, f] < row_stop:
-                out[positions[4, f] if w[f] > 0 else positions[5, f]] -= outflow[k]
+                out[position(faces, offsets, indptr, 4 if w[f] > 0 else 5, f)] -= outflow[k]
+
+
+ROWS = np.array([0, 1, 1, 0, 0, 1])  # the row (lower 0, upper 1) of each of a face's six entries (`advection_into`)
+
+
+@jit
+def position(faces: np.ndarray, offsets: np.ndarray, indptr: np.ndarray, entry: int, f: int) -> int:
+    """Where face f's entry `entry` (0 .. 5, `advection_into`) is in the CSR data: its row's start and offset."""
+    return indptr[faces[ROWS[entry], f]] + offsets[entry, f]
+
+
+@jit
+def row_offsets(indptr: np.ndarray, indices: np.ndarray, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """For each (rows[k], columns[k]) the offset of its entry from its row's start in a CSR pattern (rows of at most
+    255 entries); -1 for an entry the pattern does not have."""
+    found = np.full(rows.size, -1, np.int64)
+    for k in range(rows.size):
+        start = indptr[rows[k]]
+        for j in range(start, indptr[rows[k] + 1]):
+            if indices[j] == columns[k]:
+                found[k] = j - start
+                break
+    return found
 
 
 @jit
@@ -177,20 +201,19 @@ def nearest_rows(n: int, front: np.ndarray, candidates: np.ndarray, dense: np.nd
 
 
 @jit
-def subgraph(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, keep: np.ndarray, local: np.ndarray,
-             new_indices: np.ndarray, new_data: np.ndarray) -> np.ndarray:
-    """CSR of graph[keep][:, keep] for a graph in CSR (rows and columns of the kept vertices, in their order;
-    `local` maps a kept vertex to its new index), the same matrix as scipy's fancy indexing: returns its indptr
-    and fills the first indptr[-1] entries of `new_indices` and `new_data` (at least as long as `indices`)."""
+def subgraph(indptr: np.ndarray, indices: np.ndarray, keep: np.ndarray, local: np.ndarray,
+             new_indices: np.ndarray) -> np.ndarray:
+    """The pattern of graph[keep][:, keep] for a graph's CSR pattern without its diagonal (rows and columns of the kept
+    vertices, in their order; `local` maps a kept vertex to its new index), the same as scipy's fancy indexing:
+    returns its indptr and fills the first indptr[-1] entries of `new_indices` (at least as long as `indices`)."""
     rows = np.flatnonzero(keep)
     new_indptr = np.zeros(rows.size + 1, np.int32)
     out = 0
     for i in range(rows.size):
         row = rows[i]
         for j in range(indptr[row], indptr[row + 1]):
-            if keep[indices[j]]:
+            if keep[indices[j]] and indices[j] != row:
                 new_indices[out] = local[indices[j]]
-                new_data[out] = data[j]
                 out += 1
         new_indptr[i + 1] = out
     return new_indptr
@@ -249,15 +272,18 @@ def clear(data: np.ndarray, start: int, stop: int) -> None:
 
 
 @jit
-def biofilm_rows(data: np.ndarray, diffusion: np.ndarray, diagonal: np.ndarray, reciprocal: float,
-                 diagonal_out: np.ndarray, start: int, stop: int, data_start: int, data_stop: int) -> None:
+def biofilm_rows(data: np.ndarray, indptr: np.ndarray, diagonal: np.ndarray, neighbour: float, own: np.ndarray,
+                 reciprocal: float, diagonal_out: np.ndarray, start: int, stop: int) -> None:
     """The biofilm matrix's data of rows start .. stop - 1 from their advection data (in `data`): diffusion +
-    advection, then 1/dt (`reciprocal`) added on the diagonal, whose values go to `diagonal_out` too."""
-    for k in range(data_start, data_stop):
-        data[k] = diffusion[k] + data[k]
+    advection, then 1/dt (`reciprocal`) added on the diagonal, whose values go to `diagonal_out` too.  The
+    diffusion -beta lap is `neighbour` off the diagonal (the Laplacian's off-diagonal entries are all alike)
+    and own[i] on row i's diagonal (`diagonal`: its positions)."""
     for i in range(start, stop):
-        data[diagonal[i]] += reciprocal
-        diagonal_out[i] = data[diagonal[i]]
+        d = diagonal[i]
+        for k in range(indptr[i], indptr[i + 1]):
+            data[k] = (own[i] if k == d else neighbour) + data[k]
+        data[d] += reciprocal
+        diagonal_out[i] = data[d]
 
 
 @jit

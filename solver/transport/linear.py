@@ -50,6 +50,7 @@ class ReusedAMG:
         self.growth = growth  # rebuild when iterations exceed growth * (iterations right after the last rebuild)
         self.floor = floor
         self.cycle: VCycle | None = None
+        self.prepared = False  # a hierarchy built ahead (`prepare`) for the next solve, which counts as its first
         self.fresh_iterations = 1
         self.rebuilds = 0
         self.iterations = 0  # total CG iterations, for the cost report
@@ -62,6 +63,12 @@ class ReusedAMG:
         self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=COARSEST, strength=STRENGTH),
                             team=self.team, places=self.places)
         self.rebuilds += 1
+
+    def prepare(self, matrix: sp.csr_matrix) -> None:
+        """Build the hierarchy of the next solve's matrix now (the same matrix: the solve is then as it would have
+        been), while less else is held: its set-up needs the most memory of a run's start (docs/transport.md)."""
+        self._rebuild(matrix)
+        self.prepared = True
 
     def _cg(self, matrix, rhs, x0):
         x = np.zeros_like(rhs) if x0 is None else np.array(x0, dtype=float)
@@ -76,8 +83,10 @@ class ReusedAMG:
         if not np.any(rhs):
             return np.zeros_like(rhs)
         target = self.tolerance * float(np.linalg.norm(rhs))
-        if self.cycle is None:
-            self._rebuild(matrix)
+        if self.cycle is None or self.prepared:
+            if not self.prepared:
+                self._rebuild(matrix)
+            self.prepared = False
             x, residual, its, info = self._cg(matrix, rhs, x0)
             self.fresh_iterations = its
         else:
@@ -158,27 +167,30 @@ def coarse_places(level, places: tuple[np.ndarray, np.ndarray] | None) -> tuple[
 
 
 class KeptDiagonal:
-    """A CSR matrix `base + diag(d)` for a changing d, its data rewritten in place on base's pattern.
+    """A CSR matrix `base + diag(d)` for a changing d, its diagonal rewritten in place on base's pattern.
 
     The nutrient matrix K + gamma diag(phi) changes only on its diagonal; building it as a sum of
-    sparse matrices every step was a CSR allocation and merge (measured: 2.6 ms per step at 40^3)."""
+    sparse matrices every step was a CSR allocation and merge (measured: 2.6 ms per step at 40^3).  Only
+    base's diagonal is kept beside the matrix; `owned`: base (canonical CSR) is given over and becomes the
+    matrix, its diagonal rewritten (no copy of its arrays: memory per cell)."""
 
-    def __init__(self, base: sp.csr_matrix, team: Team = SERIAL):
+    def __init__(self, base: sp.csr_matrix, team: Team = SERIAL, owned: bool = False):
         self.team = team
-        base = sp.csr_matrix(base, copy=True)
-        base.sum_duplicates()
-        base.sort_indices()
+        if not (owned and sp.issparse(base) and base.format == "csr" and base.has_canonical_format):
+            base = sp.csr_matrix(base, copy=True)
+            base.sum_duplicates()
+            base.sort_indices()
         rows = np.repeat(np.arange(base.shape[0]), np.diff(base.indptr))
         self.diagonal = np.flatnonzero(rows == base.indices)
         if self.diagonal.size != base.shape[0]:
             raise ValueError("KeptDiagonal needs every diagonal entry stored in the base matrix")
-        self.base = base.data.copy()
+        self.base = base.data[self.diagonal]  # its off-diagonal entries stay as they are in the matrix
         self.matrix = base
 
     def __call__(self, diagonal: np.ndarray) -> sp.csr_matrix:
-        """The matrix with diag(`diagonal`) added (the same object every call: its data is overwritten)."""
+        """The matrix with diag(`diagonal`) added (the same object every call: its diagonal is overwritten, what
+        ``data[:] = base; data[positions] += diagonal`` made)."""
         matrix, base, positions = self.matrix, self.base, self.diagonal
         diagonal = np.ascontiguousarray(diagonal, dtype=float)
-        split(self.team, matrix.shape[0], lambda a, b: with_diagonal(matrix.data, base, positions, diagonal,
-                                                                      matrix.indptr, a, b))
+        split(self.team, matrix.shape[0], lambda a, b: with_diagonal(matrix.data, base, positions, diagonal, a, b))
         return matrix

@@ -19,6 +19,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..counters import Counters
 from ..parallel import SERIAL, Team
@@ -71,7 +72,11 @@ class Transport:
         self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_held,
                                  problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces,
                                  team)
+        if problem.c0 is None:  # the first solve's hierarchy before the biofilm's operators exist (peak memory)
+            with threadpool_limits(limits=1, user_api="blas"):  # its coarsest pseudo-inverse: one BLAS thread
+                self.nutrient.prepare(self.fv.to_active(problem.phi0))
         self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces, team)
+        self.fv.release_laplacian()  # the operators made from it hold what they need of it
         self.timings = defaultdict(float)
         self.largest_numerical_diffusion = 0.0
 
