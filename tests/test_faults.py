@@ -343,19 +343,19 @@ def test_a_killed_worker_fails_its_case_and_the_others_finish(slow_study, tmp_pa
     assert "worker died: signal 9" in ds.message.where(ds.status == "failed", drop=True).item()
 
 
-def deadly_serve(tasks, lifeline, *rest):
+def deadly_serve(tasks, lifeline):
     """A worker whose case r = 60 kills it (as a case that runs out of memory would), every time."""
     import biostudy.execution.worker as worker
 
     solve = worker.solve
 
-    def solve_or_die(problem, *more):
+    def solve_or_die(problem):
         if problem.params.r == 60.0:
             os.kill(os.getpid(), signal.SIGKILL)
-        return solve(problem, *more)
+        return solve(problem)
 
     worker.solve = solve_or_die
-    worker.serve(tasks, lifeline, *rest)
+    worker.serve(tasks, lifeline)
 
 
 def _sweep_with_a_deadly_case(study, out, *options) -> subprocess.CompletedProcess:

@@ -157,7 +157,7 @@ class LocalPool:
 
     def _started(self) -> _Worker:
         ours, theirs = self.context.Pipe()
-        process = self.context.Process(target=worker.serve, args=(theirs, self.lifeline, self.capacity), daemon=True,
+        process = self.context.Process(target=worker.serve, args=(theirs, self.lifeline), daemon=True,
                                        name=f"biostudy-worker-{len(self.workers)}")
         try:
             with _environment(WORKER_ENV), _interruptions_deferred():
@@ -171,6 +171,7 @@ class LocalPool:
         return self.workers[-1]
 
     def submit(self, case_id: str, problem: "solver.Problem") -> None:
+        problem = worker.with_threads(problem, self.capacity)  # the processors here, shared by the workers
         idle = next((w for w in self.workers if w.case_id is None), None) or self._start()
         try:
             idle.tasks.send(problem)

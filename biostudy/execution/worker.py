@@ -58,9 +58,9 @@ def start() -> None:
     import solver.output  # noqa: F401  (FiPy, xarray: a second of imports before the first case arrives)
 
 
-def serve(tasks, lifeline, sharing: int = 1) -> None:
+def serve(tasks, lifeline) -> None:
     """A local worker process (`pool.LocalPool`): solve each problem that comes through `tasks` and send back
-    its `Outcome`, until `tasks` closes; `sharing` workers share this machine's processors (`with_threads`).
+    its `Outcome`, until `tasks` closes.
 
     `lifeline` is the reading end of a pipe whose only writer is the sweep's process: when that process
     ends, however it ends (SIGKILL included), the pipe closes and this process ends at once, even in the
@@ -74,7 +74,7 @@ def serve(tasks, lifeline, sharing: int = 1) -> None:
             problem = tasks.recv()
         except (EOFError, OSError):
             return  # the sweep is done with this worker
-        outcome = solve(problem, sharing)
+        outcome = solve(problem)
         try:
             tasks.send(outcome)
         except (BrokenPipeError, OSError):
