@@ -97,7 +97,8 @@ def _call(name: str, *args, **kwargs) -> str:
 
 
 def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Path | None = None,  # noqa: A002
-        continue_from: str | Path | None = None, force: bool = False, progress=None) -> xr.Dataset:
+        continue_from: str | Path | None = None, force: bool = False, progress=None,
+        threads: int | None = None) -> xr.Dataset:
     """Run one simulation and return its dataset, the one ``biostudy run`` writes.
 
     scene: a scene file, the name of a bundled scene ('directional'), or the scene's data as a dict (the
@@ -107,6 +108,8 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
         did not write, another scene's result only with `force`).
     continue_from: a finished run of the same scene to go on from (as ``--continue``).
     progress: called with a `solver.Progress` after every step.
+    threads: the run's threads (as ``--threads``; default: the scene's, else the processors here); the results
+        are the same for every count.
 
     Keys that `set` overrides are scalar coordinates of the dataset (in the file too: a run keeps its shape;
     runs with different values combine with ``xr.open_mfdataset(files, combine="nested", concat_dim=KEY)``).
@@ -118,11 +121,12 @@ def run(scene: str | Path | Mapping, *, set: Overrides = None, output: str | Pat
         raise BadInput(f"give a function, called with each step's progress, or None (got {progress!r})",
                        key="progress")
     worker.pin_solvers()
+    threads = None if threads is None else _number(threads, "threads", whole=True, least=1)
     with netcdf.called(_call("run", scene if not isinstance(scene, Mapping) else dict(scene), set=set,
                              output=output, continue_from=continue_from)):
         loaded = command.load(dict(scene) if isinstance(scene, Mapping) else scene, overrides=overrides,
                               output=None if output is None else Path(output), force=force,
-                              continue_from=continue_from, write=output is not None)
+                              continue_from=continue_from, write=output is not None, threads=threads)
         result = command.compute(loaded, progress=progress)
     ds = result.dataset.load()  # a written run comes back from its file, read whole and closed as before
     ds.close()
@@ -155,12 +159,14 @@ def _job(call: str, load: Callable[[], Any], where: dict[str, Any], **execution:
 
 def sweep(study: str | Path, directory: str | Path, *, workers: int | None = None, scheduler: str | None = None,
           scheduler_file: str | Path | None = None, set: Overrides = None, retry_failed: bool = False,  # noqa: A002
-          rerun_all: bool = False, force: bool = False) -> xr.Dataset:
+          rerun_all: bool = False, force: bool = False, threads: int | None = None) -> xr.Dataset:
     """Run every case of a study into `directory` (as ``biostudy sweep STUDY -o DIR``) and return its study.nc.
 
     Here, one case after another; on `workers` local processes; or on a running Dask cluster, by its
     `scheduler` address or the `scheduler_file` its scheduler wrote.  Cases finished before are skipped.
     A case that fails is recorded (``status``, ``message``) and the others go on; a warning says which.
+    `threads`: each case's (as ``--threads``; default: the scene's, else the processors here shared among the
+    workers).
     """
     from .commands import sweep as command  # lazily, as in `run`
     from .execution.dask import runs_here
@@ -170,7 +176,8 @@ def sweep(study: str | Path, directory: str | Path, *, workers: int | None = Non
     _job(_call("sweep", study, directory, **where, set=set),
          lambda: command.load(study, output=out, overrides=overrides,
                               runs_here=runs_here(scheduler, scheduler_file)),
-         where, retry_failed=retry_failed, rerun_all=rerun_all, force=force)
+         where, retry_failed=retry_failed, rerun_all=rerun_all, force=force,
+         threads=None if threads is None else _number(threads, "threads", whole=True, least=1))
     return reading.open_dataset(out / "study.nc")
 
 

@@ -36,6 +36,7 @@ from .options import (
     Scheduler,
     SchedulerFile,
     StudyArgument,
+    Threads,
     Verbose,
     Workers,
     overrides,
@@ -88,12 +89,14 @@ def run(
         "--continue", metavar="RUN.nc", help="go on from the last state of this finished run of the same scene "
                                               "(give a later --set time.t_end=...); writes the whole history "
                                               "(default: RUN-tT_END.nc beside it)")] = None,
+    threads: Threads = None,
 ):
     """Run one simulation and write its dataset (netCDF)."""
     with guarded():
         from ..commands import run as command  # lazily (module docstring)
 
-        loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from)
+        loaded = command.load(scene, overrides=overrides, output=output, force=force, continue_from=continue_from,
+                              threads=threads)
         try:
             with progress.simulation(loaded.scene.name, loaded.scene.time.t_end, quiet) as report:
                 result = command.compute(loaded, progress=report)
@@ -131,6 +134,7 @@ def sweep(
         "--combine", metavar=FLAG, help="run nothing: write DIR/study.nc from the case files there (after array "
                                         "tasks)")] = False,
     as_json: Json = False,
+    threads: Threads = None,
 ):
     """Run every case of a study; re-running skips finished cases."""
     def load():
@@ -141,7 +145,7 @@ def sweep(
                             combine_only=combine_only, runs_here=runs_here(scheduler, scheduler_file))
 
     job_command(quiet, load, as_json, workers=workers, scheduler=scheduler, scheduler_file=scheduler_file,
-                 retry_failed=retry_failed, force=force, rerun_all=rerun_all)
+                 retry_failed=retry_failed, force=force, rerun_all=rerun_all, threads=threads)
 
 
 @app.command()

@@ -20,6 +20,10 @@ def overrides(applied: str = "") -> typer.models.OptionInfo:
 
 Workers = Annotated[Optional[int], typer.Option("--workers", min=1, metavar="N",
                                                 help="run the cases on N local processes")]
+Threads = Annotated[Optional[int], typer.Option(
+    "--threads", min=1, metavar="N", help="threads of each simulation (default: the scene's [numerics] threads, "
+                                          "else the processors here, shared among the workers); the results are "
+                                          "the same for every count")]
 Scheduler = Annotated[Optional[str], typer.Option("--scheduler", metavar="ADDRESS",
                                                   help="address of a running Dask scheduler, e.g. "
                                                        "tcp://10.0.0.5:8786 or tls://... (README: 'Sweeps on a "

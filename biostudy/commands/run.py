@@ -29,7 +29,7 @@ from solver.restart import start_state
 from ..data import claims, combine, continuation, netcdf, netcdf_io, writing
 from ..data.provenance import stamp
 from ..data.spool import Spool
-from ..errors import Failed
+from ..errors import BadInput, Failed
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance, with_threads
 from ..inputs import bundled, resources
@@ -52,6 +52,7 @@ class Loaded:
     previous: xr.Dataset | None = None  # the run it continues
     previous_path: Path | None = None
     claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
+    threads: int | None = None  # the run's threads, instead of the scene's or the processors here
 
 
 @dataclass(frozen=True)
@@ -81,10 +82,13 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
 
 
 def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (), output: Path | None = None,
-         force: bool = False, continue_from: str | Path | None = None, write: bool = True) -> Loaded:
+         force: bool = False, continue_from: str | Path | None = None, write: bool = True,
+         threads: int | None = None) -> Loaded:
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
     it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
-    NAME.nc); bad input is `BadInput`."""
+    NAME.nc); `threads`: the run's (default: the scene's, else the processors here); bad input is `BadInput`."""
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+        raise BadInput(f"give a whole number of at least 1 (got {threads!r})", key="threads")
     runs_here = STREAMED if write or output is not None else True  # a run that writes streams its outputs
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}
@@ -101,10 +105,11 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
         continue_from = Path(continue_from)
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
-        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
+        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, threads=threads)
     target = Path(output) if output is not None else default_output(loaded, continue_from)
     replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [])
-    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target),
+                  threads)
 
 
 def _first_dataset() -> None:
@@ -118,7 +123,7 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
     fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     _first_dataset()
-    problem = with_threads(loaded.scene.problem())
+    problem = with_threads(loaded.scene.problem(), threads=loaded.threads)
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:

@@ -24,11 +24,13 @@ case with it; `dask`: a cluster).  The caller claims the directory first
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import solver
 from solver.output import versions
 
 from ..data import case_files, combine, netcdf, netcdf_io, provenance, writing
@@ -63,6 +65,7 @@ class Execution:
     rerun_all: bool = False
     force: bool = False
     notify: Callable[[str, str, str], None] | None = None
+    threads: int | None = None  # each case's threads, instead of its scene's or its share of the processors
 
 
 @dataclass
@@ -163,7 +166,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     if backend is None or not ids:
         backend = _backend(execution, bool(ids), lambda message: notify("note", "", message))
     try:
-        with contextlib.closing(windowed(ids, lambda job_id: by_id[job_id].scene.problem(), backend)) as results:
+        compile_ = lambda job_id: _threaded(by_id[job_id].scene.problem(), execution.threads)
+        with contextlib.closing(windowed(ids, compile_, backend)) as results:
             for job_id, outcome in results:
                 report.note(job_id, _record(by_id[job_id], out_dir, outcome, prints[job_id]))
                 report.ran.append(job_id)
@@ -173,6 +177,13 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     except SchedulerLost as lost:
         raise SweepError(f"{lost}; {_kept(report, len(ids))}") from None
     return report
+
+
+def _threaded(problem: solver.Problem, threads: int | None) -> solver.Problem:
+    """The case's problem, on `threads` threads if given (``--threads``; no part of its identity)."""
+    if threads is None:
+        return problem
+    return dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=threads))
 
 
 def _started(out_dir: Path, tidy: bool) -> SweepReport:

@@ -95,13 +95,14 @@ def provenance() -> dict[str, str]:
             "fipy_solvers": os.environ.get("FIPY_SOLVERS", "unset")}
 
 
-def with_threads(problem: "solver.Problem", sharing: int = 1) -> "solver.Problem":
-    """`problem` with the threads it runs on: its own (`[numerics] threads`), else the processors this process
-    may use (`inputs.cores`) shared among `sharing` cases computed on this machine at once, at least one each.
-    The count changes how fast a case runs, never its result or its identity (`identity.fingerprint`)."""
-    if problem.numerics.threads is not None:
+def with_threads(problem: "solver.Problem", sharing: int = 1, threads: int | None = None) -> "solver.Problem":
+    """`problem` with the threads it runs on: `threads` if given (``--threads``), else its own (`[numerics]
+    threads`), else the processors this process may use (`inputs.cores`) shared among `sharing` cases computed on
+    this machine at once, at least one each.  The count changes how fast a case runs, never its result or its
+    identity (`identity.fingerprint`)."""
+    if threads is None and problem.numerics.threads is not None:
         return problem
-    count = max(1, cores.available().count // max(1, sharing))
+    count = threads or max(1, cores.available().count // max(1, sharing))
     return dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=count))
 
 
