@@ -69,7 +69,7 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
     levels = [(operator, places) for operator, places in levels if operator.shape[0] >= size * rows.MIN_ROWS]
     assert len(levels) >= 2
     for operator, (layer, lane) in levels:
-        sweeps = Sweeps(operator, layer, lane, Team(size))
+        sweeps = Sweeps(operator, layer, lane, Team(size), adaptive=False)
         assert sweeps.count == size  # the pipeline is used, not the serial fallback
         b, start = rng.normal(size=(2, operator.shape[0]))
         for forward, arguments in ((True, (0, operator.shape[0], 1)), (False, (operator.shape[0] - 1, -1, -1))):
@@ -77,6 +77,25 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
             (sweeps.forward if forward else sweeps.backward)(operator, x, b)
             gauss_seidel(operator.indptr, operator.indices, operator.data, expected, b, *arguments)
             assert np.array_equal(x, expected)
+
+
+def test_the_faster_way_of_sweeping_is_kept_and_the_other_timed_again(small_blocks, monkeypatch):
+    """On a machine where the pipeline waits for threads that do not run, the serial sweep (the same numbers) is
+    used instead: the faster by the running means of their times, the other every SAMPLE-th sweep."""
+    from solver.parallel import sweeps as module
+
+    matrix, (layer, lane), rng = grid_matrix((9, 8, 7))
+    sweeps = Sweeps(matrix, layer, lane, Team(2))
+    clock = iter(np.arange(0.0, 1e4, 1.0))
+    monkeypatch.setattr(module.time, "perf_counter", lambda: next(clock))  # every sweep "takes" 1 s
+    ways = []
+    monkeypatch.setattr(sweeps, "_pipelined", lambda *args: ways.append("pipelined"))
+    monkeypatch.setattr(sweeps, "_serial", lambda *args: ways.append("serial"))
+    sweeps.seconds[False] = 0.5  # serial measured faster
+    sweeps.seconds[True] = 2.0
+    for _ in range(2 * module.SAMPLE):
+        sweeps.forward(matrix, np.zeros(matrix.shape[0]), np.ones(matrix.shape[0]))
+    assert ways.count("pipelined") == 2 and ways[module.SAMPLE - 1] == "pipelined"
 
 
 def test_a_pattern_against_the_grid_order_is_swept_serially(small_blocks):

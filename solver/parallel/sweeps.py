@@ -13,8 +13,16 @@ that on the matrix's pattern (true of any matrix whose couplings are between cel
 order) and the sweep is done serially by pyamg otherwise.  The backward sweep is the mirror image.  The
 threads wait for one another through atomic counters (`atomic.py`): a layer's rows (a few hundred to a few
 thousand) are the unit of work between waits.
+
+A pipeline is only as fast as its slowest thread at every layer: on a machine whose processors are busy with
+other work a thread waits for one that is not running (measured: 7 times slower than one thread at load 20 on
+2 cores).  Either way of sweeping gives the same numbers, so the faster is chosen as the run goes: the time of
+each sweep is kept (a running mean of each way), the pipeline is used while it is the faster, and every
+`SAMPLE`-th sweep is made the other way to see whether that has changed.
 """
 from __future__ import annotations
+
+import time
 
 import numba
 import numpy as np
@@ -27,14 +35,18 @@ from .team import Team
 
 jit = numba.njit(cache=True, nogil=True)
 LINE = 8  # int64 counters per thread: one cache line each, so that a thread's counter is not its neighbour's
+SAMPLE = 16  # every this many sweeps one is made the way not in use, to time it again
+WEIGHT = 0.25  # of a new time in the running mean of a way's times
 
 
 class Sweeps:
     """Forward and backward Gauss-Seidel sweeps on matrices of one pattern, pipelined over a team when the
     pattern allows it (else serial: pyamg's kernel)."""
 
-    def __init__(self, pattern: sp.csr_matrix, layer: np.ndarray | None, lane: np.ndarray | None, team: Team):
+    def __init__(self, pattern: sp.csr_matrix, layer: np.ndarray | None, lane: np.ndarray | None, team: Team,
+                 adaptive: bool = True):
         self.team = team
+        self.adaptive = adaptive  # choose the faster way as the run goes (False: always the pipeline)
         n = pattern.shape[0]
         self.count = min(team.size, max(1, n // rows.MIN_ROWS)) if layer is not None and lane is not None else 1
         self.pattern = (pattern.indptr, pattern.indices)
@@ -52,6 +64,8 @@ class Sweeps:
             self.starts = np.searchsorted(key[self.order], keys).astype(np.int64)
             self.layers = layers
             self.progress = np.zeros((self.count, LINE), np.int64)
+        self.seconds = {True: 0.0, False: 0.0}  # running mean of a sweep's time, pipelined or serial (0: not yet)
+        self.sweeps = 0
 
     def forward(self, matrix: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> None:
         """One forward sweep on x in place (rows in increasing order)."""
@@ -62,10 +76,27 @@ class Sweeps:
         self._sweep(matrix, x, b, False)
 
     def _sweep(self, matrix, x, b, forward: bool) -> None:
-        n = matrix.shape[0]
         if self.count == 1 or not self._same_pattern(matrix):
-            gauss_seidel(matrix.indptr, matrix.indices, matrix.data, x, b, *((0, n, 1) if forward else (n - 1, -1, -1)))
+            self._serial(matrix, x, b, forward)
             return
+        if not self.adaptive:
+            self._pipelined(matrix, x, b, forward)
+            return
+        self.sweeps += 1
+        timed = self.seconds
+        faster = not timed[False] or (timed[True] and timed[True] <= timed[False])
+        pipeline = faster != (self.sweeps % SAMPLE == 0) if timed[False] and timed[True] else not timed[True]
+        began = time.perf_counter()
+        (self._pipelined if pipeline else self._serial)(matrix, x, b, forward)
+        seconds = time.perf_counter() - began
+        timed[pipeline] = seconds if not timed[pipeline] else (1 - WEIGHT) * timed[pipeline] + WEIGHT * seconds
+
+    @staticmethod
+    def _serial(matrix, x, b, forward: bool) -> None:
+        n = matrix.shape[0]
+        gauss_seidel(matrix.indptr, matrix.indices, matrix.data, x, b, *((0, n, 1) if forward else (n - 1, -1, -1)))
+
+    def _pipelined(self, matrix, x, b, forward: bool) -> None:
         self.progress[:] = 0
         kernel = _forward if forward else _backward
         indptr, indices, data, order, starts, progress = (matrix.indptr, matrix.indices, matrix.data, self.order,
