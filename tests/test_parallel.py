@@ -285,3 +285,23 @@ def test_the_biofilm_step_made_in_blocks_is_the_numpy_form(small_blocks, advecti
     assert np.array_equal(blocked.matrix.data, data)
     assert np.array_equal(diagonal, data[blocked.diagonal])
     assert np.array_equal(rhs, phi / 0.01 + source) and upper == np.max(phi + 0.01 * source, initial=0.0)
+
+
+def test_a_team_runs_independent_parts_in_turn_while_that_has_been_faster():
+    """Parts run in the calling thread one after another while the team's running mean says threads have not
+    paid (a busy machine), at once every PROBE-th time; parts that wait for one another always run at once."""
+    import threading
+
+    from solver.parallel import team as module
+
+    team = Team(2)
+    team.ratio = 3.0  # at once took 3 times as long as in turn would have
+    seen = []
+    for _ in range(2 * module.PROBE):
+        team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()))
+    assert seen.count(False) == 2  # the two probes ran part 1 on the helper
+    team.ratio = 3.0
+    seen.clear()
+    team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()), together=True)
+    assert sorted(seen) == [False, True]
+    team.close()

@@ -107,7 +107,7 @@ class Sweeps:
             if t < count:
                 kernel(indptr, indices, data, x, b, order, starts, layers, progress, t, count)
 
-        self.team.run(part)
+        self.team.run(part, together=True)
 
 
     def _same_pattern(self, matrix) -> bool:

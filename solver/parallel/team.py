@@ -11,7 +11,12 @@ threads of one process (two runs from the Python API) launch kernels at once.  A
 start with the first parallel call, are recreated in a forked child and end when the team is collected.
 
 What is computed does not depend on the team: every kernel computes each entry of its result in the order of
-the serial loop, whichever thread computes it (docs/transport.md, "Threads").
+the serial loop, whichever thread computes it (docs/transport.md, "Threads").  Nor on whether the parts run at
+once: parts that do not wait for one another may as well run one after another in the calling thread, and
+do, while that has been the faster (a machine whose processors are busy with other work starts the helpers
+late: measured, a 30^3 run on 2 threads at load 17 took 2.7 times one thread's time).  The team keeps a
+running mean of how long its parts took at once against as many times the calling thread's own part, and
+while that is above 1 it runs the parts in turn, trying them at once again every `PROBE`-th time.
 """
 from __future__ import annotations
 
@@ -21,6 +26,10 @@ import threading
 import time
 import weakref
 from typing import Callable
+
+PROBE = 16  # while parts run in turn, every this many times they run at once again, to see whether that pays
+WEIGHT = 0.1  # of a new ratio in the running mean
+SHORT = 2e-5  # seconds: a caller's part shorter than this says nothing about the threads
 
 
 class Team:
@@ -36,15 +45,24 @@ class Team:
         self._pid = -1
         self._finalizer: weakref.finalize | None = None
         self._seconds = [0.0] * self.size  # CPU seconds each helper spent in work (slot 0 unused: the caller's)
+        self.ratio = 0.0  # running mean of (time of the parts at once) / (size x time of the caller's part)
+        self._calls = 0
 
-    def run(self, work: Callable[[int], None]) -> None:
-        """work(part) for part 0 .. size - 1, all at once (part 0 in this thread); returns when every part has,
-        re-raising the first exception a part raised."""
+    def run(self, work: Callable[[int], None], together: bool = False) -> None:
+        """work(part) for part 0 .. size - 1 (part 0 in this thread); returns when every part has, re-raising the
+        first exception a part raised.  `together`: the parts wait for one another, so they run at once; else they
+        may run one after another here (module docstring)."""
         if self.size == 1:
             work(0)
             return
+        self._calls += 1
+        if not together and self.ratio > 1.0 and self._calls % PROBE:
+            for part in range(self.size):
+                work(part)
+            return
         with self._lock:
             self._start()
+            began = time.perf_counter()
             for part, inbox in enumerate(self._inboxes, start=1):
                 inbox.put((work, part))
             failure: BaseException | None = None
@@ -52,9 +70,13 @@ class Team:
                 work(0)
             except BaseException as error:  # noqa: B036 - the helpers are waited for before it is re-raised
                 failure = error
+            own = time.perf_counter() - began
             for _ in self._inboxes:
                 error = self._done.get()
                 failure = failure or error
+            if not together and own > SHORT:
+                ratio = (time.perf_counter() - began) / (self.size * own)
+                self.ratio = ratio if not self.ratio else (1 - WEIGHT) * self.ratio + WEIGHT * ratio
             if failure is not None:
                 raise failure
 
