@@ -120,28 +120,30 @@ class Stencil:
 def apply(blocks, shape, steps, node_of, x, y, team: Team = SERIAL):
     """y += A x (in 3-D by a kernel written out for 3x3 blocks: numba leaves the loops over components rolled).
 
-    On a team, the nodes are split in blocks of layers along the slowest axis (z in 3-D, y in 2-D), and the
-    product is made in two passes: first every node's transposed blocks to the next layer, then its own row
-    and its transposed blocks within its layer.  Each y entry then adds the same terms in the same order as
-    the serial pass (the previous layer's nodes before its own layer's, each in grid order), so the product
-    is the serial one bit for bit."""
+    One pass over the nodes (`EVERYTHING`), or on a team, the nodes split in blocks of layers along the slowest
+    axis (z in 3-D, y in 2-D), two: first every node's transposed blocks to the next layer (`NEXT_LAYER`), then
+    its own row and its transposed blocks within its layer (`OWN_LAYER`).  Each y entry then adds the same
+    terms in the same order as in the one pass (the previous layer's nodes before its own layer's, each in grid
+    order), so the product is the serial one bit for bit."""
     linear = _linear(steps, shape)
     axis = 0 if shape[0] > 1 else 1
     layers = int(shape[axis])
     count = min(team.size, layers, y.size // rows.MIN_ROWS)
-    three = blocks.shape[2] == 3
+    kernel = _layers3 if blocks.shape[2] == 3 else _layers
     if count < 2:
-        (_apply3 if three else _apply)(blocks, shape, steps, linear, node_of, x, y)
+        kernel(blocks, shape, steps, linear, node_of, x, y, axis, 0, layers, EVERYTHING)
         return
     bounds = [layers * p // count for p in range(count + 1)]
-    for own in (False, True):
-        kernel = (_layers3 if three else _layers)
+    for which in (NEXT_LAYER, OWN_LAYER):
 
-        def part(p: int, own=own, kernel=kernel) -> None:
+        def part(p: int, which=which) -> None:
             if p < count:
-                kernel(blocks, shape, steps, linear, node_of, x, y, axis, bounds[p], bounds[p + 1], own)
+                kernel(blocks, shape, steps, linear, node_of, x, y, axis, bounds[p], bounds[p + 1], which)
 
         team.run(part)
+
+
+NEXT_LAYER, OWN_LAYER, EVERYTHING = 0, 1, 2  # what a pass of `_layers` adds (`apply`)
 
 
 def _linear(steps, shape) -> np.ndarray:
@@ -150,80 +152,14 @@ def _linear(steps, shape) -> np.ndarray:
 
 
 @jit
-def _apply(blocks, shape, steps, linear, node_of, x, y):
-    """y += A x: the diagonal block and each kept block with its transpose, one pass over the nodes."""
-    nz, ny, nx = shape[0], shape[1], shape[2]
-    d = blocks.shape[2]
-    for iz in range(nz):
-        for iy in range(ny):
-            for ix in range(nx):
-                g = (iz * ny + iy) * nx + ix
-                m = node_of[g]
-                if m < 0:
-                    continue
-                inner = (nz == 1 or iz + 1 < nz) and 0 < iy < ny - 1 and 0 < ix < nx - 1  # every neighbour there
-                for h in range(steps.shape[0]):
-                    if not inner and not inside(iz + steps[h, 0], iy + steps[h, 1], ix + steps[h, 2], shape):
-                        continue
-                    n = node_of[g + linear[h]]
-                    if n < 0:
-                        continue
-                    for i in range(d):
-                        total = 0.0
-                        for k in range(d):
-                            total += blocks[g, h, i, k] * x[n * d + k]
-                        y[m * d + i] += total
-                    if h:
-                        for k in range(d):
-                            total = 0.0
-                            for i in range(d):
-                                total += blocks[g, h, i, k] * x[m * d + i]
-                            y[n * d + k] += total
-
-
-@jit
-def _apply3(blocks, shape, steps, linear, node_of, x, y):
-    """`_apply` for 3x3 blocks."""
-    nz, ny, nx = shape[0], shape[1], shape[2]
-    for iz in range(nz):
-        for iy in range(ny):
-            for ix in range(nx):
-                g = (iz * ny + iy) * nx + ix
-                m = node_of[g]
-                if m < 0:
-                    continue
-                x0, x1, x2 = x[3 * m], x[3 * m + 1], x[3 * m + 2]
-                y0 = y1 = y2 = 0.0
-                inner = (nz == 1 or iz + 1 < nz) and 0 < iy < ny - 1 and 0 < ix < nx - 1  # every neighbour there
-                for h in range(steps.shape[0]):
-                    if not inner and not inside(iz + steps[h, 0], iy + steps[h, 1], ix + steps[h, 2], shape):
-                        continue
-                    n = node_of[g + linear[h]]
-                    if n < 0:
-                        continue
-                    b00, b01, b02 = blocks[g, h, 0, 0], blocks[g, h, 0, 1], blocks[g, h, 0, 2]
-                    b10, b11, b12 = blocks[g, h, 1, 0], blocks[g, h, 1, 1], blocks[g, h, 1, 2]
-                    b20, b21, b22 = blocks[g, h, 2, 0], blocks[g, h, 2, 1], blocks[g, h, 2, 2]
-                    v0, v1, v2 = x[3 * n], x[3 * n + 1], x[3 * n + 2]
-                    y0 += b00 * v0 + b01 * v1 + b02 * v2
-                    y1 += b10 * v0 + b11 * v1 + b12 * v2
-                    y2 += b20 * v0 + b21 * v1 + b22 * v2
-                    if h:
-                        y[3 * n] += b00 * x0 + b10 * x1 + b20 * x2
-                        y[3 * n + 1] += b01 * x0 + b11 * x1 + b21 * x2
-                        y[3 * n + 2] += b02 * x0 + b12 * x1 + b22 * x2
-                y[3 * m] += y0
-                y[3 * m + 1] += y1
-                y[3 * m + 2] += y2
-
-
-@jit
-def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own):
-    """`_apply3` for the nodes of layers first .. last - 1 along `axis`: their transposed blocks to the next
-    layer (not `own`), or their own rows and transposed blocks within the layer (`own`)."""
+def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, which):
+    """y += A x for the nodes of layers first .. last - 1 along `axis`, 3x3 blocks: their own rows and every
+    transposed block (EVERYTHING), their transposed blocks to the next layer (NEXT_LAYER), or their own rows and
+    their transposed blocks within the layer (OWN_LAYER); each kept block and its transpose at once."""
     nz, ny, nx = shape[0], shape[1], shape[2]
     z0, z1 = (first, last) if axis == 0 else (0, nz)
     y0_, y1_ = (first, last) if axis == 1 else (0, ny)
+    own = which != NEXT_LAYER
     for iz in range(z0, z1):
         for iy in range(y0_, y1_):
             for ix in range(nx):
@@ -251,7 +187,7 @@ def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own
                         y0 += b00 * v0 + b01 * v1 + b02 * v2
                         y1 += b10 * v0 + b11 * v1 + b12 * v2
                         y2 += b20 * v0 + b21 * v1 + b22 * v2
-                    if h and own != later:
+                    if h and (which == EVERYTHING or own != later):
                         y[3 * n] += b00 * x0 + b10 * x1 + b20 * x2
                         y[3 * n + 1] += b01 * x0 + b11 * x1 + b21 * x2
                         y[3 * n + 2] += b02 * x0 + b12 * x1 + b22 * x2
@@ -262,12 +198,13 @@ def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own
 
 
 @jit
-def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own):
-    """`_apply` for the nodes of layers first .. last - 1 along `axis` (see `_layers3`)."""
+def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, which):
+    """`_layers3` for blocks of any size (the diagonal block and each kept block with its transpose)."""
     nz, ny, nx = shape[0], shape[1], shape[2]
     d = blocks.shape[2]
     z0, z1 = (first, last) if axis == 0 else (0, nz)
     y0_, y1_ = (first, last) if axis == 1 else (0, ny)
+    own = which != NEXT_LAYER
     for iz in range(z0, z1):
         for iy in range(y0_, y1_):
             for ix in range(nx):
@@ -291,7 +228,7 @@ def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own)
                             for k in range(d):
                                 total += blocks[g, h, i, k] * x[n * d + k]
                             y[m * d + i] += total
-                    if h and own != later:
+                    if h and (which == EVERYTHING or own != later):
                         for k in range(d):
                             total = 0.0
                             for i in range(d):
