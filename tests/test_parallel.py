@@ -295,12 +295,12 @@ def test_a_team_runs_independent_parts_in_turn_while_that_has_been_faster():
     from solver.parallel import team as module
 
     team = Team(2)
-    team.ratio = 3.0  # at once took 3 times as long as in turn would have
+    team.ratios[""] = 3.0  # at once took 3 times as long as in turn would have
     seen = []
     for _ in range(2 * module.PROBE):
         team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()))
     assert seen.count(False) == 2  # the two probes ran part 1 on the helper
-    team.ratio = 3.0
+    team.ratios[""] = 3.0
     seen.clear()
     team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()), together=True)
     assert sorted(seen) == [False, True]

@@ -120,30 +120,34 @@ class Stencil:
 def apply(blocks, shape, steps, node_of, x, y, team: Team = SERIAL):
     """y += A x (in 3-D by a kernel written out for 3x3 blocks: numba leaves the loops over components rolled).
 
-    One pass over the nodes (`EVERYTHING`), or on a team, the nodes split in blocks of layers along the slowest
-    axis (z in 3-D, y in 2-D), two: first every node's transposed blocks to the next layer (`NEXT_LAYER`), then
-    its own row and its transposed blocks within its layer (`OWN_LAYER`).  Each y entry then adds the same
-    terms in the same order as in the one pass (the previous layer's nodes before its own layer's, each in grid
-    order), so the product is the serial one bit for bit."""
+    One pass over the nodes in grid order.  On a team the nodes are split in blocks of layers along the slowest
+    axis (z in 3-D, y in 2-D): a row receives the transposed blocks of the previous layer's nodes, then those of
+    its own layer's earlier nodes, then its own sum, so the last layer's transposed blocks into the next block's
+    first layer are added first, apart (a pass over one layer a block), and then each block makes the rest of
+    its rows in one pass: every y entry adds the same terms in the same order as in the serial pass, bit for
+    bit."""
     linear = _linear(steps, shape)
     axis = 0 if shape[0] > 1 else 1
     layers = int(shape[axis])
     count = min(team.size, layers, y.size // rows.MIN_ROWS)
     kernel = _layers3 if blocks.shape[2] == 3 else _layers
     if count < 2:
-        kernel(blocks, shape, steps, linear, node_of, x, y, axis, 0, layers, EVERYTHING)
+        kernel(blocks, shape, steps, linear, node_of, x, y, axis, 0, layers, True, 0, layers)
         return
     bounds = [layers * p // count for p in range(count + 1)]
-    for which in (NEXT_LAYER, OWN_LAYER):
 
-        def part(p: int, which=which) -> None:
-            if p < count:
-                kernel(blocks, shape, steps, linear, node_of, x, y, axis, bounds[p], bounds[p + 1], which)
+    def boundary(p: int) -> None:  # a block's last layer into the next block's first, before that block's rows
+        if p + 1 < count:
+            kernel(blocks, shape, steps, linear, node_of, x, y, axis, bounds[p + 1] - 1, bounds[p + 1], False,
+                   bounds[p + 1] - 1, bounds[p + 1])
 
-        team.run(part)
+    def rest(p: int) -> None:
+        if p < count:
+            last = bounds[p + 1] - (1 if p + 1 < count else 0)
+            kernel(blocks, shape, steps, linear, node_of, x, y, axis, bounds[p], bounds[p + 1], True, bounds[p], last)
 
-
-NEXT_LAYER, OWN_LAYER, EVERYTHING = 0, 1, 2  # what a pass of `_layers` adds (`apply`)
+    team.run(boundary, site="stencil")
+    team.run(rest, site="stencil")
 
 
 def _linear(steps, shape) -> np.ndarray:
@@ -152,14 +156,13 @@ def _linear(steps, shape) -> np.ndarray:
 
 
 @jit
-def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, which):
-    """y += A x for the nodes of layers first .. last - 1 along `axis`, 3x3 blocks: their own rows and every
-    transposed block (EVERYTHING), their transposed blocks to the next layer (NEXT_LAYER), or their own rows and
-    their transposed blocks within the layer (OWN_LAYER); each kept block and its transpose at once."""
+def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own, next_first, next_last):
+    """y += A x for the nodes of layers first .. last - 1 along `axis`, 3x3 blocks: their own rows and their
+    transposed blocks within their layer if `own`, and their transposed blocks to the next layer for the layers
+    next_first .. next_last - 1 (`apply`); each kept block and its transpose at once."""
     nz, ny, nx = shape[0], shape[1], shape[2]
     z0, z1 = (first, last) if axis == 0 else (0, nz)
     y0_, y1_ = (first, last) if axis == 1 else (0, ny)
-    own = which != NEXT_LAYER
     for iz in range(z0, z1):
         for iy in range(y0_, y1_):
             for ix in range(nx):
@@ -170,9 +173,10 @@ def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, whi
                 x0, x1, x2 = x[3 * m], x[3 * m + 1], x[3 * m + 2]
                 y0 = y1 = y2 = 0.0
                 inner = (nz == 1 or iz + 1 < nz) and 0 < iy < ny - 1 and 0 < ix < nx - 1  # every neighbour there
+                onward = next_first <= (iz if axis == 0 else iy) < next_last  # its blocks to the next layer too
                 for h in range(steps.shape[0]):
                     later = steps[h, axis] == 1
-                    if not own and not later:
+                    if not own and not later or later and not own and not onward:
                         continue
                     if not inner and not inside(iz + steps[h, 0], iy + steps[h, 1], ix + steps[h, 2], shape):
                         continue
@@ -187,7 +191,7 @@ def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, whi
                         y0 += b00 * v0 + b01 * v1 + b02 * v2
                         y1 += b10 * v0 + b11 * v1 + b12 * v2
                         y2 += b20 * v0 + b21 * v1 + b22 * v2
-                    if h and (which == EVERYTHING or own != later):
+                    if h and (onward if later else own):
                         y[3 * n] += b00 * x0 + b10 * x1 + b20 * x2
                         y[3 * n + 1] += b01 * x0 + b11 * x1 + b21 * x2
                         y[3 * n + 2] += b02 * x0 + b12 * x1 + b22 * x2
@@ -198,13 +202,12 @@ def _layers3(blocks, shape, steps, linear, node_of, x, y, axis, first, last, whi
 
 
 @jit
-def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, which):
+def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, own, next_first, next_last):
     """`_layers3` for blocks of any size (the diagonal block and each kept block with its transpose)."""
     nz, ny, nx = shape[0], shape[1], shape[2]
     d = blocks.shape[2]
     z0, z1 = (first, last) if axis == 0 else (0, nz)
     y0_, y1_ = (first, last) if axis == 1 else (0, ny)
-    own = which != NEXT_LAYER
     for iz in range(z0, z1):
         for iy in range(y0_, y1_):
             for ix in range(nx):
@@ -213,9 +216,10 @@ def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, whic
                 if m < 0:
                     continue
                 inner = (nz == 1 or iz + 1 < nz) and 0 < iy < ny - 1 and 0 < ix < nx - 1  # every neighbour there
+                onward = next_first <= (iz if axis == 0 else iy) < next_last  # its blocks to the next layer too
                 for h in range(steps.shape[0]):
                     later = steps[h, axis] == 1
-                    if not own and not later:
+                    if not own and not later or later and not own and not onward:
                         continue
                     if not inner and not inside(iz + steps[h, 0], iy + steps[h, 1], ix + steps[h, 2], shape):
                         continue
@@ -228,7 +232,7 @@ def _layers(blocks, shape, steps, linear, node_of, x, y, axis, first, last, whic
                             for k in range(d):
                                 total += blocks[g, h, i, k] * x[n * d + k]
                             y[m * d + i] += total
-                    if h and (which == EVERYTHING or own != later):
+                    if h and (onward if later else own):
                         for k in range(d):
                             total = 0.0
                             for i in range(d):

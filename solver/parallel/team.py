@@ -14,9 +14,10 @@ What is computed does not depend on the team: every kernel computes each entry o
 the serial loop, whichever thread computes it (docs/transport.md, "Threads").  Nor on whether the parts run at
 once: parts that do not wait for one another may as well run one after another in the calling thread, and
 do, while that has been the faster (a machine whose processors are busy with other work starts the helpers
-late: measured, a 30^3 run on 2 threads at load 17 took 2.7 times one thread's time).  The team keeps a
-running mean of how long its parts took at once against as many times the calling thread's own part, and
-while that is above 1 it runs the parts in turn, trying them at once again every `PROBE`-th time.
+late: measured, a 30^3 run on 2 threads at load 17 took 2.7 times one thread's time).  The team keeps, for
+each kind of work (its `site`: the mechanics' products apart from the transport's work), a running mean of
+how long the parts took at once against as many times the calling thread's own part, and while that is above 1
+it runs them in turn, trying them at once again every `PROBE`-th time.
 """
 from __future__ import annotations
 
@@ -45,18 +46,20 @@ class Team:
         self._pid = -1
         self._finalizer: weakref.finalize | None = None
         self._seconds = [0.0] * self.size  # CPU seconds each helper spent in work (slot 0 unused: the caller's)
-        self.ratio = 0.0  # running mean of (time of the parts at once) / (size x time of the caller's part)
-        self._calls = 0
+        # per kind of work ("site"): running mean of (time of the parts at once) / (size x time of the caller's part)
+        self.ratios: dict[str, float] = {}
+        self._calls: dict[str, int] = {}
 
-    def run(self, work: Callable[[int], None], together: bool = False) -> None:
+    def run(self, work: Callable[[int], None], together: bool = False, site: str = "") -> None:
         """work(part) for part 0 .. size - 1 (part 0 in this thread); returns when every part has, re-raising the
         first exception a part raised.  `together`: the parts wait for one another, so they run at once; else they
-        may run one after another here (module docstring)."""
+        may run one after another here (module docstring), as the running mean of their `site` says."""
         if self.size == 1:
             work(0)
             return
-        self._calls += 1
-        if not together and self.ratio > 1.0 and self._calls % PROBE:
+        calls = self._calls[site] = self._calls.get(site, 0) + 1
+        ratio = self.ratios.get(site, 0.0)
+        if not together and ratio > 1.0 and calls % PROBE:
             for part in range(self.size):
                 work(part)
             return
@@ -75,8 +78,8 @@ class Team:
                 error = self._done.get()
                 failure = failure or error
             if not together and own > SHORT:
-                ratio = (time.perf_counter() - began) / (self.size * own)
-                self.ratio = ratio if not self.ratio else (1 - WEIGHT) * self.ratio + WEIGHT * ratio
+                now = (time.perf_counter() - began) / (self.size * own)
+                self.ratios[site] = now if not ratio else (1 - WEIGHT) * ratio + WEIGHT * now
             if failure is not None:
                 raise failure
 
