@@ -81,7 +81,8 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
 
 def test_the_faster_way_of_sweeping_is_kept_and_the_other_timed_again(small_blocks, monkeypatch):
     """On a machine where the pipeline waits for threads that do not run, the serial sweep (the same numbers) is
-    used instead: the faster by the running means of their times, the other every SAMPLE-th sweep."""
+    used instead: the faster by the running means of their times, the pipeline timed again after SAMPLE sweeps,
+    then after twice as many each time it stays the slower."""
     from solver.parallel import sweeps as module
 
     matrix, (layer, lane), rng = grid_matrix((9, 8, 7))
@@ -93,9 +94,10 @@ def test_the_faster_way_of_sweeping_is_kept_and_the_other_timed_again(small_bloc
     monkeypatch.setattr(sweeps, "_serial", lambda *args: ways.append("serial"))
     sweeps.seconds[False] = 0.5  # serial measured faster
     sweeps.seconds[True] = 2.0
-    for _ in range(2 * module.SAMPLE):
+    for _ in range(7 * module.SAMPLE):
         sweeps.forward(matrix, np.zeros(matrix.shape[0]), np.ones(matrix.shape[0]))
-    assert ways.count("pipelined") == 2 and ways[module.SAMPLE - 1] == "pipelined"
+    tried = [i for i, way in enumerate(ways) if way == "pipelined"]
+    assert tried == [0, module.SAMPLE, 3 * module.SAMPLE]  # later each time it stays the slower
 
 
 def test_a_pattern_against_the_grid_order_is_swept_serially(small_blocks):
@@ -289,7 +291,8 @@ def test_the_biofilm_step_made_in_blocks_is_the_numpy_form(small_blocks, advecti
 
 def test_a_team_runs_independent_parts_in_turn_while_that_has_been_faster():
     """Parts run in the calling thread one after another while the team's running mean says threads have not
-    paid (a busy machine), at once every PROBE-th time; parts that wait for one another always run at once."""
+    paid (a busy machine), at once after PROBE times, then after twice as many each time; parts that wait for one
+    another always run at once."""
     import threading
 
     from solver.parallel import team as module
@@ -297,9 +300,10 @@ def test_a_team_runs_independent_parts_in_turn_while_that_has_been_faster():
     team = Team(2)
     team.ratios[""] = 3.0  # at once took 3 times as long as in turn would have
     seen = []
-    for _ in range(2 * module.PROBE):
+    for _ in range(7 * module.PROBE):
         team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()))
-    assert seen.count(False) == 2  # the two probes ran part 1 on the helper
+    probes = [i // 2 for i, here in enumerate(seen) if not here]  # the calls whose part 1 ran on the helper
+    assert probes == [module.PROBE - 1, 2 * module.PROBE - 1, 4 * module.PROBE - 1]  # later each time
     team.ratios[""] = 3.0
     seen.clear()
     team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()), together=True)

@@ -17,8 +17,9 @@ thousand) are the unit of work between waits.
 A pipeline is only as fast as its slowest thread at every layer: on a machine whose processors are busy with
 other work a thread waits for one that is not running (measured: 7 times slower than one thread at load 20 on
 2 cores).  Either way of sweeping gives the same numbers, so the faster is chosen as the run goes: the time of
-each sweep is kept (a running mean of each way), the pipeline is used while it is the faster, and every
-`SAMPLE`-th sweep is made the other way to see whether that has changed.
+each sweep is kept (a running mean of each way), the pipeline is used while it is the faster, and the other
+way is timed again every `SAMPLE`-th sweep (the pipeline, while it is the slower: after twice as many sweeps
+each time, up to `PATIENCE`).
 """
 from __future__ import annotations
 
@@ -35,7 +36,8 @@ from .team import Team
 
 jit = numba.njit(cache=True, nogil=True)
 LINE = 8  # int64 counters per thread: one cache line each, so that a thread's counter is not its neighbour's
-SAMPLE = 16  # every this many sweeps one is made the way not in use, to time it again
+SAMPLE = 16  # every this many sweeps one is made the way not in use, to time it again (the pipeline: after
+PATIENCE = 1024  # twice as many each time it was the slower, up to this many)
 WEIGHT = 0.25  # of a new time in the running mean of a way's times
 
 
@@ -66,6 +68,8 @@ class Sweeps:
             self.progress = np.zeros((self.count, LINE), np.int64)
         self.seconds = {True: 0.0, False: 0.0}  # running mean of a sweep's time, pipelined or serial (0: not yet)
         self.sweeps = 0
+        self.retry = (0, SAMPLE // 2)  # while serial is the faster: the sweep that times the pipeline next, and after
+        # how many sweeps it did
 
     def forward(self, matrix: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> None:
         """One forward sweep on x in place (rows in increasing order)."""
@@ -84,12 +88,20 @@ class Sweeps:
             return
         self.sweeps += 1
         timed = self.seconds
-        faster = not timed[False] or (timed[True] and timed[True] <= timed[False])
-        pipeline = faster != (self.sweeps % SAMPLE == 0) if timed[False] and timed[True] else not timed[True]
+        slower = bool(timed[False] and timed[True] and timed[True] > timed[False])  # the pipeline, so far
+        if not (timed[False] and timed[True]):  # time each way once, the pipeline first
+            pipeline = not timed[True]
+        elif not slower:  # the pipeline is the faster: the serial sweep timed every SAMPLE-th
+            pipeline = self.sweeps % SAMPLE != 0
+        else:
+            pipeline = self.sweeps >= self.retry[0]
         began = time.perf_counter()
         (self._pipelined if pipeline else self._serial)(matrix, x, b, forward)
         seconds = time.perf_counter() - began
         timed[pipeline] = seconds if not timed[pipeline] else (1 - WEIGHT) * timed[pipeline] + WEIGHT * seconds
+        if pipeline and timed[False] and timed[True] > timed[False]:  # slower: try again later, later each time
+            interval = min(2 * self.retry[1], PATIENCE) if slower else SAMPLE
+            self.retry = (self.sweeps + interval, interval)
 
     @staticmethod
     def _serial(matrix, x, b, forward: bool) -> None:

@@ -17,7 +17,8 @@ do, while that has been the faster (a machine whose processors are busy with oth
 late: measured, a 30^3 run on 2 threads at load 17 took 2.7 times one thread's time).  The team keeps, for
 each kind of work (its `site`: the mechanics' products apart from the transport's work), a running mean of
 how long the parts took at once against as many times the calling thread's own part, and while that is above 1
-it runs them in turn, trying them at once again every `PROBE`-th time.
+it runs them in turn, trying them at once again after `PROBE` times, and after twice as many each time that
+did not pay (up to `PATIENCE`): on a machine that stays busy the trials cost little.
 """
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ import time
 import weakref
 from typing import Callable
 
-PROBE = 16  # while parts run in turn, every this many times they run at once again, to see whether that pays
+PROBE = 16  # while parts run in turn, after this many times they run at once again, to see whether that pays ...
+PATIENCE = 1024  # ... and after twice as many each time it did not, up to this many
 WEIGHT = 0.1  # of a new ratio in the running mean
 SHORT = 2e-5  # seconds: a caller's part shorter than this says nothing about the threads
 
@@ -49,6 +51,7 @@ class Team:
         # per kind of work ("site"): running mean of (time of the parts at once) / (size x time of the caller's part)
         self.ratios: dict[str, float] = {}
         self._calls: dict[str, int] = {}
+        self._probes: dict[str, tuple[int, int]] = {}  # per site: (the call that probes next, the interval)
 
     def run(self, work: Callable[[int], None], together: bool = False, site: str = "") -> None:
         """work(part) for part 0 .. size - 1 (part 0 in this thread); returns when every part has, re-raising the
@@ -59,7 +62,9 @@ class Team:
             return
         calls = self._calls[site] = self._calls.get(site, 0) + 1
         ratio = self.ratios.get(site, 0.0)
-        if not together and ratio > 1.0 and calls % PROBE:
+        probe, interval = self._probes.get(site, (PROBE, PROBE // 2))
+        in_turn = not together and ratio > 1.0
+        if in_turn and calls < probe:
             for part in range(self.size):
                 work(part)
             return
@@ -80,6 +85,11 @@ class Team:
             if not together and own > SHORT:
                 now = (time.perf_counter() - began) / (self.size * own)
                 self.ratios[site] = now if not ratio else (1 - WEIGHT) * ratio + WEIGHT * now
+            if in_turn:  # a probe: the next one later (in turn or not from now, as the mean says)
+                interval = min(2 * interval, PATIENCE)
+                self._probes[site] = (calls + interval, interval)
+            elif self.ratios.get(site, 0.0) > 1.0:  # in turn from now on
+                self._probes[site] = (calls + PROBE, PROBE)
             if failure is not None:
                 raise failure
 
