@@ -60,23 +60,26 @@ def advection_into(out: np.ndarray, faces: np.ndarray, offsets: np.ndarray, indp
             psi, psi_over_r = 0.0, 0.0
         inflow[k] = a * (1.0 - 0.5 * psi)
         outflow[k] = a * 0.5 * psi_over_r
-    for k in range(m):  # row `down` gets inflow * (phi_down - phi_up)
+    # row `down` gets inflow * (phi_down - phi_up), row `up` outflow * (phi_up - phi_far): all of one kind of entry
+    # over the faces before the next kind, as the numpy form added them
+    _add(out, faces, offsets, indptr, w, inflow, 1.0, 1, 1, 0, first, row_start, row_stop)
+    _add(out, faces, offsets, indptr, w, inflow, -1.0, 1, 2, 3, first, row_start, row_stop)
+    if tvd:
+        _add(out, faces, offsets, indptr, w, outflow, 1.0, 0, 0, 1, first, row_start, row_stop)
+        _add(out, faces, offsets, indptr, w, outflow, -1.0, 0, 4, 5, first, row_start, row_stop)
+
+
+@jit
+def _add(out, faces, offsets, indptr, w, values, sign, row, forward, backward, first, row_start, row_stop):
+    """out += sign * values[k] at face first + k's entry `forward` (w > 0) or `backward` (its mirror), for the faces
+    whose row (cell `row` of the face, 0 lower, 1 upper, mirrored likewise) is one of row_start .. row_stop - 1."""
+    for k in range(values.size):
         f = first + k
-        if row_start <= faces[1 if w[f] > 0 else 0, f] < row_stop:
-            out[position(faces, offsets, indptr, 1 if w[f] > 0 else 0, f)] += inflow[k]
-    for k in range(m):
-        f = first + k
-        if row_start <= faces[1 if w[f] > 0 else 0, f] < row_stop:
-            out[position(faces, offsets, indptr, 2 if w[f] > 0 else 3, f)] -= inflow[k]
-    if tvd:  # row `up` gets outflow * (phi_up - phi_far)
-        for k in range(m):
-            f = first + k
-            if row_start <= faces[0 if w[f] > 0 else 1, f] < row_stop:
-                out[position(faces, offsets, indptr, 0 if w[f] > 0 else 1, f)] += outflow[k]
-        for k in range(m):
-            f = first + k
-            if row_start <= faces[0 if w[f] > 0 else 1, f] < row_stop:
-                out[position(faces, offsets, indptr, 4 if w[f] > 0 else 5, f)] -= outflow[k]
+        if row_start <= faces[row if w[f] > 0 else 1 - row, f] < row_stop:
+            if sign > 0:
+                out[position(faces, offsets, indptr, forward if w[f] > 0 else backward, f)] += values[k]
+            else:
+                out[position(faces, offsets, indptr, forward if w[f] > 0 else backward, f)] -= values[k]
 
 
 ROWS = np.array([0, 1, 1, 0, 0, 1])  # the row (lower 0, upper 1) of each of a face's six entries (`advection_into`)
