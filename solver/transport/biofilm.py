@@ -213,7 +213,7 @@ class Biofilm:
     def assemble(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray],
                  dt: float) -> tuple[np.ndarray, np.ndarray, float]:
         """The step's matrix (into `self.matrix`: diffusion + advection + 1/dt on the diagonal), its right-hand
-        side phi/dt + k_alpha alpha, its diagonal and the maximum principle's upper bound max(phi + dt k_alpha
+        side max(phi/dt + k_alpha alpha, 0), its diagonal and the maximum principle's upper bound max(phi + dt k_alpha
         alpha): block of rows by block of rows on the team, each entry summed as when made at once."""
         matrix, rows, faces = self.matrix, self.rows, self.face_ranges
         data, indptr, h = matrix.data, matrix.indptr, self.fv.grid.spacing

@@ -292,12 +292,14 @@ def biofilm_rows(data: np.ndarray, indptr: np.ndarray, diagonal: np.ndarray, nei
 @jit
 def biofilm_sources(rhs: np.ndarray, phi: np.ndarray, alpha: np.ndarray, k_alpha: float, dt: float, start: int,
                     stop: int) -> float:
-    """rhs = phi / dt + k_alpha alpha for cells start .. stop - 1; returns the largest phi + dt k_alpha alpha among
-    them (NaN if one is), at least 0: the maximum principle's bound of the step."""
+    """rhs = max(phi / dt + k_alpha alpha, 0) for cells start .. stop - 1 (a sink, alpha < 0 in Table 1's expansion,
+    takes at most what is there; NaN kept, as by np.maximum); returns the largest phi + dt k_alpha alpha among them
+    (NaN if one is), at least 0: the maximum principle's bound of the step."""
     largest = 0.0
     for i in range(start, stop):
         source = k_alpha * alpha[i]
-        rhs[i] = phi[i] / dt + source
+        value = phi[i] / dt + source
+        rhs[i] = value if value >= 0.0 or value != value else 0.0
         bound = phi[i] + dt * source
         if largest == largest and (bound > largest or bound != bound):  # a NaN is kept, as by np.max
             largest = bound
