@@ -37,6 +37,10 @@ SCENES = {  # name: (bundled scene, overrides)
     "agar2d-thin": ("agar2d-thin", MECHANICS_OFF),
     "directional2d": ("directional2d", MECHANICS_OFF),
     "grate": ("grate", MECHANICS_OFF),
+    # the paper's other laws (docs/model.md) and its dead ends
+    "agar2d-table1": ("agar2d", MECHANICS_OFF + ['model.expansion="table1"']),
+    "agar2d-transient": ("agar2d", MECHANICS_OFF + ['model.nutrient="transient"']),
+    "dead-end": ("dead-end", []),
     # the mechanics where it meets clamps, obstacles and plane strain (run with it on, as bundled)
     "agar-g1e8-mechanics": ("agar-g1e8", []),
     "obstacles-mechanics": ("obstacles", []),

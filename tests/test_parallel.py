@@ -266,7 +266,8 @@ class Reversed(Team):
 @pytest.mark.parametrize("advection", ["upwind", "tvd"])
 def test_the_biofilm_step_made_in_blocks_is_the_numpy_form(small_blocks, advection):
     """Matrix, right-hand side and bound of a phi step, made block by block in reverse order: whole-array numpy's
-    (the advection data of tests/test_kernels.py's numpy form, diffusion added, 1/dt on the diagonal)."""
+    (the advection data of tests/test_kernels.py's numpy form, diffusion added, 1/dt on the diagonal; a sink takes
+    at most what is there)."""
     from test_kernels import numpy_advection, transport_on
 
     transport = transport_on((9, 8, 7), advection)
@@ -274,7 +275,9 @@ def test_the_biofilm_step_made_in_blocks_is_the_numpy_form(small_blocks, advecti
     assert blocked.rows.size == 4
     rng = np.random.default_rng(11)
     w = [rng.normal(scale=30, size=f.lower.size) for f in transport.fv.faces]
-    phi, alpha = np.round(rng.random(transport.fv.n), 1), rng.random(transport.fv.n)
+    k_alpha = transport.problem.params.k_alpha
+    phi = np.round(rng.random(transport.fv.n), 1)
+    alpha = (rng.random(transport.fv.n) - 0.5) * 400.0 / k_alpha  # sinks too (Table 1's expansion), some > phi/dt
     rhs, diagonal, upper = blocked.assemble(phi, alpha, w, 0.01)
     laplacian, zero = transport.fv.laplacian, blocked.matrix.copy()
     zero.data[:] = 0.0
@@ -283,10 +286,12 @@ def test_the_biofilm_step_made_in_blocks_is_the_numpy_form(small_blocks, advecti
     assert np.array_equal(diffusion.indices, blocked.matrix.indices)  # -beta lap on the matrix's pattern
     data = diffusion.data + numpy_advection(blocked, w, phi)
     data[blocked.diagonal] += 1.0 / 0.01
-    source = transport.problem.params.k_alpha * alpha
+    source = k_alpha * alpha
     assert np.array_equal(blocked.matrix.data, data)
     assert np.array_equal(diagonal, data[blocked.diagonal])
-    assert np.array_equal(rhs, phi / 0.01 + source) and upper == np.max(phi + 0.01 * source, initial=0.0)
+    assert np.any(phi / 0.01 + source < 0.0) and np.any(phi / 0.01 + source > 0.0)
+    assert np.array_equal(rhs, np.maximum(phi / 0.01 + source, 0.0)) and upper == np.max(phi + 0.01 * source,
+                                                                                          initial=0.0)
 
 
 def test_a_team_runs_independent_parts_in_turn_while_that_has_been_faster():
