@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from pyamg.amg_core import gauss_seidel
 
 from biostudy.execution.identity import fingerprint
-from solver import Grid, Numerics, Problem
+from solver import Grid, Laws, Numerics, Problem
 from solver.mechanics.stencil import Stencil, offsets
 from solver.parallel import Team, rows
 from solver.parallel.rows import add_product, product, residual
@@ -181,7 +181,7 @@ def test_krylov_loops_are_the_numpy_forms(small_blocks, size):
     assert iterations == expected_iterations and np.array_equal(x, expected)
 
 
-def colony(shape, **numerics):
+def colony(shape, laws=Laws(), k_alpha=5.0, **numerics):
     """A colony growing toward a held corner past an obstacle, on a held face: every part of a transport step."""
     grid = Grid(shape, 20.0 / shape[0])
     centres = grid.cell_coordinates()
@@ -189,19 +189,25 @@ def colony(shape, **numerics):
     held = np.logical_and.reduce([x > 17.0 for x in centres])
     obstacle = (np.abs(centres[0] - 4.0) < 1.5) & (centres[1] > 12.0)
     return Problem(grid=grid, phi0=phi0, nutrient_held=held, obstacle=obstacle, nutrient_faces=(("x-", 0.5),),
-                   t_end=0.02, steps=20, output_times=[0.0, 0.01, 0.02], params=Parameters(k_alpha=5.0),
-                   numerics=Numerics(**numerics))
+                   t_end=0.02, steps=20, output_times=[0.0, 0.01, 0.02], params=Parameters(k_alpha=k_alpha),
+                   numerics=Numerics(**numerics), laws=laws)
 
 
-@pytest.mark.parametrize("shape, numerics", [
-    ((12, 12, 12), {"advection": "tvd", "growth_velocity": "front"}),
-    ((24, 20), {"advection": "upwind", "growth_velocity": "pointwise"}),
+TABLE1_TRANSIENT = Laws(expansion="table1", nutrient="transient")  # the paper's algorithm: alpha < 0 too
+TABLE1_K_ALPHA = 0.5  # Table 1's expansion has a solution while k_alpha (phi' - phi) < 1
+
+
+@pytest.mark.parametrize("shape, numerics, laws", [
+    ((12, 12, 12), {"advection": "tvd", "growth_velocity": "front"}, Laws()),
+    ((24, 20), {"advection": "upwind", "growth_velocity": "pointwise"}, Laws()),
+    ((24, 20), {"advection": "tvd", "growth_velocity": "pointwise"}, TABLE1_TRANSIENT),
 ])
-def test_runs_on_one_two_and_three_threads_are_identical(small_blocks, shape, numerics):
+def test_runs_on_one_two_and_three_threads_are_identical(small_blocks, shape, numerics, laws):
     """phi, c and alpha at every output, and the solvers' iteration counts, equal for 1, 2 and 3 threads."""
     runs = []
     for threads in (1, 2, 3):
-        problem = colony(shape, threads=threads, **numerics)
+        problem = colony(shape, laws, TABLE1_K_ALPHA if laws.expansion == "table1" else 5.0, threads=threads,
+                         **numerics)
         simulation = Simulation(problem)
         assert simulation.team.size == threads
         runs.append(([(s.phi, s.c, s.alpha) for s in simulation], simulation.report()))
@@ -211,6 +217,25 @@ def test_runs_on_one_two_and_three_threads_are_identical(small_blocks, shape, nu
         for a, b in zip(first, fields):
             assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
         assert all(other[k] == report[k] for k in ("nutrient_cg_iterations", "biofilm_iterations"))
+
+
+@pytest.mark.parametrize("laws", [Laws(), TABLE1_TRANSIENT])
+def test_the_first_hierarchy_built_ahead_changes_nothing(monkeypatch, laws):
+    """`Nutrient.prepare` builds the first solve's hierarchy early (less memory held then): the run is the one
+    whose first solve builds it, bit for bit (a transient nutrient's first solve has the mass on its diagonal:
+    it is not prepared)."""
+    from solver.transport.nutrient import Nutrient
+
+    def run():
+        simulation = Simulation(colony((24, 20), laws, TABLE1_K_ALPHA, advection="tvd"))
+        return [(s.phi, s.c, s.alpha) for s in simulation], simulation.report()["nutrient_cg_iterations"]
+
+    prepared, iterations = run()
+    monkeypatch.setattr(Nutrient, "prepare", lambda self, phi: None)
+    built, iterations_built = run()
+    assert iterations == iterations_built
+    for a, b in zip(prepared, built):
+        assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b))
 
 
 def test_the_thread_count_is_no_part_of_a_cases_identity():
