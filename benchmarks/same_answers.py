@@ -6,8 +6,10 @@
 
 Each scene is run by `biostudy run` in a fresh process, once with this version and once with the
 baseline's `solver`/`biostudy` first on the path (mechanics off except where the list says, the maze
-shortened to T* = 2: the scenes of docs/transport.md, "The same answers"; then three scenes again with the
-mechanics on, as bundled, for its clamps, obstacles and plane strain).  The two datasets are then
+shortened to T* = 2: the scenes of docs/transport.md, "The same answers"; agar2d with the paper's other laws,
+Table 1's expansion and the transient nutrient, and the dead ends (a baseline without them fails there: leave
+them out with --scenes); then three scenes again with the mechanics on, as bundled, for its clamps, obstacles
+and plane strain).  The two datasets are then
 compared at every output: the largest |difference| of phi, c and alpha over cells and outputs (and of
 every other field, the mechanics' where they were computed), and of every observable (a variable over time alone).
 Printed as a markdown table with the CG iterations of both runs.  Asserts nothing: the sizes of the
