@@ -38,6 +38,15 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
 
 
+def test_run_on_threads_records_them_and_refuses_none(tiny_scene, tmp_path):
+    """--threads sets the run's threads (recorded beside its cost), instead of the scene's; 0 is bad input."""
+    result = invoke("run", tiny_scene, "-o", tmp_path / "two.nc", "--threads", "2", "--set", "numerics.threads=5")
+    assert result.exit_code == 0, result.output
+    assert xr.open_dataset(tmp_path / "two.nc").attrs["threads"] == 2
+    refused = invoke("run", tiny_scene, "-o", tmp_path / "none.nc", "--threads", "0")
+    assert refused.exit_code == 2 and "--threads" in refused.stderr and not (tmp_path / "none.nc").exists()
+
+
 def test_run_defaults_to_the_scene_name_in_the_working_directory(tiny_scene, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     result = invoke("run", "tiny.toml", "-q")
