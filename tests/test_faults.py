@@ -478,9 +478,11 @@ def test_a_file_a_command_cannot_use_is_one_line_and_leaves_nothing(results, tmp
     assert sorted(os.listdir(tmp_path)) == before
 
 
-def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, monkeypatch):
+@pytest.mark.parametrize("format", ["vti", "vtu"])
+def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, monkeypatch, format):
     import meshio
 
+    import biostudy.data.vtk_image as vtk_image
     import biostudy.plots.fields as fields
 
     def broken(*args, **kwargs):
@@ -490,7 +492,8 @@ def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, mo
     line = one_line_error(invoke("plot", results["run"], "-o", tmp_path / "fig.png"))
     assert "broken on purpose" in line and not list(tmp_path.glob("fig*"))
     calls = []
-    write = meshio.write
+    module, name = (vtk_image, "write_vti") if format == "vti" else (meshio, "write")
+    write = getattr(module, name)
 
     def second_fails(path, *args, **kwargs):
         calls.append(path)
@@ -498,10 +501,10 @@ def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, mo
             raise ValueError("disk trouble on purpose")
         return write(path, *args, **kwargs)
 
-    monkeypatch.setattr(meshio, "write", second_fails)
-    assert "disk trouble" in one_line_error(invoke("export", results["run"], tmp_path / "vtk"))
-    assert not (tmp_path / "vtk").exists()
-    assert not [p for p in tmp_path.rglob("*") if p.suffix in (".tmp", ".png", ".vtu", ".pvd")]
+    monkeypatch.setattr(module, name, second_fails)
+    assert "disk trouble" in one_line_error(invoke("export", results["run"], tmp_path / "vtk", "--format", format))
+    assert len(calls) == 2 and not (tmp_path / "vtk").exists()
+    assert not [p for p in tmp_path.rglob("*") if p.suffix in (".tmp", ".png", ".vti", ".vtu", ".pvd")]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -174,8 +174,8 @@ ESTIMATE = '[estimate]\nr = [20.0, 250.0]\n[method]\nstarts = 1\n'
 
 
 def test_a_named_sigma_is_grouped_by_its_name(tmp_path):
-    from biostudy.plans.calibration import load_calibration
-    from biostudy.plans.calibration_noise import divisors
+    from biostudy.calibration.noise import divisors
+    from biostudy.calibration.problem import load_calibration
 
     plan = load_calibration(calibration(tmp_path, GROUPED, ESTIMATE))
     (noise,) = plan.noise
@@ -210,9 +210,10 @@ def test_noise_parameters_that_cannot_be_estimated_are_one_line_before_anything_
 def fitted_with_noise(path, model):
     """calibration.nc's dataset and table of a fit whose simulations are `model(values)` (one value per row), the
     residuals divided as the evaluator divides them."""
-    from biostudy.plans.calibration import load_calibration
-    from biostudy.plans.calibration_noise import divisors, likelihood
-    from biostudy.reports.calibration import dataset, table_text
+    from biostudy.calibration.methods import chosen
+    from biostudy.calibration.noise import divisors, likelihood
+    from biostudy.calibration.problem import load_calibration
+    from biostudy.calibration.report import dataset, table_text
 
     plan = load_calibration(path)
     data = np.array([m.value for m in plan.measurements])
@@ -221,7 +222,7 @@ def fitted_with_noise(path, model):
     def evaluate(points):
         return [(model(plan.values(p)) - data) / divisor for p in points]
 
-    result = plan.spec.method.method()(Objective(evaluate, len(data), np.full(len(data), 1e-9),
+    result = chosen(plan.spec.method)(Objective(evaluate, len(data), np.full(len(data), 1e-9),
                                                  tuple(p.name for p in plan.parameters),
                                                  likelihood=likelihood(plan.noise)))
     ds = dataset(plan, result, model(plan.values(result.estimate.best.x)), COST, {}, {})
@@ -283,9 +284,9 @@ def test_a_named_sigma_the_model_fits_exactly_is_said_in_words_not_a_crash(tmp_p
 
 
 def test_an_exact_fit_that_moves_with_the_parameters_is_said_to_draw_the_fit():
+    from biostudy.calibration.noise import NoiseParameter
+    from biostudy.calibration.report_noise import _exact
     from biostudy.fitting.likelihood import Sigma
-    from biostudy.plans.calibration_noise import NoiseParameter
-    from biostudy.reports.noise import _exact
 
     plan = SimpleNamespace(noise=[NoiseParameter("s", (0, 1), "um", 1.0)])
     for column, said in ((0.0, "they do not move with the parameters"), (0.5, "the fit is drawn to where the model "

@@ -297,3 +297,25 @@ def test_the_papers_directional_scene_fits_this_machine_at_128_cubed_with_mechan
     mechanics 200³ is within 22 GB too (both were measured to run: docs/mechanics.md, docs/transport.md)."""
     assert resources.estimate(directional(128), streamed=True).memory <= 22e9
     assert resources.estimate(directional(200, mechanics=False), streamed=True).memory <= 22e9
+
+
+def test_a_scene_is_valid_whatever_memory_is_free_and_a_run_is_refused_before_it_computes(tiny_scene, tmp_path,
+                                                                                       monkeypatch):
+    """What the machine holds is no rule of the scene (issue 38.3): with 1 kB available the tiny scene validates
+    and compiles; with 100 MB (enough to validate it, not to run it) `run` refuses it in one line from the command
+    line and from Python alike, and nothing is written."""
+    import biostudy
+    from biostudy.inputs.scene import load_scene
+
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "1 kB")
+    assert load_scene(tiny_scene).problem().phi0.shape == (16, 16)
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "100 MB")
+    refused = CliRunner().invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "t.nc"), "-q"])
+    line = f"error: {tiny_scene}: grid.shape: needs ~320 MB of memory (tiny: transport"
+    assert refused.exit_code == 2 and refused.stderr.startswith(line) and refused.stderr.count("\n") == 1, \
+        refused.stderr
+    assert refused.stderr.endswith("100 MB available (BIOSTUDY_MEMORY=100 MB)\n"), refused.stderr
+    with pytest.raises(BadInput) as caught:
+        biostudy.run(tiny_scene, output=tmp_path / "t.nc")
+    assert f"error: {caught.value}\n" == refused.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["tiny.toml"]

@@ -38,7 +38,7 @@ from scipy.optimize import brentq
 PENALTY = 1e3  # each residual of a failed simulation
 THRESHOLD = 3.841458820694124  # chi²(1) at 95 %
 TINY = 1e-200  # SS_g / n_g (in units of the scale) is floored here: a model through every point of a group
-# makes σ̂ = 0 and log L unbounded (`Likelihood.exact`; said in words, `reports.noise`)
+# makes σ̂ = 0 and log L unbounded (`Likelihood.exact`; said in words, `calibration.report_noise`)
 ITERATIONS = 100  # of the linearised re-optimisation in a σ profile (it converges monotonically: a majorisation)
 NORMAL = sys.float_info.min  # below, a variance has lost digits or underflowed to 0
 EXPANSIONS = 11  # brackets of a σ interval's end: log σ̂ ± 0.5, 1, 2, ..., 512

@@ -61,7 +61,7 @@ from pathlib import Path
 
 from solver.mechanics import Settings, linear_solver_for
 
-from ..errors import BadInput
+from ..errors import BadInput, InvalidAt
 from . import memory
 
 PROCESS = 0.32e9  # bytes: a process that runs and writes a scene (biostudy, FiPy, xarray, dask, netCDF4 imported):
@@ -258,6 +258,31 @@ def validation_problem(scene) -> str:
     found = estimate(scene)
     problem = too_big(found.validation, f"{found.cells:,} cells: validating alone needs")
     return f"{problem}; running would need {size(found.memory)} ({found.parts()})" if problem else ""
+
+
+@dataclass(frozen=True)
+class Preflight:
+    """A command's check that a scene fits this machine, never a rule of the scene's schema: made while the scene
+    is validated (`scene.scene_from_data`), once its keys are valid and before any array of the grid's size
+    exists.  Validating it (its masks and initial fields) must fit in memory here; a scene that `runs` here must
+    fit as a whole run (its `estimate`; `streamed`: a run that writes its file as it goes).  `InvalidAt` at the
+    key to change."""
+
+    runs: bool = False
+    streamed: bool = False
+
+    def __call__(self, scene) -> None:
+        too_big = validation_problem(scene)
+        if too_big:
+            raise InvalidAt("grid.shape", too_big)
+        if not self.runs:
+            return
+        found = estimate(scene, streamed=self.streamed)
+        too_big = run_problem({scene.name: found}, 1)
+        if too_big:
+            outputs = "time.output_times" if scene.time.output_times is not None else "time.outputs"
+            raise InvalidAt("grid.shape" if found.transport + found.mechanics >= found.snapshots else outputs,
+                            too_big)
 
 
 def run_problem(estimates: dict[str, Estimate], at_once: int, target: str | Path | None = None,

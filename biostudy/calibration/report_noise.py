@@ -1,5 +1,5 @@
-"""Estimated σs in calibration.nc and its table (`reports.calibration`): the noise parameters a measurement table
-names (`plans.calibration_noise`), their maximum-likelihood values and 95 % profile intervals
+"""Estimated σs in calibration.nc and its table (`report`): the noise parameters a measurement table
+names (`noise`), their maximum-likelihood values and 95 % profile intervals
 (`fitting.likelihood`).
 
 calibration.nc gains the dimension `noise_parameter` (its names; `noise_units`, udunits of its measurements) with
@@ -17,11 +17,11 @@ import numpy as np
 
 from ..fitting.likelihood import coverage
 from ..formatting import number, units_text
-from .parameter_units import MIXED
+from .units import MIXED
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
-    from ..plans.calibration import CalibrationPlan
+    from .problem import CalibrationPlan
 
 SHORT = 0.93  # intervals holding the truth less often than this (with a linear model) are said to be short
 LOG_LIKELIHOOD = "-2 log L"  # calibration.nc's `objective` with an estimated σ (without: absent, chi2 is chi²)
