@@ -239,6 +239,28 @@ def test_interrupts_at_random_moments_end_a_calibration_and_keep_every_finished_
         assert "Exception ignored" not in stderr and finished <= recorded, (trial, stderr, finished - recorded)
 
 
+# ---- 10. calibrate --workers under a memory limit ------------------------------------------------------------------
+
+def test_calibrate_on_more_workers_than_fit_is_refused_before_anything_runs(tmp_path, monkeypatch):
+    """Issue 39.10: `calibrate --workers 4` under a memory limit ran two simulations (its first round), then
+    refused ('4 runs at once need ~1.28 GB'), leaving a directory it owned and two cases; as `sweep`, it is
+    refused before anything runs or is claimed."""
+    from test_calibration_hostile import calibration, table
+
+    from biostudy.execution import backends, pool
+
+    path = calibration(tmp_path, table(("biomass", "", 0.05, 2.0, 0.1), ("biomass", "", 0.1, 2.2, 0.1)),
+                       '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n')
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "700 MB")  # one simulation (~320 MB) fits, two do, four do not
+    monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
+    monkeypatch.setattr(backends, "solve", _refuse)
+    monkeypatch.setattr(pool.LocalPool, "__init__", _refuse)
+    line = one_line(invoke("calibrate", path, "-o", tmp_path / "out", "--workers", "4", "-q"), 2)
+    assert "4 simulations at once (--workers 4) need ~" in line and "700 MB available (BIOSTUDY_MEMORY=700 MB); " \
+        "use fewer workers" in line
+    assert not (tmp_path / "out").exists()
+
+
 def _scene(path: Path):
     from biostudy.inputs.scene import load_scene
 
