@@ -15,18 +15,25 @@ script wrote: `docs/gallery/runs.md` and `docs/gallery/findings.md`
 section-4 statements measured on them with their verdicts, `scripts/findings.py`),
 `docs/measured/agar-tension.txt` (`benchmarks/agar_tension.py`: where the colony
 on agar is in tension), `docs/measured/model-laws.txt` (`benchmarks/model_laws.py`:
-the bundled scenes under each form of the model's laws) and
-`docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine).
+the bundled scenes under each form of the model's laws),
+`docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine),
+and docs/accuracy.md's convergence summaries and benchmark tables
+(`scripts/accuracy_tables.py`: each with the command that made it, which must be
+the one that script lists).
 """
 from __future__ import annotations
 
+import functools
 import re
 import sys
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from accuracy_tables import MEASURED, MEASURED_OUT, OUT, TABLES  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-PAGES = (README, *(ROOT / "docs" / f"{page}.md" for page in ("gallery", "paper", "model")))  # pages with blocks
+PAGES = (README, *(ROOT / "docs" / f"{page}.md" for page in ("gallery", "paper", "model", "accuracy")))  # with blocks
 RUNS = ROOT / "docs" / "gallery" / "runs.md"
 FINDINGS = ROOT / "docs" / "gallery" / "findings.md"
 TENSION = ROOT / "docs" / "measured" / "agar-tension.txt"
@@ -72,8 +79,22 @@ def suite_time() -> str:
             f"{facts['load average']}: `docs/measured/suite.md`; `-m \"not slow\"` leaves out the longest checks):\n")
 
 
+def made_by(path: Path, command: str) -> str:
+    """A table written with its command on the first line, as the command (a sh block) and the table; a table
+    made by another command than the listed one is stale."""
+    first, _, rest = path.read_text(encoding="utf-8").partition("\n")
+    if first != f"command: {command}":
+        raise SystemExit(f"{path.relative_to(ROOT)} was made by another command than `{command}`: run python "
+                         f"scripts/accuracy_tables.py {path.name.split('.')[0]}")
+    return f"```sh\n{command}\n```\n\n{rest.lstrip()}"
+
+
 BLOCKS = {"gallery-runs": gallery_runs, "paper-findings": paper_findings, "agar-tension": lambda: table_lines(TENSION),
-          "model-laws": lambda: table_lines(LAWS), "setup-time": setup_time, "suite-time": suite_time}
+          "model-laws": lambda: table_lines(LAWS), "setup-time": setup_time, "suite-time": suite_time,
+          **{f"accuracy-{name}": functools.partial(made_by, OUT / f"{name}.summary.md", command)
+             for name, (command, _) in TABLES.items()},
+          **{f"measured-{name}": functools.partial(made_by, MEASURED_OUT / f"{name}.txt", command)
+             for name, command in MEASURED.items()}}
 
 
 def synced(text: str) -> tuple[str, list[str]]:

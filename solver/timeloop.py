@@ -178,10 +178,12 @@ class Simulation:
     def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
         self.started = time.perf_counter()
         self.problem = problem
+        setup = time.thread_time()
         with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
             self.transport = Transport(problem)
         self.clock = Clock(self.transport, progress)
         self.mechanics = _mechanics(problem)
+        self.setup_cpu = time.thread_time() - setup  # the operators built for this grid: part of what a run costs
         self.mechanics_cpu = CpuTime()
         if self.mechanics is not None and problem.u0 is not None:
             alpha = np.zeros(problem.grid.cells_shape) if problem.alpha0 is None else problem.alpha0
@@ -189,8 +191,10 @@ class Simulation:
 
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
+        setup = time.thread_time()
         with threadpool_limits(limits=1, user_api="blas"):  # the first hierarchy's coarse pseudo-inverse too
             state = transport.initial()
+        self.setup_cpu += time.thread_time() - setup
         last = len(problem.output_times) - 1
         # a continuation's outputs up to its start belong to the run it continues (indices stay the scene's:
         # the mechanics is solved at the same outputs as in a run straight to t_end)
@@ -235,7 +239,7 @@ class Simulation:
         """What the run cost: wall time, counters, where the time went."""
         steps, solves = self.clock.cpu, self.mechanics_cpu
         cpu = {"cpu_time_loop": steps.rest + solves.rest,
-               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0)}
+               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0), "cpu_time_setup": self.setup_cpu}
         return {"wall_time": time.perf_counter() - self.started, "timings": dict(self.transport.timings),
                 **declared({**self.clock.counters(), **self.transport.counters(), **cpu})}
 

@@ -14,7 +14,8 @@ from biostudy.commands import run as command
 from biostudy.data import reading, writing
 from biostudy.quantities import observables
 
-VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds", "cpu_time_loop", "cpu_time_first"}  # timings
+VOLATILE_ATTRS = {"created", "history", "wall_time", "mechanics_seconds", "cpu_time_loop", "cpu_time_first",
+                  "cpu_time_setup"}  # timings
 
 
 @pytest.fixture(autouse=True)

@@ -21,9 +21,11 @@ from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, overrides_text, read_scene_data, scene_from_data
-from ..plans.refinement import check_refinable, plan, refined
+from ..plans.refinement import check_refinable, plan, refined, with_reference
 from ..plots.accuracy import work_precision
-from ..reports.convergence import load_reference, measure, table_text
+from ..reports.convergence import measure
+from ..reports.convergence_levels import Level, given_reference
+from ..reports.convergence_table import table_text
 from .finished import Finished
 
 REPORTS = ("convergence.md", "work_precision.png")
@@ -42,7 +44,7 @@ class Convergence:
     common: dict  # the overrides (level 0 and every level)
     directory: Path
     reference: Path | None = None  # a run every level is measured against
-    given: dict | None = None  # its final state (`reports.convergence.final_state`)
+    given: Level | None = None  # its quantities at the scene's output times
     time: float | None = None
     noun: str = "runs"
 
@@ -67,16 +69,17 @@ class Convergence:
         """Run every level (skipping finished ones), measure, write DIR/convergence.nc; DIR belongs to this
         scene's convergence runs (`targets.owned`; `execution.force` takes over another's)."""
         given = self.given
-        wanted = plan(self.base, self.levels, self.series, self.tolerance)
+        wanted = plan(self.base, self.levels, self.series, self.tolerance, reference=given is None)
         scenes = {level.job_id: refined(self.data, self.path, level) for level in wanted}
         text = overrides_text(self.common)
         jobs = [Job(job_id, scene, self.path, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
         owner = Owner("convergence", self.path.stem, str(self.path.resolve()))
         with owned(self.directory, owner, "convergence.nc", execution.force, reports=REPORTS):
             report = run_jobs(jobs, self.directory, execution)
-            ds = measure(wanted, self.directory, self.levels, self.series, self.base, given, self.time)
+            series = self.series if given is not None else with_reference(self.series)
+            ds = measure(wanted, self.directory, self.levels, series, self.base, given, self.time, scenes)
             if self.reference is not None and given is not None:
-                ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()} (T* = {given['time']:g})"
+                ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()}"
             ds.attrs = provenance.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
                                               "scene_file": str(self.path.resolve()), "overrides": text})
             writing.write_atomic(ds, self.directory / "convergence.nc")
@@ -95,6 +98,6 @@ def load(scene: str | Path, *, levels: int, series: tuple[str, ...], tolerance: 
     base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"), Preflight(runs=runs_here))
     check_refinable(base, path)
     directory = Path(directory) if directory is not None else Path(f"{path.stem}-convergence")
-    given = None if reference is None else load_reference(reference, base, time)
+    given = None if reference is None else given_reference(reference, base)
     return Convergence(path, data, base, levels, tuple(series), tolerance, common, directory, reference, given,
                        time)

@@ -156,16 +156,18 @@ class Use:
     per_voxel: int  # bytes a voxel of one frame takes beyond the values, while it is worked on
     frames: bool = False  # a leading time axis (T) is allowed: values [t, [z,] y, x]
     taker: str = "a region"  # what takes the image, in messages: "a region takes a greyscale or segmented one"
+    slabs: bool = False  # worked on `SLAB_VOXELS` at a time: `per_voxel` paid for a slab, not for the stack
 
 
-AVERAGING = Use("averaging", AVERAGING_BYTES)
+AVERAGING = Use("averaging", AVERAGING_BYTES, slabs=True)
 
 
 def _fits(shape: tuple[int, ...], itemsize: int, path: str, use: Use = AVERAGING) -> None:
     frame = shape[1:] if use.frames else shape
     try:
-        worked = averaging_bytes(frame, itemsize)[1] if use is AVERAGING else math.prod(frame) * use.per_voxel
-        problem = too_big(math.prod(shape) * itemsize + worked, f"reading and {use.doing} it needs")
+        need = (sum(averaging_bytes(shape, itemsize)) if use.slabs
+                else math.prod(shape) * itemsize + math.prod(frame) * use.per_voxel)
+        problem = too_big(need, f"reading and {use.doing} it needs")
     except BadInput as error:  # BIOSTUDY_MEMORY is not a size
         raise InvalidAt("path", str(error)) from None
     if problem:

@@ -6,8 +6,9 @@ Four refinement series from the scene as given (level 0):
   both      grid and step refined together;
   adaptive  error-controlled steps (step doubling) with the tolerance divided
             by 4 per level (local error ~ dt^2: halves the step), the grid kept.
-The adaptive series is measured against the finest fixed-step level of `time`
-on the same grid, which the plan adds when `time` is not asked for.
+Every series is measured against one reference, the Richardson extrapolation
+of the two finest levels of `both` (`reports.convergence`), which the plan adds
+when `both` is not asked for.
 """
 from __future__ import annotations
 
@@ -42,8 +43,8 @@ class Refinement:
 
 
 def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES,
-         tolerance: float = FIRST_TOLERANCE) -> list[Refinement]:
-    """The levels of every requested series (plus the fixed-step reference the adaptive series needs)."""
+         tolerance: float = FIRST_TOLERANCE, reference: bool = True) -> list[Refinement]:
+    """The levels of every requested series (plus those of `both`, the `reference`, when not asked for)."""
     steps = base.time.steps
     out = []
     for name in series:
@@ -56,9 +57,15 @@ def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES,
                 out.append(Refinement(name, i, 2**i, steps * 2**i, None))
             else:
                 out.append(Refinement(name, i, 1, steps, tolerance / 4**i))
-    if "adaptive" in series and "time" not in series:
-        out.append(Refinement("time", levels - 1, 1, steps * 2 ** (levels - 1), None))
+    if reference and "both" not in series:
+        out += [Refinement("both", i, 2**i, steps * 2**i, None) for i in range(levels)]
     return out
+
+
+def with_reference(series: tuple[str, ...]) -> tuple[str, ...]:
+    """The series a convergence study reports: those asked for, and `both`, whose finest levels are the
+    reference of all."""
+    return series if "both" in series else (*series, "both")
 
 
 def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:

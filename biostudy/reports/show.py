@@ -1,7 +1,10 @@
 """`biostudy show`: a readable summary of a run's dataset, a failed case's record or a study.nc.
 
 Everything shown comes from the file itself (attributes and time series),
-so a result can be understood without the scene file that produced it.
+so a result can be understood without the scene file that produced it.  A run
+made with ``--error-estimate`` shows each observable as Q ± Q_error (its
+estimated discretisation error; "± ?" where the estimate could not be made,
+the row "error bars" says why).
 """
 from __future__ import annotations
 
@@ -92,8 +95,19 @@ def run_series(ds: xr.Dataset) -> tuple[dict, np.ndarray | None, list[tuple[str,
         return ds.attrs, None, []
     from ..quantities import observables  # lazily: a file that holds its observables needs none of this
 
-    series = [(name, values.values, values.attrs) for name, values in observables.variables(ds).items()]
+    series = [(name, values.values, with_error(values.attrs, ds, name))
+              for name, values in observables.variables(ds).items()]
     return ds.attrs, ds.time.values, series
+
+
+ERROR = "error"  # the key of an observable's shown attributes that holds its Q_error values, when the run has them
+
+
+def with_error(attrs: dict, ds: xr.Dataset, name: str) -> dict:
+    """An observable's attributes for `summary_of`, with its error bars' values (`ERROR`) when the run has them."""
+    if f"{name}_error" not in ds:
+        return dict(attrs)
+    return {**attrs, ERROR: np.asarray(ds[f"{name}_error"].values, dtype=float).reshape(-1)}
 
 
 def run_summary(ds: xr.Dataset) -> Group:
@@ -102,8 +116,12 @@ def run_summary(ds: xr.Dataset) -> Group:
 
 
 def _value(values: np.ndarray, index: int, attrs: dict) -> str:
-    """One value of an observable; a height at the top of the box marked saturated (a lower bound)."""
+    """One value of an observable, ± its estimated error where the run has error bars; a height at the top of the
+    box marked saturated (a lower bound)."""
     text = number(values[index])
+    if ERROR in attrs:
+        error = attrs[ERROR][index]
+        text += f" ± {number(error)}" if np.isfinite(error) else (" ± ?" if np.isfinite(values[index]) else "")
     return text + " (top: saturated)" if saturated(values[index], attrs.get(SATURATION)) else text
 
 
@@ -121,6 +139,10 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
         ("created", str(attrs.get("created", ""))),
         ("software", _software(attrs)),
     ]
+    if "error_estimate" in attrs:
+        cost = attrs.get("error_estimate_wall_time")
+        rows.append(("error bars", str(attrs["error_estimate"]) + (f" (companions: wall time {number(cost)} s)"
+                                                                   if cost is not None else "")))
     parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
     if times is not None:
         table = Table(title=None, show_edge=False)
