@@ -261,6 +261,65 @@ def test_calibrate_on_more_workers_than_fit_is_refused_before_anything_runs(tmp_
     assert not (tmp_path / "out").exists()
 
 
+# ---- 11. checks and reports linear in the table ---------------------------------------------------------------------
+
+class _Passes(list):
+    """A measurement table that counts the passes made over it."""
+
+    passes = 0
+
+    def __iter__(self):
+        self.passes += 1
+        return super().__iter__()
+
+
+def test_named_sigmas_and_datasets_take_one_pass_over_the_table_whatever_their_number(monkeypatch):
+    """Issue 39.11: validation scanned the whole table per σ name (64,000 rows of 32,000 names: 97 s) and
+    calibration.md's and the fit picture's datasets scanned every measurement per dataset (16,000: 10.5 s); both
+    grouped in one pass now (benchmarks/table_scaling.py measures the time).  The picture draws a panel of more
+    datasets and replicates than anyone tells apart as one series (30 ms an error-bar series)."""
+    import numpy as np
+    import xarray as xr
+
+    from biostudy.calibration import noise, petab, pictures
+    from biostudy.calibration.measurements import Measurement
+    from biostudy.calibration.methods import METHODS
+
+    names = 300
+    rows = _Passes(Measurement(2 + i, "biomass", 0.1 * (i % 4), 2.0 + i, float("nan"), noise=f"s{i // 2}")
+                   for i in range(2 * names))
+    found = noise.noise_parameters(rows)
+    assert [p.rows for p in found[:2]] == [(0, 1), (2, 3)] and len(found) == names and rows.passes <= 2
+    rows.passes = 0
+    assert noise.noise_problems(rows, METHODS["least-squares"], [], Path("t.tsv"), Path("c.toml")) == []
+    assert rows.passes <= 3, rows.passes
+
+    n = 2 * names
+    text = lambda values: ("measurement", np.array(values, dtype=object))  # noqa: E731
+    ds = xr.Dataset({"dataset": text([f"d{i // 2}" for i in range(n)]), "replicate": text(["r"] * n),
+                     "observable": text(["biomass"] * n), "condition": text([""] * n),
+                     "residual": ("measurement", np.ones(n)), "time_measured": ("measurement", np.arange(n) / n),
+                     "measured": ("measurement", np.ones(n)), "sigma": ("measurement", np.ones(n))})
+    scans = []
+    monkeypatch.setattr(petab, "enumerate", lambda items: scans.append(1) or enumerate(items), raising=False)
+    lines = petab.datasets_text(ds)
+    assert len(lines) == 5 + names and lines[-1] == f"| d{names - 1} | biomass | - | r | 2 | 2 |" and len(scans) <= 1
+
+    class Axes:
+        def __init__(self):
+            self.series: list[str] = []
+
+        def errorbar(self, t, y, yerr, label, **style):
+            self.series.append(label)
+
+    ax = Axes()
+    assert pictures._measured(ax, ds, np.arange(n))
+    assert ax.series == [f"measured ± σ ({names} datasets, 1 replicate)"]
+    ax = Axes()
+    assert pictures._measured(ax, ds, np.arange(6))  # three datasets: told apart
+    assert ax.series == [f"measured ± σ, dataset d{k}, replicate r" for k in range(3)]
+
+
 def _scene(path: Path):
     from biostudy.inputs.scene import load_scene
 

@@ -1,0 +1,115 @@
+"""How a calibration's checks and reports grow with its measurement table (issue 39.11): both must be linear.
+
+* `--only sigma`: validating a calibration (`calibration.problem.load_calibration`, what `show` and
+  `calibrate` do before anything runs) whose table of n rows names n/2 σs (two rows each), beside the same table
+  with σ given as numbers.  0.4.0 scanned the whole table per name: 64,000 rows took 97 s against 2.8 s.
+* `--only datasets`: calibration.md's table of datasets (`calibration.petab.datasets_text`, written after every
+  simulation) for n measurements in n distinct datasetIds.  0.4.0 scanned every measurement per dataset: 16,000
+  took 10.5 s.
+
+One row per n: seconds, and seconds per 1,000 rows (flat when linear).  Before/after: run it on the tree before
+the change with that tree first on the path (`git archive lead | tar -x -C /tmp/old`, then
+`PYTHONPATH=/tmp/old .venv/bin/python benchmarks/table_scaling.py`).
+
+    .venv/bin/python benchmarks/table_scaling.py [--rows 2000,8000,32000] [--only sigma|datasets]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+import biostudy
+from biostudy.calibration.petab import datasets_text
+from biostudy.calibration.problem import load_calibration
+
+SCENE = """\
+name = "speck"
+[grid]
+shape = [8, 8]
+[time]
+t_end = 0.1
+steps = 10
+[[nutrient]]
+shape = "face"
+face = "y-"
+[[biofilm]]
+shape = "box"
+lower = [2.0, 0.0]
+upper = [6.0, 3.0]
+"""
+TIMES = (0.025, 0.05, 0.075, 0.1)  # h: few distinct times, so that a simulation's outputs do not grow with n
+
+
+def table(rows: int, named: bool) -> str:
+    """A measurement table of `rows` biomass rows; σ named (a name per two rows) or given."""
+    lines = ["observableId\tsimulationConditionId\ttime\tmeasurement\tnoiseParameters"]
+    lines += [f"biomass\t\t{TIMES[i % len(TIMES)]}\t{2.0 + 0.001 * i}\t{f'sigma_{i // 2}' if named else 0.1}"
+              for i in range(rows)]
+    return "\n".join(lines) + "\n"
+
+
+def validating(folder: Path, rows: int, named: bool) -> float:
+    (folder / "speck.toml").write_text(SCENE)
+    (folder / "t.tsv").write_text(table(rows, named))
+    path = folder / "c.toml"
+    path.write_text('scene = "speck.toml"\n[data]\nmeasurements = "t.tsv"\ntime_unit = "h"\nt_ref = "1 h"\n'
+                    '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n')
+    began = time.perf_counter()
+    plan = load_calibration(path)
+    assert len(plan.noise) == (rows // 2 if named else 0)
+    return time.perf_counter() - began
+
+
+def calibration_like(rows: int) -> xr.Dataset:
+    """calibration.nc's per-measurement variables that calibration.md's dataset table reads, one dataset each."""
+    text = lambda values: ("measurement", np.array(values, dtype=object))  # noqa: E731
+    return xr.Dataset({"dataset": text([f"d{i}" for i in range(rows)]),
+                       "replicate": text([f"r{i % 3}" for i in range(rows)]),
+                       "observable": text(["biomass"] * rows), "condition": text([""] * rows),
+                       "residual": ("measurement", np.linspace(-1.0, 1.0, rows))})
+
+
+def tabling(rows: int) -> float:
+    ds = calibration_like(rows)
+    began = time.perf_counter()
+    lines = datasets_text(ds)
+    assert len(lines) == rows + 5
+    return time.perf_counter() - began
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rows", default="2000,8000,32000", help="table sizes, comma-separated")
+    parser.add_argument("--only", choices=("sigma", "datasets"))
+    args = parser.parse_args()
+    sizes = [int(n) for n in args.rows.split(",")]
+    load = ", ".join(f"{v:.2f}" for v in os.getloadavg())
+    print(f"biostudy from {Path(biostudy.__file__).parent}; load average {load}")
+    print()
+    if args.only in (None, "sigma"):
+        with tempfile.TemporaryDirectory() as warm:
+            validating(Path(warm), 4, True)  # the first validation pays for imports and caches: not in the table
+        print("| rows | σ names | validating, σ named (s) | per 1,000 rows | σ as numbers (s) | per 1,000 rows |")
+        print("|---|---|---|---|---|---|")
+        for n in sizes:
+            with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
+                named, numbers = validating(Path(a), n, True), validating(Path(b), n, False)
+            print(f"| {n:,} | {n // 2:,} | {named:.2f} | {1000 * named / n:.3f} | {numbers:.2f} | "
+                  f"{1000 * numbers / n:.3f} |", flush=True)
+        print()
+    if args.only in (None, "datasets"):
+        print("| measurements | datasets | calibration.md's dataset table (s) | per 1,000 datasets |")
+        print("|---|---|---|---|")
+        for n in sizes:
+            took = tabling(n)
+            print(f"| {n:,} | {n:,} | {took:.2f} | {1000 * took / n:.3f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
