@@ -320,6 +320,37 @@ def test_named_sigmas_and_datasets_take_one_pass_over_the_table_whatever_their_n
     assert ax.series == [f"measured ± σ, dataset d{k}, replicate r" for k in range(3)]
 
 
+# ---- 13. ids as written or refused ---------------------------------------------------------------------------------
+
+def test_ids_with_a_line_break_or_a_tab_are_refused_one_line_each_at_their_lines(tmp_path):
+    """Issue 39.13: a quoted "new<line break>line" datasetId became `newline` in calibration.nc and
+    simulation.tsv (csv joins a quoted cell's lines without the break), no longer the table's; a tab inside an
+    id went raw into calibration.md.  Both are refused, one line each, and the rows after a cell that ran over
+    two lines are blamed at their own lines."""
+    from test_calibration_hostile import calibration
+
+    from biostudy.calibration.measurements import read_measurements
+
+    rows = ("observableId\ttime\tmeasurement\tnoiseParameters\tdatasetId\treplicateId\n"
+            'biomass\t0.05\t2.0\t0.1\t"new\nline"\t\n'
+            'biomass\t0.1\t2.2\t0.1\t"a\tb"\t\n'
+            "biomass\t0.1\t2.2\t0.1\tkept | as written\tr\x0b1\n"
+            "biomass\t0.1\tx\t0.1\tok\t\n")
+    path = calibration(tmp_path, rows, "[estimate]\nr = [50.0, 150.0]\n")
+    result = invoke("show", path)
+    assert result.exit_code == 2 and "Traceback" not in result.output, result.output
+    assert result.stderr.replace(f"{tmp_path}/", "").strip().splitlines() == [
+        "error: t.tsv: line 2: a quoted cell runs on to line 3: a cell is one line (csv joins its lines without "
+        "their line break, so the row would not be as written; close the quote on its line)",
+        "error: t.tsv: line 4: datasetId: has a tab or control character (got 'a\\tb'): an id is printable text, "
+        "as calibration.md, calibration.nc and simulation.tsv write it",
+        "error: t.tsv: line 5: replicateId: has a tab or control character (got 'r\\x0b1'): an id is printable "
+        "text, as calibration.md, calibration.nc and simulation.tsv write it",
+        "error: t.tsv: line 6: measurement: not a number (got 'x')"]
+    (tmp_path / "t.tsv").write_text(rows.split("\n", 1)[0] + "\nbiomass\t0.1\t2.2\t0.1\tkept | as  written\tr 1\n")
+    assert [(m.dataset, m.replicate) for m in read_measurements(tmp_path / "t.tsv")] == [("kept | as  written", "r 1")]
+
+
 def _scene(path: Path):
     from biostudy.inputs.scene import load_scene
 
