@@ -3,15 +3,17 @@
 * `--only sigma`: validating a calibration (`calibration.problem.load_calibration`, what `show` and
   `calibrate` do before anything runs) whose table of n rows names n/2 σs (two rows each), beside the same table
   with σ given as numbers.  0.4.0 scanned the whole table per name: 64,000 rows took 97 s against 2.8 s.
-* `--only datasets`: calibration.md's table of datasets (`calibration.petab.datasets_text`, written after every
-  simulation) for n measurements in n distinct datasetIds.  0.4.0 scanned every measurement per dataset: 16,000
-  took 10.5 s.
+* `--only datasets`: calibration.md's table of datasets (`calibration.petab.datasets_text`) for n measurements in
+  n distinct datasetIds, and the fit's picture (`calibration.pictures.fit_figure`, drawn and saved as PNG).
+  0.4.0 scanned every measurement per dataset (16,000: 10.5 s for the table) and drew an error-bar series per
+  dataset (~30 ms each).
 
 One row per n: seconds, and seconds per 1,000 rows (flat when linear).  Before/after: run it on the tree before
 the change with that tree first on the path (`git archive lead | tar -x -C /tmp/old`, then
 `PYTHONPATH=/tmp/old .venv/bin/python benchmarks/table_scaling.py`).
 
     .venv/bin/python benchmarks/table_scaling.py [--rows 2000,8000,32000] [--only sigma|datasets]
+    PYTHONPATH=/tmp/old .venv/bin/python benchmarks/table_scaling.py --only datasets --rows 200,800  # before: slow
 """
 from __future__ import annotations
 
@@ -21,12 +23,16 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-import xarray as xr
+os.environ.setdefault("MPLBACKEND", "Agg")  # before matplotlib: no window
 
-import biostudy
-from biostudy.calibration.petab import datasets_text
-from biostudy.calibration.problem import load_calibration
+import matplotlib  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+
+import biostudy  # noqa: E402
+from biostudy.calibration.petab import datasets_text  # noqa: E402
+from biostudy.calibration.pictures import fit_figure  # noqa: E402
+from biostudy.calibration.problem import load_calibration  # noqa: E402
 
 SCENE = Path(__file__).resolve().parents[1] / "studies" / "agar2d.toml"  # validated, never run
 TIMES = (0.25, 0.5, 0.75, 1.0)  # h, t_ref 1 h (the scene ends at T* = 1): few times, few outputs
@@ -54,18 +60,31 @@ def validating(folder: Path, rows: int, named: bool) -> float:
 def calibration_like(rows: int) -> xr.Dataset:
     """calibration.nc's per-measurement variables that calibration.md's dataset table reads, one dataset each."""
     text = lambda values: ("measurement", np.array(values, dtype=object))  # noqa: E731
+    t = np.linspace(0.0, 1.0, rows)
     return xr.Dataset({"dataset": text([f"d{i}" for i in range(rows)]),
                        "replicate": text([f"r{i % 3}" for i in range(rows)]),
                        "observable": text(["biomass"] * rows), "condition": text([""] * rows),
-                       "residual": ("measurement", np.linspace(-1.0, 1.0, rows))})
+                       "residual": ("measurement", np.linspace(-1.0, 1.0, rows)), "time_measured": ("measurement", t),
+                       "measured": ("measurement", 2 + t), "fitted": ("measurement", 2 + t),
+                       "sigma": ("measurement", np.full(rows, 0.1)), "band_lower": ("measurement", 1.9 + t),
+                       "band_upper": ("measurement", 2.1 + t), "measurement_units": text(["um"] * rows)},
+                      attrs={"chi2": 1.0, "dof": rows - 2})
 
 
-def tabling(rows: int) -> float:
+def tabling(rows: int) -> tuple[float, float]:
+    """Seconds for calibration.md's dataset table, and for the fit's picture (drawn and saved)."""
     ds = calibration_like(rows)
     began = time.perf_counter()
     lines = datasets_text(ds)
     assert len(lines) == rows + 5
-    return time.perf_counter() - began
+    table = time.perf_counter() - began
+    with tempfile.TemporaryDirectory() as folder:
+        began = time.perf_counter()
+        figure = fit_figure(ds)
+        figure.savefig(Path(folder) / "fit.png")
+        drawn = time.perf_counter() - began
+    matplotlib.pyplot.close(figure)
+    return table, drawn
 
 
 def main() -> None:
@@ -89,11 +108,12 @@ def main() -> None:
                   f"{1000 * numbers / n:.3f} |", flush=True)
         print()
     if args.only in (None, "datasets"):
-        print("| measurements | datasets | calibration.md's dataset table (s) | per 1,000 datasets |")
-        print("|---|---|---|---|")
+        tabling(4)  # imports matplotlib's fonts: not in the table
+        print("| measurements | datasets | calibration.md's dataset table (s) | per 1,000 datasets | fit picture (s) |")
+        print("|---|---|---|---|---|")
         for n in sizes:
-            took = tabling(n)
-            print(f"| {n:,} | {n:,} | {took:.2f} | {1000 * took / n:.3f} |", flush=True)
+            table, drawn = tabling(n)
+            print(f"| {n:,} | {n:,} | {table:.2f} | {1000 * table / n:.3f} | {drawn:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
