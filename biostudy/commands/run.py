@@ -32,7 +32,7 @@ from ..data.finish import Record, finish
 from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
-from ..execution.worker import provenance
+from ..execution.worker import provenance, with_threads
 from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.resources import Preflight
@@ -54,6 +54,7 @@ class Loaded:
     previous: xr.Dataset | None = None  # the run it continues
     previous_path: Path | None = None
     claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
+    threads: int | None = None  # the run's threads, instead of the scene's or the processors here
 
     def __enter__(self) -> Loaded:
         return self
@@ -93,10 +94,10 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
 
 def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
          output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
-         write: bool = True) -> Loaded:
+         threads: int | None = None, write: bool = True) -> Loaded:
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
-    run it continues, and its output before anything is computed (the options: `declared.RUN`; `write`: the
-    dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
+    run it continues, and its output before anything is computed (the options: `declared.RUN`; `threads`: the
+    run's, checked there; `write`: the dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
     overrides = set
     preflight = Preflight(runs=True, streamed=write or output is not None)  # a run that writes streams its outputs
     if isinstance(scene, dict):
@@ -114,12 +115,13 @@ def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # 
         continue_from = Path(continue_from)
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
-        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
+        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, threads=threads)
     try:
         target = Path(output) if output is not None else default_output(loaded, continue_from)
         replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [],
                               history=previous.sizes["time"] if previous is not None else None)
-        return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+        return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target),
+                      threads)
     except BaseException:
         if previous is not None:
             previous.close()  # open, read lazily (`continuation.previous_run`)
@@ -137,7 +139,7 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
     fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     _first_dataset()
-    problem = loaded.scene.problem()
+    problem = with_threads(loaded.scene.problem(), threads=loaded.threads)
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:
