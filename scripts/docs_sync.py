@@ -10,11 +10,16 @@ A generated block in README.md or a guide (`PAGES`) is marked
     <!-- end: NAME -->
 
 and its text comes from `BLOCKS[NAME]()`, which reads a table that a measuring
-script wrote: `docs/gallery/runs.md` (`scripts/gallery.py`: the bundled scenes
-at paper size), `docs/measured/suite.md` (`scripts/suite_time.py`: the test
-suite on this machine), and docs/accuracy.md's convergence summaries and
-benchmark tables (`scripts/accuracy_tables.py`: each with the command that
-made it, which must be the one that script lists).
+script wrote: `docs/gallery/runs.md` and `docs/gallery/findings.md`
+(`scripts/gallery.py`: the bundled scenes at paper size, and the paper's
+section-4 statements measured on them with their verdicts, `scripts/findings.py`),
+`docs/measured/agar-tension.txt` (`benchmarks/agar_tension.py`: where the colony
+on agar is in tension), `docs/measured/model-laws.txt` (`benchmarks/model_laws.py`:
+the bundled scenes under each form of the model's laws),
+`docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine),
+and docs/accuracy.md's convergence summaries and benchmark tables
+(`scripts/accuracy_tables.py`: each with the command that made it, which must be
+the one that script lists).
 """
 from __future__ import annotations
 
@@ -28,8 +33,11 @@ from accuracy_tables import MEASURED, MEASURED_OUT, OUT, TABLES  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-PAGES = (README, ROOT / "docs" / "gallery.md", ROOT / "docs" / "accuracy.md")  # the files holding generated blocks
+PAGES = (README, *(ROOT / "docs" / f"{page}.md" for page in ("gallery", "paper", "model", "accuracy")))  # with blocks
 RUNS = ROOT / "docs" / "gallery" / "runs.md"
+FINDINGS = ROOT / "docs" / "gallery" / "findings.md"
+TENSION = ROOT / "docs" / "measured" / "agar-tension.txt"
+LAWS = ROOT / "docs" / "measured" / "model-laws.txt"
 SUITE = ROOT / "docs" / "measured" / "suite.md"
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
 
@@ -47,6 +55,15 @@ def table_rows(path: Path) -> dict[str, dict[str, str]]:
 
 def gallery_runs() -> str:
     return RUNS.read_text(encoding="utf-8")
+
+
+def paper_findings() -> str:
+    return FINDINGS.read_text(encoding="utf-8")
+
+
+def table_lines(path: Path) -> str:
+    """The lines of a measuring script's output that are a markdown table."""
+    return "".join(line + "\n" for line in path.read_text(encoding="utf-8").splitlines() if line.startswith("|"))
 
 
 def setup_time() -> str:
@@ -72,7 +89,8 @@ def made_by(path: Path, command: str) -> str:
     return f"```sh\n{command}\n```\n\n{rest.lstrip()}"
 
 
-BLOCKS = {"gallery-runs": gallery_runs, "setup-time": setup_time, "suite-time": suite_time,
+BLOCKS = {"gallery-runs": gallery_runs, "paper-findings": paper_findings, "agar-tension": lambda: table_lines(TENSION),
+          "model-laws": lambda: table_lines(LAWS), "setup-time": setup_time, "suite-time": suite_time,
           **{f"accuracy-{name}": functools.partial(made_by, OUT / f"{name}.summary.md", command)
              for name, (command, _) in TABLES.items()},
           **{f"measured-{name}": functools.partial(made_by, MEASURED_OUT / f"{name}.txt", command)
@@ -86,7 +104,7 @@ def synced(text: str) -> tuple[str, list[str]]:
     def rewrite(match: re.Match) -> str:
         name = match["name"]
         if name not in BLOCKS:
-            raise SystemExit(f"README.md: unknown generated block {name!r}")
+            raise SystemExit(f"unknown generated block {name!r} (scripts/docs_sync.py BLOCKS)")
         body = BLOCKS[name]()
         if body != match["body"]:
             changed.append(name)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import xarray as xr
 from test_cli import invoke
+from unit_readers import assert_every_unit_read_alike
 
 import biostudy
 from biostudy.quantities import measures
@@ -42,6 +43,7 @@ def test_convergence_of_the_front_scene(tmp_path):
     for name in ("cells", "dt", "wall_time", "cost", "error_phi_L1", "error_phi_L2", "error_biofilm_volume",
                  "error_c_mean", "error_front_position", "order_front_position", "reference_front_position"):
         assert ds[name].attrs["units"] and ds[name].attrs["long_name"], name
+    assert_every_unit_read_alike(ds.load(), "convergence.nc")  # issue 36.3
     time = ds.sel(series="time")
     assert np.allclose(time.dt.values, 0.1 / (20 * 2 ** np.arange(4)))
     assert (time.error_phi_L1.isel(time=-1).values > 0).all()  # the finest level is not its own reference any more
@@ -144,6 +146,7 @@ def test_stability_catalogue_at_reduced_size(tmp_path):
                     "--set", "grid.spacing=2.0", "--set", "time.steps=10")
     assert result.exit_code in (0, 1), result.output
     ds = xr.open_dataset(out / "stability.nc")
+    assert_every_unit_read_alike(ds.load(), "stability.nc")  # issue 36.3
     assert ds.sizes["case"] >= 20 and (out / "stability.md").is_file()
     transport = ds.mechanics.values == 0
     assert set(ds.verdict.values[transport]) == {"completed"}, ds.message.values[transport]

@@ -101,3 +101,21 @@ def test_arguments_of_the_wrong_kind_are_one_line_before_anything_is_read(call, 
     with pytest.raises(biostudy.BadInput, match=said) as refused:
         call()
     assert len(refused.value.lines()) == 1 and not list(tmp_path.iterdir())
+
+
+def test_an_interrupted_run_gives_its_output_back_from_python_too(tiny_scene, tmp_path, monkeypatch):
+    """The output's claim is the command's (issue 38.3): interrupted between the checks and the computing, a
+    call of `biostudy.run` leaves no temporary behind while the interruption is still held, and the output can
+    be claimed again at once."""
+    from biostudy.commands import run as command
+
+    def interrupted(loaded, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patched:
+        patched.setattr(command, "compute", interrupted)
+        with pytest.raises(KeyboardInterrupt) as caught:
+            biostudy.run(tiny_scene, output=tmp_path / "t.nc")
+        assert [p.name for p in tmp_path.iterdir()] == ["tiny.toml"], caught  # the traceback holds the frames
+    biostudy.run(tiny_scene, output=tmp_path / "t.nc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.nc", "tiny.toml"]

@@ -37,10 +37,9 @@ def imagej(path, stack, spacing=VOXEL[0], resolution=(1 / VOXEL[2], 1 / VOXEL[1]
                      metadata={"spacing": spacing, "unit": "um", "axes": "ZYX"})
 
 
-def test_a_tiff_declaring_a_huge_size_is_refused_before_a_pixel_is_read(tmp_path, monkeypatch):
-    """A 284-byte tiled, compressed TIFF whose header says 20000 x 20000 pixels (such a file peaked at 5.6 GB):
-    refused from the header; reading it would fail the test, not allocate."""
-    path = tmp_path / "huge.tif"
+def huge_tiff(path, monkeypatch):
+    """A 284-byte tiled, compressed TIFF whose header says 20000 x 20000 pixels (such a file peaked at 5.6 GB), and
+    tifffile's readers made to fail the test if a pixel of anything is read."""
     tifffile.imwrite(path, np.zeros((16, 16), np.uint8), tile=(16, 16), compression="zlib", metadata=None)
     with tifffile.TiffFile(path, mode="r+b") as tif:
         tif.pages[0].tags["ImageWidth"].overwrite(20000)
@@ -51,6 +50,12 @@ def test_a_tiff_declaring_a_huge_size_is_refused_before_a_pixel_is_read(tmp_path
 
     for reader in (tifffile.TiffPageSeries, tifffile.TiffPage, tifffile.TiffFile):
         monkeypatch.setattr(reader, "asarray", never)
+    return path
+
+
+def test_a_tiff_declaring_a_huge_size_is_refused_before_a_pixel_is_read(tmp_path, monkeypatch):
+    """Refused from the header; reading it would fail the test, not allocate."""
+    huge_tiff(tmp_path / "huge.tif", monkeypatch)
     monkeypatch.setenv("BIOSTUDY_MEMORY", "4 GB")
     one_line_error(plane(tmp_path, 'path = "huge.tif"\nvoxel = [1.0, 1.0]'),
                    "[20000, 20000] voxels: reading and averaging it needs ~6 GB of memory, 4 GB available")

@@ -131,8 +131,24 @@ def test_show_says_a_slurm_allocation_binds_and_a_run_beyond_it_is_refused(machi
         in shown.stdout
     assert "refused here: a run needs ~" in shown.stdout and "of memory, 1.57 GB available" in shown.stdout
     refused = CliRunner().invoke(app, ["run", str(big), "-o", str(tmp_path / "big.nc")])
-    assert refused.exit_code == 2 and "of memory, 1.57 GB available" in refused.stderr
+    assert refused.exit_code == 2 and "1.57 GB available (SLURM_MEM_PER_NODE=1500 (MB))" in refused.stderr
     assert not (tmp_path / "big.nc").exists()
+
+
+def test_every_memory_refusal_names_the_account_of_the_memory_available(monkeypatch, tiny_scene, tmp_path):
+    """Issue 39.14: `BIOSTUDY_MEMORY=0 biostudy show s.toml` blamed the scene ("validating alone needs ~197 kB,
+    0 kB available") and never named BIOSTUDY_MEMORY; the run's refusal neither."""
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "0")
+    shown = CliRunner().invoke(app, ["show", str(tiny_scene)])
+    assert shown.exit_code == 2 and "validating alone needs ~" in shown.stderr
+    assert "of memory, 0 kB available (BIOSTUDY_MEMORY=0); running would need" in shown.stderr
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "100 MB")
+    refused = CliRunner().invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "o.nc")])
+    assert refused.exit_code == 2 and refused.stderr.strip().endswith("100 MB available (BIOSTUDY_MEMORY=100 MB)")
+    monkeypatch.delenv("BIOSTUDY_MEMORY")
+    monkeypatch.setattr(memory, "limits", lambda: [memory.Limit(1e8, "cgroup v2 /job_7"), memory.Limit(2e9, "the "
+                                                                                                       "machine")])
+    assert resources.too_big(2e8).endswith("of memory, 100 MB available (cgroup v2 /job_7)")
 
 
 @pytest.mark.parametrize("text, size", [("16 GB", 16e9), ("512MB", 512e6), ("2.5e9", 2.5e9), (".5 gb", 0.5e9)])
@@ -238,3 +254,25 @@ def test_the_papers_directional_scene_fits_this_machine_at_128_cubed_with_mechan
     mechanics 200³ is within 22 GB too (both were measured to run: docs/mechanics.md, docs/transport.md)."""
     assert resources.estimate(directional(128), streamed=True).memory <= 22e9
     assert resources.estimate(directional(200, mechanics=False), streamed=True).memory <= 22e9
+
+
+def test_a_scene_is_valid_whatever_memory_is_free_and_a_run_is_refused_before_it_computes(tiny_scene, tmp_path,
+                                                                                       monkeypatch):
+    """What the machine holds is no rule of the scene (issue 38.3): with 1 kB available the tiny scene validates
+    and compiles; with 100 MB (enough to validate it, not to run it) `run` refuses it in one line from the command
+    line and from Python alike, and nothing is written."""
+    import biostudy
+    from biostudy.inputs.scene import load_scene
+
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "1 kB")
+    assert load_scene(tiny_scene).problem().phi0.shape == (16, 16)
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "100 MB")
+    refused = CliRunner().invoke(app, ["run", str(tiny_scene), "-o", str(tmp_path / "t.nc"), "-q"])
+    line = f"error: {tiny_scene}: grid.shape: needs ~320 MB of memory (tiny: transport"
+    assert refused.exit_code == 2 and refused.stderr.startswith(line) and refused.stderr.count("\n") == 1, \
+        refused.stderr
+    assert refused.stderr.endswith("100 MB available (BIOSTUDY_MEMORY=100 MB)\n"), refused.stderr
+    with pytest.raises(BadInput) as caught:
+        biostudy.run(tiny_scene, output=tmp_path / "t.nc")
+    assert f"error: {caught.value}\n" == refused.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["tiny.toml"]

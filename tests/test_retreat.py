@@ -94,3 +94,15 @@ def test_a_sweep_lists_the_cases_that_lost_their_biofilm(write_toml, tmp_path):
         and "g=1e+10" not in listed[0], result.stderr
     again = CliRunner().invoke(app, ["sweep", str(study), "-o", str(tmp_path / "out"), "-q"])
     assert "1 cases lost a quarter or more" in again.stderr  # read back from the finished case files
+    # a case file is finished as a run's dataset is (`data.finish`): the same observables, alert and attributes
+    import biostudy
+    from biostudy.data.netcdf import as_run
+
+    with pytest.warns(UserWarning, match="the biofilm"):
+        run = biostudy.run(scene)
+    case = as_run(xr.load_dataset(tmp_path / "out" / "cases" / "g=1e+08.nc"))
+    assert case.attrs["observables"] == run.attrs["observables"]
+    for name in run.attrs["observables"].split(", "):
+        np.testing.assert_array_equal(case[name].values, run[name].values, err_msg=name)
+    for name in (retreat.ATTRIBUTE, "substratum_face", "substratum_estimator", "scene"):
+        assert case.attrs[name] == run.attrs[name], name

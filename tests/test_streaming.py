@@ -36,8 +36,8 @@ def _layout(path) -> dict:
 def test_a_streamed_run_writes_the_file_the_dataset_held_in_memory_writes(tiny_scene, tmp_path):
     overrides = ("time.outputs=5", "mechanics.enabled=true", "mechanics.every=2")
     streamed = tmp_path / "streamed.nc"
-    command.compute(command.load(tiny_scene, overrides=overrides, output=streamed))
-    held = command._simulated(command.load(tiny_scene, overrides=overrides, write=False), None)
+    command.compute(command.load(tiny_scene, set=overrides, output=streamed))
+    held = command._simulated(command.load(tiny_scene, set=overrides, write=False), None)
     writing.write_atomic(held, tmp_path / "held.nc")
 
     assert _layout(streamed) == _layout(tmp_path / "held.nc")
@@ -53,7 +53,7 @@ def test_a_streamed_run_writes_the_file_the_dataset_held_in_memory_writes(tiny_s
 
 
 def test_observables_measured_in_blocks_of_outputs_equal_those_measured_at_once(tiny_scene):
-    loaded = command.load(tiny_scene, overrides=("time.outputs=7", "mechanics.enabled=true", "mechanics.every=3"),
+    loaded = command.load(tiny_scene, set=("time.outputs=7", "mechanics.enabled=true", "mechanics.every=3"),
                           write=False)
     ds = command._simulated(loaded, None)
     whole = observables.variables(ds)
@@ -75,7 +75,7 @@ def test_a_lazy_run_is_measured_in_the_calling_thread_alone(tiny_scene, tmp_path
     from biostudy.data import netcdf_io
 
     path = tmp_path / "run.nc"
-    command.compute(command.load(tiny_scene, overrides=("time.outputs=5",), output=path))
+    command.compute(command.load(tiny_scene, set=("time.outputs=5",), output=path))
     threads = set()
     read = NetCDF4ArrayWrapper.__getitem__
 
@@ -109,7 +109,7 @@ class Counting:
 
 
 def test_the_time_loop_holds_no_output_it_gave_its_sink(tiny_scene):
-    problem = command.load(tiny_scene, overrides=("time.outputs=6",), write=False).scene.problem()
+    problem = command.load(tiny_scene, set=("time.outputs=6",), write=False).scene.problem()
     sink = Counting()
     with pytest.raises(KeyError):  # a sink that kept nothing has no fields to give
         solver.simulate(problem, sink=sink)

@@ -20,6 +20,7 @@ import xarray as xr
 from ..data import case_files, claims, combine, netcdf_io, reading, real_time, targets, writing
 from ..errors import BadInput
 from ..inputs.keys import key_parts
+from ..inputs.resources import Preflight
 from ..inputs.tomltext import literal
 from ..plans.study import load_study
 from ..plots.analysis import indices_figure, sample_figure, scatter_figure
@@ -49,7 +50,7 @@ def current(source: Path) -> xr.Dataset:
     study_file = attrs.get("study_file")
     if not study_file or not os.path.isfile(study_file):
         return reading.open_dataset(source)
-    plan = load_study(study_file, _common(attrs, record == source, study_file))
+    plan = load_study(study_file, _common(attrs, record == source, study_file), Preflight())
     damaged = [BadInput("damaged: it cannot be read whole; run the sweep again to compute it again", path)
                for path in (case_files.case_file(source.parent, case.id) for case in plan.cases)
                if path.exists() and not netcdf_io.intact(path)]
@@ -69,11 +70,12 @@ def _common(attrs: dict, study: bool, study_file: str) -> list[str]:
     return [f"{key}={literal(value)}" for key, value in given.items()]
 
 
-def analyze(source: str | Path, *, outputs: list[str] | None = None,
+def analyze(study: str | Path, *, outputs: list[str] | None = None,
             times: Sequence[float | str] | None = None) -> tuple[list[Path], str]:
     """Analyse a study (its study.nc, or its directory) and write analysis.nc, analysis.md and the pictures
-    beside it; returns the files written and the table.  Anything wrong with the request is `BadInput`."""
-    source = Path(source)
+    beside it (the options: `declared.ANALYZE`); returns the files written and the table.  Anything wrong with
+    the request is `BadInput`."""
+    source = Path(study)
     source = source / "study.nc" if source.is_dir() else source
     directory = source.parent
     _replaceable(directory)  # before anything is read or computed

@@ -14,14 +14,14 @@ from pathlib import Path
 import xarray as xr
 
 from ..data import claims, provenance, writing
-from ..errors import BadInput
 from ..execution.jobs import Execution, Job, SweepReport, run_jobs
 from ..execution.ownership import Owner
 from ..execution.targets import owned
 from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by
+from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, overrides_text, read_scene_data, scene_from_data
-from ..plans.refinement import FIRST_TOLERANCE, SERIES, check_refinable, chosen_series, plan, refined, with_reference
+from ..plans.refinement import check_refinable, plan, refined, with_reference
 from ..plots.accuracy import work_precision
 from ..reports.convergence import measure
 from ..reports.convergence_levels import Level, given_reference
@@ -51,6 +51,10 @@ class Convergence:
     @property
     def title(self) -> str:
         return f"convergence {self.path.stem}"
+
+    @property
+    def summary(self) -> Path:
+        return self.directory / "convergence.nc"
 
     def run(self, execution: Execution) -> Finished:
         ds, report = self.measure(execution)
@@ -82,18 +86,18 @@ class Convergence:
         return ds, report
 
 
-def load(scene: str | Path, *, output: Path | None = None, levels: int = 3, series: str | tuple[str, ...] = SERIES,
-         tolerance: float = FIRST_TOLERANCE, overrides: tuple[str, ...] | list[str] = (),
-         reference: Path | None = None, time: float | None = None) -> Convergence:
-    """Read and validate the scene and the plan; bad input is `BadInput`."""
-    chosen = chosen_series(series) if isinstance(series, str) else tuple(series)
-    if levels < 2:
-        raise BadInput("needs at least 2 levels (the finest is the reference)", None, "--levels")
+def load(scene: str | Path, *, levels: int, series: tuple[str, ...], tolerance: float, directory: Path | None = None,
+         set: list[str] | tuple[str, ...] = (), reference: Path | None = None,  # noqa: A002
+         time: float | None = None, runs_here: bool = False) -> Convergence:
+    """Read and validate the scene with the overrides `set` (level 0's) and the plan of `levels` per `series`
+    (the options, their defaults and rules: `declared.CONVERGENCE`); bad input is `BadInput` (`runs_here`: level
+    0 runs here, as for `commands.sweep.load`)."""
     path = bundled.resolve(scene)
     data = read_scene_data(path)
-    common = dict(apply_overrides(data, overrides))
-    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"))
+    common = dict(apply_overrides(data, set))
+    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"), Preflight(runs=runs_here))
     check_refinable(base, path)
-    directory = Path(output) if output is not None else Path(f"{path.stem}-convergence")
+    directory = Path(directory) if directory is not None else Path(f"{path.stem}-convergence")
     given = None if reference is None else given_reference(reference, base)
-    return Convergence(path, data, base, levels, chosen, tolerance, common, directory, reference, given, time)
+    return Convergence(path, data, base, levels, tuple(series), tolerance, common, directory, reference, given,
+                       time)

@@ -10,7 +10,8 @@ shape, and runs of one scene with different ``--set`` values combine along it.
 (`data.continuation`): the dataset is then the whole history.  The output is
 claimed for this run (`claims.claim`): a second run into the same output is
 refused while this one computes, and a file written there meanwhile by anything
-else is not replaced.
+else is not replaced; ``with load(...) as loaded:`` gives the claim back however
+the block ends.
 """
 from __future__ import annotations
 
@@ -26,15 +27,16 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import claims, combine, continuation, netcdf, netcdf_io, writing
-from ..data.provenance import stamp
+from ..data import claims, combine, continuation, netcdf_io, writing
+from ..data.finish import Record, finish
 from ..data.spool import Spool
 from ..errors import Failed
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance
 from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
-from ..inputs.scene import STREAMED, Scene, load_scene, overrides_text, scene_from_data
+from ..inputs.resources import Preflight
+from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
 from ..quantities import alerts
 
 log = logging.getLogger(__name__)  # detail for `-v` and for Python callers who configure logging (cli.logs)
@@ -52,6 +54,15 @@ class Loaded:
     previous: xr.Dataset | None = None  # the run it continues
     previous_path: Path | None = None
     claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
+
+    def __enter__(self) -> Loaded:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        """The output's claim given back however the block ends: interrupted before `compute` took it over, its
+        temporary goes now, not at the process's exit."""
+        if self.claim is not None:
+            self.claim.release()
 
 
 @dataclass(frozen=True)
@@ -80,19 +91,21 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
     return Path(re.sub(r"[^\w.+-]", "-", scene.name) + ".nc")
 
 
-def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (), output: Path | None = None,
-         force: bool = False, continue_from: str | Path | None = None, write: bool = True) -> Loaded:
-    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
-    it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
-    NAME.nc); bad input is `BadInput`."""
-    runs_here = STREAMED if write or output is not None else True  # a run that writes streams its outputs
+def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
+         output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
+         write: bool = True) -> Loaded:
+    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
+    run it continues, and its output before anything is computed (the options: `declared.RUN`; `write`: the
+    dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
+    overrides = set
+    preflight = Preflight(runs=True, streamed=write or output is not None)  # a run that writes streams its outputs
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}
         path, loaded = None, scene_from_data(data, "<scene>", given_by(apply_overrides(data, overrides), "--set"),
-                                             runs_here=runs_here)
+                                             preflight=preflight)
     else:
         path = bundled.resolve(scene)
-        loaded = load_scene(path, overrides, runs_here=runs_here)
+        loaded = load_scene(path, overrides, preflight=preflight)
     log.debug("%s: %s cells of %g µm, %d steps to T* = %g, %d outputs, mechanics %s", loaded.name,
               " × ".join(map(str, loaded.grid.shape)), loaded.grid.spacing, loaded.time.steps, loaded.time.t_end,
               loaded.time.count(), "on" if loaded.mechanics is not None and loaded.mechanics.enabled else "off")
@@ -131,11 +144,8 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     if loaded.previous is not None and loaded.previous_path is not None:
         ds = continuation.continued(loaded.previous, loaded.previous_path, ds)
     pairs = {".".join(key_parts(key)): value for key, value in map(parse_override, loaded.overrides)}
-    clock = loaded.scene.real_time_attrs()  # the warnings say their times in real time too
-    ds = stamp(ds, loaded.scene.to_toml(), loaded.path or "", overrides_text(pairs), **provenance(),
-               **loaded.scene.substratum_attrs(), **clock)
-    ds = netcdf.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
-    ds.attrs.update(alerts.attrs(ds))  # from the volumes just measured
+    ds.attrs.update(provenance())  # where it was computed, as a worker's run says (`execution.worker.solve`)
+    ds = finish(ds, Record.of(loaded.scene, loaded.path, overrides_text(pairs)))
     if loaded.previous is not None:
         before = ds.attrs.pop("history_before")
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
@@ -152,7 +162,11 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     try:
         if loaded.target is not None and resources.streams(loaded.scene):
             spool = Spool(loaded.target)  # no file until the first output
-        ds = _simulated(loaded, progress, spool)
+        kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+        try:
+            ds = _simulated(loaded, progress, spool)
+        except writing.NotWritten as error:  # the spool's disk filled up while it ran
+            raise Failed(f"{error}; this run stopped there and its result is lost ({kept})") from None
         if loaded.target is not None:
             try:
                 if loaded.claim is not None:
@@ -160,7 +174,6 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
                 else:
                     writing.write_atomic(ds, loaded.target)
             except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
-                kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
             ds = netcdf_io.open_dataset(loaded.target)
     finally:

@@ -101,9 +101,12 @@ def view(given: Sequence[str | Path]) -> tuple[RenderableType, Comparison | None
         return compare(runs, paths, found), found
     path = paths[0]
     if _is_scene_file(path):
-        from ..reports.needs import needs  # lazily
+        from ..calibration import cost  # lazily
+        from ..inputs.files import read_toml  # lazily
+        from ..reports import needs  # lazily
 
-        return needs(bundled.resolve(path)), None
+        path = bundled.resolve(path)
+        return (cost.needs if bundled.kind(read_toml(path)) == "calibration" else needs.needs)(path), None
     from ..reports.glance import glance  # lazily
 
     at_a_glance = glance(path) if path.is_file() else None  # a run's file: netCDF4 alone, no xarray

@@ -20,7 +20,7 @@ from typing import Any
 from solver.sink import CELL_FIELDS, MECHANICS_FIELDS
 
 from . import netcdf_io
-from .writing import temporary_name
+from .writing import not_written, temporary_name
 
 SPOOL_COMPRESSION = {"zlib": True, "complevel": 1, "shuffle": True}
 
@@ -30,24 +30,33 @@ class Spool:
     the dataset is written, or whatever stopped the run: an interruption included)."""
 
     def __init__(self, target: Path):
-        self.path = temporary_name(target)
+        self.target = Path(target)
+        self.path = temporary_name(self.target)
         self.file: netcdf_io.Growing | None = None
         self.opened: Any = None
         self.read = False
 
     def add(self, snapshot) -> None:
+        """One output's fields, appended; a write that fails (a full disk) is a `writing.NotWritten` naming the
+        target's file system."""
         assert not self.read, "a spool takes no outputs after its fields were read"
-        if self.file is None:
-            self.file = netcdf_io.Growing(self.path, SPOOL_COMPRESSION)
-        for name in (*CELL_FIELDS, *MECHANICS_FIELDS):
-            value = getattr(snapshot, name)
-            if value is not None:
-                self.file.append(name, value)
+        try:
+            if self.file is None:
+                self.file = netcdf_io.Growing(self.path, SPOOL_COMPRESSION)
+            for name in (*CELL_FIELDS, *MECHANICS_FIELDS):
+                value = getattr(snapshot, name)
+                if value is not None:
+                    self.file.append(name, value)
+        except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's "HDF error" on a full disk
+            raise not_written(self.target, error) from None
 
     def fields(self) -> dict[str, Any]:
         """Every field kept, as a dask array of one chunk per output."""
         assert self.file is not None, "a spool gives fields only after outputs were added"
-        self.file.close()
+        try:
+            self.file.close()  # flushes: a disk that fills up here is a `writing.NotWritten` too
+        except (OSError, RuntimeError) as error:
+            raise not_written(self.target, error) from None
         self.read = True
         names = (*CELL_FIELDS, *MECHANICS_FIELDS)
         self.opened = netcdf_io.open_dataset(self.path, {f"{name}_output": 1 for name in names}, one_chunk_cached=True)

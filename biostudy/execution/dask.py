@@ -70,7 +70,7 @@ def scheduler_address(scheduler_file: str | Path) -> str:
 
 def runs_here(scheduler: str | None, scheduler_file: str | Path | None = None) -> bool:
     """True when the jobs run on this machine (serially or on local processes), not on a Dask cluster: then a
-    case too big for this machine's memory is refused while it is validated (`plans.cases.load_plan`)."""
+    case too big for this machine's memory is refused by the command's pre-flight (`inputs.resources.Preflight`)."""
     return not (scheduler or scheduler_file)
 
 
@@ -94,8 +94,8 @@ def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str
             raise BadInput(f"Dask's TLS configuration cannot be used: {error}", "--scheduler") from None
         if context is None:
             raise BadInput(f"{scheduler} needs a TLS configuration: Dask's distributed.comm.tls.ca-file, "
-                           ".client.cert and .client.key (a YAML file in DASK_CONFIG; README, 'Sweeps on a "
-                           "Dask cluster')", "--scheduler")
+                           ".client.cert and .client.key (a YAML file in DASK_CONFIG; docs/clusters.md, 'Local "
+                           "workers and a Dask cluster')", "--scheduler")
 
 
 def _refused(address: str, timeout: float) -> bool:

@@ -31,7 +31,8 @@ from typing import Callable
 
 from solver.output import versions
 
-from ..data import case_files, combine, netcdf, netcdf_io, provenance, writing
+from ..data import case_files, combine, netcdf_io, provenance, writing
+from ..data.finish import Record, finish
 from ..errors import BadInput, Failed
 from ..inputs import resources
 from ..inputs.scene import Scene, overrides_text
@@ -236,11 +237,15 @@ def _check_room(scenes: dict[str, Scene], processes: int, out_dir: Path) -> None
 
 
 def _backend(execution: Execution, work: bool, note: Callable[[str], None]) -> Backend:
-    """Where the cases run: on the Dask scheduler, on `workers` local processes, else here (nothing to run: here)."""
-    if not work:
-        return Here()
+    """Where the cases run (`backend`; nothing to run: here)."""
+    return backend(execution, note) if work else Here()
+
+
+def backend(execution: Execution, note: Callable[[str], None] | None = None) -> Backend:
+    """Where the cases run: on the Dask scheduler (its address, or its scheduler file), on `workers` local
+    processes, else here; `note` hears what a wait is for (workers that have not come)."""
     if execution.scheduler or execution.scheduler_file:
-        return DaskCluster(execution.scheduler, note, execution.scheduler_file)
+        return DaskCluster(execution.scheduler, note or (lambda message: None), execution.scheduler_file)
     return LocalPool(execution.workers) if execution.workers else Here()
 
 
@@ -267,20 +272,16 @@ def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
     return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
 
 
-def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict[str, str]:
-    """Write one case's file: its dataset, or the failure record; returns what `quantities.alerts` say of it.  A
-    file that cannot be written stops the sweep (`SweepError`): the cases recorded so far are kept."""
-    extra = {**job.attrs, "fingerprint": fingerprint, **job.scene.substratum_attrs(), **job.scene.real_time_attrs()}
-    said: dict[str, str] = {}
+def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict:
+    """Write one case's file: its dataset (`finish`), or the failure record; returns the file's attributes (what
+    `quantities.alerts` said of it among them).  A file that cannot be written stops the sweep (`SweepError`):
+    the cases recorded so far are kept."""
+    record = Record.of(job.scene, job.scene_file, job.overrides, **job.attrs, fingerprint=fingerprint)
     if outcome.status == "done":
-        said = alerts.attrs(outcome.dataset.assign_attrs(job.scene.real_time_attrs()))
-        extra.update(said)
-        ds = provenance.stamp(outcome.dataset, job.scene.to_toml(), job.scene_file, job.overrides, status="done",
-                              message="", **extra)
-        ds = netcdf.with_observables(ds)  # after the stamp: the substratum's observables read its attributes
+        ds = finish(outcome.dataset, record, status="done", message="")
     else:
-        ds = case_files.failure_record(outcome.message, outcome.seconds, job.scene.name, job.scene.to_toml(),
-                                       job.scene_file, job.overrides, error=outcome.error, **extra)
+        ds = case_files.failure_record(outcome.message, outcome.seconds, job.scene.name, record.scene,
+                                       job.scene_file, job.overrides, error=outcome.error, **record.attrs)
     path = case_files.case_file(out_dir, job.id)
     try:
         writing.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
@@ -288,4 +289,4 @@ def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict
         resume = "run the same command again to resume" + (" once there is room" if error.errno == errno.ENOSPC
                                                            else "")
         raise SweepError(f"{error}; the cases recorded before are kept, {resume}") from None
-    return said
+    return ds.attrs

@@ -38,8 +38,11 @@ mechanics solve whose conjugate gradients fail and fall back to restarted
 GMRES holds its basis too, ~50 vectors of the unknowns (~1.2 kB per node in
 3-D; a rescue on the way to a refusal, docs/mechanics.md).  A run is refused
 when its estimate exceeds the memory available (`memory_limits`).  Disk: a
-run's dataset is about its outputs once over (checked against the free space
-of the target's file system).
+run's dataset is about its outputs once over, and a run that streams its
+outputs holds them on disk twice while it writes its file (the spool, and the
+dataset's temporary made from it; compression is not counted on): checked
+together against the free space of the target's file system, before anything
+is computed.
 """
 from __future__ import annotations
 
@@ -52,7 +55,7 @@ from pathlib import Path
 
 from solver.mechanics import Settings, linear_solver_for
 
-from ..errors import BadInput
+from ..errors import BadInput, InvalidAt
 from . import memory
 
 PROCESS = 0.32e9  # bytes: a process that runs and writes a scene (biostudy, FiPy, xarray, dask, netCDF4 imported):
@@ -86,6 +89,7 @@ class Estimate:
     snapshots: float
     disk: float
     measuring: float = 0.0  # a streamed run's observables, measured from its spool once the solver is freed
+    spool: float = 0.0  # a streamed run's spool on disk, beside the dataset until the dataset is written
 
     @property
     def memory(self) -> float:
@@ -128,6 +132,8 @@ def estimate(scene, streamed: bool = False) -> Estimate:
     if streamed and written > STREAM_ABOVE:  # the observables are measured after `solver.simulate` returned
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
         held, measuring = STREAMED * 8.0 * per_output + PER_OUTPUT * outputs, BLOCK_COPIES * block
+        return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring,
+                        spool=written)
     return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring)
 
 
@@ -201,12 +207,14 @@ def free_disk(path: str | Path) -> float:
     return float(shutil.disk_usage(existing if existing.is_dir() else existing.parent).free)
 
 
-def too_big(need: float, what: str = "needs") -> str:
-    """'' if `need` bytes of memory are available, else the one-line reason."""
-    available = available_memory()
-    if need <= available:
+def too_big(need: float, what: str = "needs", parts: str = "") -> str:
+    """'' if `need` bytes of memory are available, else the one-line reason: what needs how much (of which
+    `parts`), and what is available by which account (BIOSTUDY_MEMORY, a cgroup, the machine: `memory_limits`)."""
+    binding = memory_limits()[0]
+    if need <= binding.bytes:
         return ""
-    return f"{what} {size(need)} of memory, {size(available).lstrip('~')} available"
+    return (f"{what} {size(need)} of memory{f' ({parts})' if parts else ''}, {size(binding.bytes).lstrip('~')} "
+            f"available ({binding.source})")
 
 
 def validation_problem(scene) -> str:
@@ -215,6 +223,31 @@ def validation_problem(scene) -> str:
     found = estimate(scene)
     problem = too_big(found.validation, f"{found.cells:,} cells: validating alone needs")
     return f"{problem}; running would need {size(found.memory)} ({found.parts()})" if problem else ""
+
+
+@dataclass(frozen=True)
+class Preflight:
+    """A command's check that a scene fits this machine, never a rule of the scene's schema: made while the scene
+    is validated (`scene.scene_from_data`), once its keys are valid and before any array of the grid's size
+    exists.  Validating it (its masks and initial fields) must fit in memory here; a scene that `runs` here must
+    fit as a whole run (its `estimate`; `streamed`: a run that writes its file as it goes).  `InvalidAt` at the
+    key to change."""
+
+    runs: bool = False
+    streamed: bool = False
+
+    def __call__(self, scene) -> None:
+        too_big = validation_problem(scene)
+        if too_big:
+            raise InvalidAt("grid.shape", too_big)
+        if not self.runs:
+            return
+        found = estimate(scene, streamed=self.streamed)
+        too_big = run_problem({scene.name: found}, 1)
+        if too_big:
+            outputs = "time.output_times" if scene.time.output_times is not None else "time.outputs"
+            raise InvalidAt("grid.shape" if found.transport + found.mechanics >= found.snapshots else outputs,
+                            too_big)
 
 
 def run_problem(estimates: dict[str, Estimate], at_once: int, target: str | Path | None = None,
@@ -228,15 +261,20 @@ def run_problem(estimates: dict[str, Estimate], at_once: int, target: str | Path
     name, one = ranked[0]
     if at_once:
         together = ranked[:at_once]
-        problem = too_big(sum(e.memory for _, e in together),
-                          f"{len(together)} runs at once need" if len(together) > 1 else "needs")
-        if problem and len(together) > 1:
-            return f"{problem} (the largest, {name}: {size(one.memory)}, {one.parts()}); use fewer workers"
+        if len(together) > 1:
+            problem = too_big(sum(e.memory for _, e in together), f"{len(together)} runs at once need",
+                              f"the largest, {name}: {size(one.memory)}, {one.parts()}")
+            if problem:
+                return f"{problem}; use fewer workers"
+        problem = too_big(one.memory, "needs", f"{name}: {one.parts()}") if len(together) == 1 else ""
         if problem:
-            return f"{problem} ({name}: {one.parts()})"
+            return problem
     if target is not None:
-        written = sum(e.disk for e in estimates.values()) if disk is None else disk
+        spool = sum(e.spool for e in estimates.values())
+        written = sum(e.disk for e in estimates.values()) + spool if disk is None else disk
         free = free_disk(target)
         if written > free:
-            return f"needs {size(written)} of disk for its datasets, {size(free).lstrip('~')} free"
+            what = (f"its dataset ({size(written - spool)}) and the spool its outputs stream to until the dataset is "
+                    f"written ({size(spool)}), together" if spool else "its datasets")
+            return f"needs {size(written)} of disk for {what}, {size(free).lstrip('~')} free"
     return ""

@@ -17,8 +17,10 @@ from typing import Any, Callable, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ..errors import BadInput, from_validation_error
+from ..inputs.bundled import studies_dir
 from ..inputs.files import read_toml
 from ..inputs.keys import Origins, apply_overrides, flatten, given_by, key_parts, parse_override, set_key
+from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, read_scene_data, scene_from_data
 
 
@@ -56,7 +58,7 @@ class OnScene(FlatSet):
     model_config = ConfigDict(extra="forbid")
     name: str = Field("", description="short name (default: the file's name without .toml)")
     description: str = Field("", description="one line shown by `biostudy scenes`")
-    scene: str = Field(description="base scene file, relative to this file")
+    scene: str = Field(description="base scene file, relative to this file, or a bundled scene's name (agar2d)")
     set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
 
 
@@ -109,9 +111,7 @@ class Plan:
 def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
     """The raw data of the base scene a study or catalogue file names, with its [set] and the --set
     overrides applied; returns (scene file, data, the overrides applied to every case)."""
-    scene_file = path.parent / scene
-    if not scene_file.is_file():
-        raise BadInput(f"scene file {scene!r} not found (looked for {scene_file})", path, "scene")
+    scene_file = scene_path(path, scene)
     data = read_scene_data(scene_file)
     for key, value in given_set.items():
         try:
@@ -121,16 +121,31 @@ def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) 
     return scene_file, data, {**given_set, **dict(apply_overrides(data, overrides))}
 
 
+def scene_path(path: Path, scene: str) -> Path:
+    """The scene a study, catalogue or calibration file names: a file relative to it, or (a bare name, as the
+    command line takes it: scene = "agar2d") a bundled scene; `BadInput` at its `scene` key otherwise."""
+    scene_file = path.parent / scene
+    if scene_file.is_file():
+        return scene_file
+    bare = len(Path(scene).parts) == 1 and Path(scene).suffix in ("", ".toml")
+    if bare:
+        for candidate in (studies_dir() / scene, studies_dir() / f"{scene}.toml"):
+            if candidate.is_file():
+                return candidate
+    also = " nor a bundled scene of that name (`biostudy scenes` lists them)" if bare else ""
+    raise BadInput(f"scene file {scene!r} not found (looked for {scene_file}){also}", path, "scene")
+
+
 def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
-               origins: Origins | None = None, runs_here: bool = False) -> Scene:
+               origins: Origins | None = None, preflight: Preflight | None = None) -> Scene:
     """One case's validated scene: the base data with the case's values; errors name the case, and the
-    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault (`runs_here`:
+    study file unless an override (`origins`: --set, the study's [set]) gave the value at fault (`preflight`:
     as for `scene_from_data`)."""
     data = copy.deepcopy(base_data)
     try:
         for key, value in values.items():
             set_key(data, key, value)
-        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)}, runs_here)
+        return scene_from_data(data, scene_file, {**(origins or {}), **given_by(values, path)}, preflight)
     except BadInput as error:
         raise error.relocated(lambda file: path if file in (None, str(scene_file)) else file,
                               lambda key: ": ".join(filter(None, (f"case {case_name}", key)))) from None
@@ -139,10 +154,12 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
 M = TypeVar("M", bound=OnScene)
 
 
-def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "") -> M:
-    """A study, catalogue or calibration file validated as `model`; wrong_kind(data) says why the file is not of
-    this kind ("" if it is), before it is validated."""
-    data = read_toml(path)
+def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "",
+              read: Callable[[Path], dict] = read_toml) -> M:
+    """A study, catalogue or calibration file validated as `model`; `read` turns the file into its data (TOML; a
+    calibration also reads a PEtab problem.yaml); wrong_kind(data) says why the file is not of this kind ("" if it
+    is), before it is validated."""
+    data = read(path)
     problem = wrong_kind(data)
     if problem:
         raise BadInput(problem, path)
@@ -159,13 +176,13 @@ def origins_of(given_set: dict[str, Any], path: Path, overrides) -> Origins:
 
 
 def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Path, origins: Origins,
-                  runs_here: bool) -> dict[str, Scene]:
+                  preflight: Preflight | None) -> dict[str, Scene]:
     """Every case's validated scene; every bad case told at once (as a scene tells every bad key)."""
     scenes, problems = {}, []
     for case in cases:
         try:
             scenes[case.id] = case_scene(base_data, case.values, scene_file, path,
-                                         case.attrs.get("case_id", case.id), origins, runs_here)
+                                         case.attrs.get("case_id", case.id), origins, preflight)
         except BadInput as error:
             problems.append(error)
     if problems:
@@ -173,22 +190,47 @@ def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Pa
     return scenes
 
 
+@dataclass(frozen=True)
+class Based:
+    """A file of many cases of one scene, read and checked: its spec, its base scene (the file, its raw data with
+    [set] and --set applied, validated), the overrides every case has and where each came from."""
+
+    spec: Any
+    scene_file: Path
+    data: dict
+    scene: Scene
+    common: dict
+    origins: Origins
+
+
+def read_based(path: Path, model: type[M], overrides, wrong_kind: Callable[[dict], str], preflight: Preflight | None,
+               varies: Callable[[Any], tuple[list[str], str]], read: Callable[[Path], dict] = read_toml) -> Based:
+    """A study's, catalogue's or calibration's file and its base scene (`Based`), the spec's own checks against
+    the base data done, and no override of a key its cases vary (varies(spec): those keys, and who varies them
+    as `not_varied` says it; `read`: as for `read_spec`)."""
+    spec = read_spec(path, model, wrong_kind, read)
+    scene_file, data, common = base_scene(path, spec.scene, spec.set, overrides)
+    origins = origins_of(spec.set, path, overrides)
+    scene = scene_from_data(data, scene_file, origins, preflight)
+    spec.check(data, scene_file, path)
+    not_varied(*varies(spec), spec.set, path, overrides)
+    return Based(spec, scene_file, data, scene, common, origins)
+
+
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
-              wrong_kind: Callable[[dict], str] = lambda data: "", runs_here: bool = False) -> Plan:
+              wrong_kind: Callable[[dict], str] = lambda data: "", preflight: Preflight | None = None) -> Plan:
     """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
 
     wrong_kind(data) says why the file is not of this kind ("" if it is), before it is validated.
-    runs_here: the cases are to run on this machine (not on a Dask cluster), so a case too big for its
-    memory is refused by its estimate before its masks are made (`scene_from_data`).
+    preflight: the command's check that every case fits this machine (`resources.Preflight`: with `runs`, the
+    cases run here, not on a Dask cluster), made before a case's masks are.
     """
     path = Path(path)
-    spec = read_spec(path, model, wrong_kind)
-    scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
-    origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, runs_here)
-    spec.check(base_data, scene_file, path)
-    not_varied(spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace "
-               "it; change the study's values instead", spec.set, path, overrides)
+    based = read_based(path, model, overrides, wrong_kind, preflight, lambda spec: (
+        spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace it; "
+                            "change the study's values instead"))
+    spec, scene_file, base_data, base, common, origins = (based.spec, based.scene_file, based.data, based.scene,
+                                                           based.common, based.origins)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)
@@ -198,7 +240,7 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
                        f"cases {' and '.join(map(str, twins[:2]))} collide as file names: both are case "
                        f"{repeated} (a case id keeps letters, digits and . + -; others become -)", path,
                        spec.case_noun())
-    scenes = compile_cases(cases, base_data, scene_file, path, origins, runs_here)
+    scenes = compile_cases(cases, base_data, scene_file, path, origins, preflight)
     return Plan(path, spec, scene_file, base, cases, scenes, common)
 
 

@@ -13,6 +13,7 @@ from typing import Any
 
 from pydantic import ConfigDict, Field, model_validator
 
+from ..inputs.resources import Preflight
 from .cases import Case, FlatSet, ManyCases, Plan, load_plan
 
 
@@ -48,9 +49,9 @@ def job_id(name: str) -> str:
     return re.sub(r"[^\w.+=-]", "_", name)
 
 
-def load(path: Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Plan:
-    """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case (`runs_here`:
+def load(path: Path, overrides: list[str] | tuple[str, ...] = (), preflight: Preflight | None = None) -> Plan:
+    """Validate a catalogue and compile every case; bad input is `BadInput` naming file and case (`preflight`:
     as for `load_plan`)."""
     return load_plan(path, Catalogue, overrides,
                      lambda data: "" if "case" in data else "not a stability catalogue (it has no [[case]] list)",
-                     runs_here)
+                     preflight)

@@ -15,10 +15,12 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import BadInput
-from ..inputs.keys import set_key
-from ..inputs.scene import Scene, scene_from_data
+
+if TYPE_CHECKING:
+    from ..inputs.scene import Scene
 
 SERIES = ("space", "time", "both", "adaptive")
 FIRST_TOLERANCE = 1e-2  # adaptive level 0: local error in phi per step
@@ -38,16 +40,6 @@ class Refinement:
     def job_id(self) -> str:
         text = f"refine={self.refine}_steps={self.steps}"
         return text + (f"_tol={self.tolerance:.3g}" if self.tolerance is not None else "")
-
-
-def chosen_series(text: str) -> tuple[str, ...]:
-    """'space,time' -> ('space', 'time'); an unknown or empty choice is `BadInput`."""
-    chosen = tuple(s.strip() for s in text.split(",") if s.strip())
-    unknown = [s for s in chosen if s not in SERIES]
-    if unknown or not chosen:
-        raise BadInput(f"unknown series {', '.join(unknown) or '(none)'}; choose from {', '.join(SERIES)}",
-                       None, "--series")
-    return chosen
 
 
 def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES,
@@ -78,6 +70,10 @@ def with_reference(series: tuple[str, ...]) -> tuple[str, ...]:
 
 def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:
     """The base scene's data with the level's grid, steps and tolerance."""
+    from ..inputs.keys import set_key  # here: `biostudy convergence -h` reads SERIES from this module, not the solver
+    from ..inputs.resources import Preflight
+    from ..inputs.scene import scene_from_data
+
     data = copy.deepcopy(data)
     grid = data["grid"]
     set_key(data, "grid.shape", [n * level.refine for n in grid["shape"]])
@@ -85,7 +81,7 @@ def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:
     set_key(data, "time.steps", level.steps)
     if level.tolerance is not None:
         set_key(data, "numerics.time_tolerance", level.tolerance)
-    return scene_from_data(data, scene_file)
+    return scene_from_data(data, scene_file, preflight=Preflight())  # validating a finer grid fits here
 
 
 def check_refinable(base: Scene, scene_file: Path) -> None:

@@ -28,6 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from ..errors import BadInput, InvalidAt
 from ..formatting import value_text
 from ..inputs.keys import dimension, flatten, id_text
+from ..inputs.resources import Preflight
 from . import designs
 from .cases import Case, ManyCases, Plan, load_plan
 
@@ -137,8 +138,9 @@ def expand(sweep: Sweep) -> list[Case]:
     return cases
 
 
-def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Plan:
-    """Read a study file, its base scene and every case; any bad input is a `BadInput` (`runs_here`: as for
+def load_study(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+               preflight: Preflight | None = None) -> Plan:
+    """Read a study file, its base scene and every case; any bad input is a `BadInput` (`preflight`: as for
     `load_plan`)."""
     return load_plan(path, Study, overrides, lambda data: "this is a scene file (it has [grid]); run it with "
-                     "`biostudy run`" if "grid" in data and "scene" not in data else "", runs_here)
+                     "`biostudy run`" if "grid" in data and "scene" not in data else "", preflight)

@@ -1,7 +1,7 @@
 """How accurate is a scene's result, and what does accuracy cost: the measurements of `biostudy convergence`.
 
 The levels are planned by `biostudy.plans.refinement`.  Every series is
-measured against one reference (docs/accuracy.md, "How `biostudy convergence`
+measured against one reference (docs/accuracy.md, "How biostudy convergence
 measures"): the Richardson extrapolation of the two finest levels of the
 series refined in both h and dt,
 

@@ -54,7 +54,8 @@ def _from_scene(attrs: dict) -> dict:
         return {}
     grid = scene.get("grid", {})
     found = {"grid_shape": grid.get("shape"), "grid_spacing": grid.get("spacing"),
-             "consumption": scene.get("model", {}).get("consumption"),
+             **{key: scene.get("model", {}).get(name) for key, name in (("consumption", "consumption"),
+                ("expansion", "expansion"), ("nutrient_dynamics", "nutrient"))},
              "advection": scene.get("numerics", {}).get("advection"),
              "growth_velocity": scene.get("numerics", {}).get("growth_velocity"), **scene.get("params", {})}
     return {k: v for k, v in found.items() if v is not None}
@@ -70,7 +71,8 @@ def _header(attrs: dict) -> list[tuple[str, str]]:
     ]
     if grid:
         rows.append(("grid", f"{grid} cells of {number(attrs.get('grid_spacing'))} µm"))
-    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "advection", "growth_velocity", "mechanics")
+    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "expansion", "nutrient_dynamics", "advection",
+                                                                "growth_velocity", "mechanics")
              if k in attrs]
     if "nutrient_faces" in attrs:
         model.append(f"nutrient held on {attrs['nutrient_faces']}")

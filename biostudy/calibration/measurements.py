@@ -12,7 +12,7 @@ One row per measurement: `observableId` names an observable of the registry
 observable's units (biomass in µm³/µm² = µm), `noiseParameters` is the
 measurement's standard deviation σ: a number > 0, or the name of a noise
 parameter (PEtab's parameter ids, `NOISE_NAME`: σ estimated, one per name;
-`plans.calibration_noise`), `simulationConditionId`
+`noise`), `simulationConditionId`
 names one of the calibration's `[conditions]` (empty or absent without them).
 PEtab's optional `datasetId`, `replicateId` and `datapointId` are read and
 kept (calibration.nc, calibration.md and simulation.tsv carry them); its
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import BadInput
-from .files import read_text
+from ..inputs.files import read_text
 
 REQUIRED = ("observableId", "time", "measurement", "noiseParameters")
 OPTIONAL = ("simulationConditionId", "datasetId", "replicateId", "datapointId")

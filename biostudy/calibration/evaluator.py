@@ -4,7 +4,7 @@ Every point is one job per condition (`execution.jobs.run_jobs`): a case file un
 condition and parameter values, reused by its fingerprint, so a re-run or a resumed calibration never repeats one;
 a batch of points is one call of `run_jobs`, which hands its new jobs to the workers or the Dask cluster at once.  A
 failed simulation, or an observable that is NaN where it is measured, is recorded and answered with None (a penalty
-in the fit).  Rows whose σ is estimated are divided by a fixed scale instead of σ (`plans.calibration_noise`; the
+in the fit).  Rows whose σ is estimated are divided by a fixed scale instead of σ (`noise`; the
 objective's likelihood profiles σ out).  `Evaluator.noise` is the observables' own resolution in residual units,
 which the finite-difference steps are chosen against (`fitting.least_squares`).
 """
@@ -17,14 +17,15 @@ from pathlib import Path
 import numpy as np
 
 from ..data import case_files, reading
+from ..execution.backends import Kept
+from ..execution.jobs import Execution, Job, run_jobs
 from ..fitting.objective import Objective
 from ..inputs.keys import id_text
 from ..inputs.scene import overrides_text
-from ..plans.calibration import SCENE, CalibrationPlan, label
-from ..plans.calibration_noise import divisors, likelihood
 from ..quantities import observables, substratum
-from .backends import Kept
-from .jobs import Execution, Job, run_jobs
+from .noise import divisors, likelihood
+from .problem import CalibrationPlan
+from .spec import SCENE, label
 
 # Relative noise of the sub-cell observables under tiny parameter changes: jumps when a discrete event of the
 # solver moves (a cell joining the front band), measured on the agar colony (docs/calibration.md).

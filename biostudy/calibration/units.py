@@ -31,7 +31,7 @@ def model_units(key: str) -> str:
 
 
 def clock_of(plan) -> RealTime | None:
-    """A calibration's real time (`plans.calibration.CalibrationPlan`): its table's t_ref, else its scene's
+    """A calibration's real time (`problem.CalibrationPlan`): its table's t_ref, else its scene's
     (they agree: `real_time.check_agree`)."""
     text = plan.spec.data.t_ref or plan.base.time.t_ref
     return real_time(text) if text else None

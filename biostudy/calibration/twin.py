@@ -16,6 +16,7 @@ import numpy as np
 import solver
 
 from ..errors import Failed
+from ..inputs.resources import Preflight
 from ..inputs.scene import load_scene
 from ..quantities import observables
 
@@ -28,7 +29,7 @@ def table(scene: str | Path, *, truth: dict[str, float], observables_measured: l
     model_times = sorted({t * time_factor for t in times})
     given = [*overrides, *(f"{key}={value!r}" for key, value in truth.items()),
              f"time.output_times=[{', '.join(repr(t) for t in model_times)}]"]
-    loaded = load_scene(scene, given)
+    loaded = load_scene(scene, given, Preflight(runs=True))
     try:
         ds = solver.simulate(loaded.problem())
     except solver.SimulationError as error:

@@ -1,5 +1,5 @@
-"""Estimated σs in calibration.nc and its table (`reports.calibration`): the noise parameters a measurement table
-names (`plans.calibration_noise`), their maximum-likelihood values and 95 % profile intervals
+"""Estimated σs in calibration.nc and its table (`report`): the noise parameters a measurement table
+names (`noise`), their maximum-likelihood values and 95 % profile intervals
 (`fitting.likelihood`).
 
 calibration.nc gains the dimension `noise_parameter` (its names; `noise_units`, udunits of its measurements) with
@@ -17,11 +17,11 @@ import numpy as np
 
 from ..fitting.likelihood import coverage
 from ..formatting import number, units_text
-from .parameter_units import MIXED
+from .units import MIXED
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
-    from ..plans.calibration import CalibrationPlan
+    from .problem import CalibrationPlan
 
 SHORT = 0.93  # intervals holding the truth less often than this (with a linear model) are said to be short
 LOG_LIKELIHOOD = "-2 log L"  # calibration.nc's `objective` with an estimated σ (without: absent, chi2 is chi²)
@@ -43,7 +43,7 @@ def noise_variables(plan: CalibrationPlan, found: Estimate) -> tuple[dict, dict,
     data: dict = {"noise_name": ("measurement", np.array(names, dtype=object),
                                  {"units": "1", "long_name": "noiseParameters: the noise parameter whose σ was "
                                                              "estimated (sigma holds it; '' where the table gives σ)"})}
-    attrs = {"objective": LOG_LIKELIHOOD, "noise_statements": "; ".join(_few(plan)),
+    attrs = {"objective": LOG_LIKELIHOOD, "noise_statements": "; ".join(_exact(plan, found) + _few(plan, found)),
              "noise_method": "σ named in noiseParameters: maximum likelihood, profiled out of -2 log L (chi2 holds "
                              "it); σ's 95 % interval: its profile, the parameters re-optimised on the model "
                              "linearised at the estimate (docs/calibration.md)"}
@@ -64,11 +64,31 @@ def noise_variables(plan: CalibrationPlan, found: Estimate) -> tuple[dict, dict,
     return data, coords, attrs
 
 
-def _few(plan: CalibrationPlan) -> list[str]:
+def _exact(plan: CalibrationPlan, found: Estimate) -> list[str]:
+    """Words for a σ whose rows the model fits exactly (σ̂ = 0, `fitting.likelihood.Likelihood.exact`): it cannot
+    be estimated; whether the parameters' estimate depends on those rows (their Jacobian at the optimum)."""
+    said = []
+    for parameter, sigma in zip(plan.noise, found.sigmas):
+        if not sigma.exact:
+            continue
+        moved = bool(np.any(found.best.jacobian[list(parameter.rows)]))
+        consequence = ("the fit is drawn to where the model goes through them, so its estimate and intervals mean "
+                       "nothing until their σ is given" if moved else "they do not move with the parameters, so "
+                       "the estimate and intervals are those of the other rows")
+        said.append(f"the model fits the {sigma.rows} measurements of {parameter.name} exactly (σ̂ = 0): their σ "
+                    f"cannot be estimated (the likelihood grows without bound as σ shrinks) and has no interval, "
+                    f"and {consequence} (give their σ as a number in noiseParameters: the error you expect of "
+                    "them)")  # no '; ': it joins statements
+    return said
+
+
+def _few(plan: CalibrationPlan, found: Estimate) -> list[str]:
     """Words for a σ estimated from so few rows that the 95 % intervals are short (`likelihood.coverage`)."""
     said, k = [], len(plan.parameters)
-    for parameter in plan.noise:
+    for parameter, sigma in zip(plan.noise, found.sigmas):
         n = len(parameter.rows)
+        if sigma.exact:  # said by `_exact`
+            continue
         held, sigma = coverage(n, k)
         if not held >= SHORT:
             often = (f"hold the truth {held * 100:.0f} % of the time, σ's {sigma * 100:.0f} %" if held == held else

@@ -1,23 +1,23 @@
-"""A sampled posterior's part of calibration.nc (`reports.calibration`): the samples, their summaries, the
+"""A sampled posterior's part of calibration.nc and calibration.md (`report`): the samples, their summaries, the
 surrogate's box and error, the predictive band and the sampler's diagnostics."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..fitting.sampling import quantiles
-from .parameter_units import MIXED, clock_of, scalar_variables
+from ..formatting import number
+from .units import MIXED, clock_of, real_rows, scalar_variables, shown
 
 if TYPE_CHECKING:
     from ..fitting.posterior import Posterior
-    from ..plans.calibration import CalibrationPlan
 
 
-def posterior_variables(plan: CalibrationPlan, sampled: Posterior, units: list[str]) -> tuple[dict, dict, dict]:
-    """The posterior's part of calibration.nc: the samples (dimension `sample`, one variable per parameter), the
-    summaries per parameter, the surrogate's error and the predictive band per measurement, the sampler's
-    diagnostics."""
+def posterior_variables(plan: Any, sampled: Posterior, units: list[str]) -> tuple[dict, dict, dict]:
+    """The posterior's part of calibration.nc (`plan`: the `problem.CalibrationPlan`): the samples (dimension
+    `sample`, one variable per parameter), the summaries per parameter, the surrogate's error and the predictive
+    band per measurement, the sampler's diagnostics."""
     params = plan.parameters
     measured = np.array([m.value for m in plan.measurements])
     sigma = np.array([m.sigma for m in plan.measurements])
@@ -67,3 +67,31 @@ def posterior_variables(plan: CalibrationPlan, sampled: Posterior, units: list[s
         "posterior_statements": "; ".join(sampled.verdicts),
     }
     return data, coords, attrs
+
+
+def posterior_text(ds) -> list[str]:
+    """calibration.md's lines of a sampled posterior (none without one): the medians and credible intervals, the
+    sampler's and the surrogate's counts, rates in real time, and what the posterior says in words."""
+    if "posterior_median" not in ds:
+        return []
+    attrs = ds.attrs
+    lines = ["", "| parameter | posterior median | 95 % credible interval (2.5-97.5 %) | autocorrelation "
+                 "time (steps) | effective samples |", "|---|---|---|---|---|"]
+    for j, name in enumerate(ds.parameter.values):
+        unit = shown(ds, j)
+        lines.append(f"| {name} | {number(ds.posterior_median[j])} {unit} | [{number(ds.posterior_lower[j])}, "
+                     f"{number(ds.posterior_upper[j])}] | {number(ds.autocorrelation_time[j], 3)} | "
+                     f"{number(ds.effective_samples[j], 3)} |")
+    lines += ["", f"posterior: {attrs['posterior_samples']} samples of {attrs['posterior_walkers']} walkers x "
+                  f"{attrs['posterior_steps']} steps (burn-in {attrs['posterior_burn_in']}, thinned by "
+                  f"{attrs['posterior_thin']}), acceptance fraction {number(attrs['acceptance_fraction'], 2)}; "
+                  f"surrogate trained on {attrs['surrogate_training_runs']} simulations "
+                  f"({attrs['surrogate_training_from_fit']} of them the fit's; its box widened "
+                  f"{attrs['surrogate_box_widened']} times), its error on "
+                  f"{attrs['surrogate_held_out_runs']} held-out ones up to "
+                  f"{number(attrs['surrogate_error_max'], 2)} sigma (added to sigma² in the likelihood)"]
+    lines += real_rows(ds, ("median", "credible_lower", "credible_upper"), "posterior median",
+                       "95 % credible interval")
+    for said in filter(None, str(attrs.get("posterior_statements", "")).split("; ")):
+        lines += ["", f"**{said[0].upper() + said[1:]}.**"]
+    return lines

@@ -9,9 +9,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..errors import InvalidAt
 from ..formatting import value_text
-from ..inputs.measurements import Measurement
 from ..inputs.real_time import in_t_star
 from ..quantities import observables
+from .measurements import Measurement
 
 EXTREME = 1e100  # the largest |measurement|, σ and |measurement| / σ (and 1 / it the smallest σ) a fit takes
 

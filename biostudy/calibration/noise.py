@@ -4,8 +4,8 @@ PEtab lets `noiseParameters` name a parameter (`sigma_biomass`); here every row 
 σ, estimated by maximum likelihood with the model's parameters (`fitting.likelihood`).  A group must be one
 quantity: its rows' observables have the same units, or it is refused (σ in µm for one row, µm² for another is
 no σ); it needs at least 2 rows (one row's residual is fitted by its own σ, and σ̂ → 0 makes the likelihood
-unbounded); its name is not an estimated parameter's.  The posterior's surrogate likelihood takes σ as given,
-so `name = "posterior"` with an estimated σ is refused before anything runs.
+unbounded); its name is not an estimated parameter's.  A method that takes σ as given (`Method.estimates_sigma`
+false: the posterior's surrogate likelihood) with an estimated σ is refused before anything runs.
 
 The residual of a group's row is (model - measurement) / `NoiseParameter.scale`: a fixed number in the
 measurements' units (their root mean square, 1 if they are all 0) that keeps the residuals near 1 whatever the
@@ -21,8 +21,9 @@ import numpy as np
 
 from ..errors import BadInput
 from ..fitting.likelihood import Likelihood
-from ..inputs.measurements import Measurement
 from ..quantities import observables
+from .measurements import Measurement
+from .methods import METHODS, Method
 
 MINIMUM_ROWS = 2
 
@@ -56,10 +57,10 @@ def _units(m: Measurement) -> str:
         return ""
 
 
-def noise_problems(rows: list[Measurement], method: str, parameters: list[str], data_file: Path,
+def noise_problems(rows: list[Measurement], method: type[Method], parameters: list[str], data_file: Path,
                    path: Path) -> list[BadInput]:
     """Why the table's noise parameters cannot be estimated, one `BadInput` each: a group of one row, a group of
-    different units, a name that is an estimated parameter's, the posterior method."""
+    different units, a name that is an estimated parameter's, a method that takes σ as given."""
     problems = []
     for name in dict.fromkeys(m.noise for m in rows if m.noise):
         group = [m for m in rows if m.noise == name]
@@ -77,10 +78,11 @@ def noise_problems(rows: list[Measurement], method: str, parameters: list[str], 
             problems.append(BadInput(f"{name} is an estimated parameter of the scene, not a noise parameter (give "
                                      "σ its own name)", data_file, f"line {group[0].line}: noiseParameters"))
     named = next((m for m in rows if m.noise), None)
-    if named is not None and method == "posterior":
-        problems.append(BadInput(f"\"posterior\" takes σ as given, and {data_file.name} names σ to estimate "
-                                 f"({named.noise}, line {named.line}): give σ as numbers, or use "
-                                 "name = \"least-squares\"", path, "method.name"))
+    if named is not None and not method.estimates_sigma:
+        others = " or ".join(f'name = "{m.name}"' for m in METHODS.values() if m.estimates_sigma)
+        problems.append(BadInput(f"\"{method.name}\" takes σ as given, and {data_file.name} names σ to estimate "
+                                 f"({named.noise}, line {named.line}): give σ as numbers, or use {others}", path,
+                                 "method.name"))
     return problems
 
 

@@ -13,7 +13,7 @@ calibration.nc (docs/calibrate.md):
   `time` (T*), `time_measured` (the table's own unit), `measured`, `sigma`,
   `fitted`, `band_lower`, `band_upper` (the 95 % band of the fitted model from
   the Jacobian's covariance), `residual`; `measurement_units`; PEtab's `dataset`,
-  `replicate`, `datapoint` (`reports.petab`: text, empty where the table has none);
+  `replicate`, `datapoint` (`petab`: text, empty where the table has none);
 * dimension `start`: where each start began and ended, its chi², whether it was
   stopped because it joined another;
 * attributes: chi2, dof, chi2_minimum (profiles included), simulations run and
@@ -30,7 +30,7 @@ calibration.nc (docs/calibrate.md):
 
 Values of different observables have different units: each such variable's
 `units` is "1" and `measurement_units` says each one's.  Parameters: see
-`parameter_units` (no units on the mixed variables; `units`, `units_model`
+`units` (no units on the mixed variables; `units`, `units_model`
 coordinates; ``estimate_r`` etc. per parameter, ``estimate_r_real`` per hour
 with a t_ref).
 """
@@ -53,15 +53,16 @@ from ..fitting.uncertainty import band, natural
 from ..formatting import number
 from ..inputs.scene import key_info
 from ..quantities import alerts, observables
-from .noise import estimated, fit_line, noise_text, noise_variables, sigma_used
-from .parameter_units import MIXED, clock_of, model_units, real_rows, scalar_variables, shown
+from .methods import chosen
 from .petab import datasets_text, id_variables
-from .posterior import posterior_variables
+from .report_noise import estimated, fit_line, noise_text, noise_variables, sigma_used
+from .report_posterior import posterior_text
+from .units import MIXED, clock_of, model_units, real_rows, scalar_variables, shown
 
 if TYPE_CHECKING:
     from ..fitting.estimate import Estimate
-    from ..fitting.methods import Result
-    from ..plans.calibration import CalibrationPlan
+    from .methods import Result
+    from .problem import CalibrationPlan
 
 TEXT = {"units": "1"}
 LOWER = 0.5  # a profile point this much below the fit's chi² means the starts missed a lower minimum
@@ -197,8 +198,10 @@ def _measurement_variables(plan: CalibrationPlan, found: Estimate, model: np.nda
                                                                            "fitted model (Jacobian covariance)"}),
         "band_upper": ("measurement", model + half, {**mapped, "long_name": "upper end of the 95 % band of the "
                                                                            "fitted model (Jacobian covariance)"}),
-        "residual": ("measurement", (model - measured) / sigma,
-                     {"units": "1", "long_name": "weighted residual (fitted - measured) / sigma"}),
+        "residual": ("measurement", np.divide(model - measured, sigma, out=np.full(len(rows), np.nan),
+                                              where=sigma > 0),
+                     {"units": "1", "long_name": "weighted residual (fitted - measured) / sigma (NaN where an "
+                                                 "estimated sigma is 0: the model fits its rows exactly)"}),
     }
 
 
@@ -292,13 +295,10 @@ def dataset(plan: CalibrationPlan, result: Result, model: np.ndarray, cost: dict
         "upper": (upper, "upper end of the 95 % profile interval")}, clock_of(plan)))
     coords = _coordinates(plan, result, units, data["profile_value"][1].shape[1])
     attrs = {**_attributes(plan, found, cost, failed, raised), **columns}
-    if result.posterior is not None:
-        extra, extra_coords, extra_attrs = posterior_variables(plan, result.posterior, units)
-        data.update(extra)
-        coords.update(extra_coords)
-        attrs.update(extra_attrs)
-        attrs["method"] += ("; posterior: emcee on a Gaussian-process surrogate of the residuals, its held-out "
-                            "error added to sigma² (docs/calibration.md)")
+    method = chosen(plan.spec.method)  # what the method adds (`methods.Method.variables`)
+    for part, extra in zip((data, coords, attrs), method.variables(plan, result, units)):
+        part.update(extra)
+    attrs["method"] += method.described()
     for part, noise in zip((data, coords, attrs), noise_variables(plan, found)):
         part.update(noise)
     return xr.Dataset(data, coords=coords, attrs=provenance.with_provenance(attrs))
@@ -341,26 +341,7 @@ def table_text(ds: xr.Dataset) -> str:
                      " |")
     lines += real_rows(ds) + noise_text(ds)
     attrs = ds.attrs
-    if "posterior_median" in ds:
-        lines += ["", "| parameter | posterior median | 95 % credible interval (2.5-97.5 %) | autocorrelation "
-                      "time (steps) | effective samples |", "|---|---|---|---|---|"]
-        for j, name in enumerate(ds.parameter.values):
-            unit = shown(ds, j)
-            lines.append(f"| {name} | {number(ds.posterior_median[j])} {unit} | [{number(ds.posterior_lower[j])}, "
-                         f"{number(ds.posterior_upper[j])}] | {number(ds.autocorrelation_time[j], 3)} | "
-                         f"{number(ds.effective_samples[j], 3)} |")
-        lines += ["", f"posterior: {attrs['posterior_samples']} samples of {attrs['posterior_walkers']} walkers x "
-                      f"{attrs['posterior_steps']} steps (burn-in {attrs['posterior_burn_in']}, thinned by "
-                      f"{attrs['posterior_thin']}), acceptance fraction {number(attrs['acceptance_fraction'], 2)}; "
-                      f"surrogate trained on {attrs['surrogate_training_runs']} simulations "
-                      f"({attrs['surrogate_training_from_fit']} of them the fit's; its box widened "
-                      f"{attrs['surrogate_box_widened']} times), its error on "
-                      f"{attrs['surrogate_held_out_runs']} held-out ones up to "
-                      f"{number(attrs['surrogate_error_max'], 2)} sigma (added to sigma² in the likelihood)"]
-        lines += real_rows(ds, ("median", "credible_lower", "credible_upper"), "posterior median",
-                           "95 % credible interval")
-        for said in filter(None, str(attrs.get("posterior_statements", "")).split("; ")):
-            lines += ["", f"**{said[0].upper() + said[1:]}.**"]
+    lines += posterior_text(ds)
     fit = (f"for {attrs['dof']} degrees of freedom (p = {number(attrs['chi2_p_value'], 2)})" if attrs["dof"] > 0
            else "(no degree of freedom left)")
     fit = fit_line(ds) if estimated(ds) else f"chi² = {number(attrs['chi2'], 4)} {fit}"

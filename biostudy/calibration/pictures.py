@@ -27,7 +27,7 @@ from matplotlib.ticker import NullFormatter
 
 from ..fitting.profiles import THRESHOLD
 from ..formatting import number, units_text
-from ..reports import parameter_units
+from . import units
 
 
 def _grid(count: int) -> tuple[int, int]:
@@ -110,7 +110,7 @@ def profiles_figure(ds: xr.Dataset):
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_ylim(bottom=-0.2)
-        shown = parameter_units.shown(ds, j)
+        shown = units.shown(ds, j)
         ax.set_xlabel(f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else ""))
         ax.set_ylabel(f"{ds.attrs.get('objective', 'chi²')} - minimum")
         verdict = "" if bool(ds.identifiable[j]) else " (not determined)"
@@ -137,7 +137,7 @@ def corner_figure(ds: xr.Dataset):
     columns = [_axis_values(ds, j) for j in range(k)]
     labels = []
     for j in range(k):
-        shown = parameter_units.shown(ds, j)
+        shown = units.shown(ds, j)
         name = f"{ds.parameter.values[j]}" + (f" ({shown})" if shown else "")
         labels.append(f"log10 {name}" if columns[j][1] else name)
 

@@ -30,7 +30,7 @@ import xarray as xr
 from ..formatting import number
 
 if TYPE_CHECKING:
-    from ..plans.calibration import CalibrationPlan
+    from .problem import CalibrationPlan
 
 IDS = {"dataset": "datasetId", "replicate": "replicateId", "datapoint": "datapointId"}  # variable -> column
 ORDER = ("observableId", "preequilibrationConditionId", "simulationConditionId", "time", "simulation",
