@@ -50,6 +50,8 @@ class Progress:
     mechanics_solves: int = 0  # to simulated time (they come at outputs), so a time-left estimate counts them
     mechanics_left: int = 0  # apart: how many are done and how many are still to come
     outputs: int = 0  # how many outputs this run makes: the dataset made of them at the end takes time too
+    output_seconds: float = 0.0  # wall time its outputs took so far where they were handed over (a sink writing
+    # them to disk), which is not a step's: the time left prices the dataset made at the end in steps without it
 
 
 class _Rejected(Exception):
@@ -98,6 +100,7 @@ class Clock:
         self.steps = self.bisections = self.rejected = 0
         self.largest_error = 0.0
         self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
+        self.output_seconds = 0.0
         self.cpu = CpuTime()
 
     def counters(self) -> Counters:
@@ -134,7 +137,7 @@ class Clock:
             if self.progress is not None:
                 self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected,
                                        self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
-                                       self.mechanics_left, self.outputs))
+                                       self.mechanics_left, self.outputs, self.output_seconds))
         return state
 
     def _check_smallest(self, state: State, dt: float, cause: str, where: str):
@@ -215,7 +218,9 @@ class Simulation:
                 self._solve_mechanics(snapshot)
                 clock.mechanics_solves += 1
             snapshot.elapsed = time.perf_counter() - self.started
+            handed = time.perf_counter()
             yield snapshot
+            clock.output_seconds += time.perf_counter() - handed  # the caller's: its record, its sink
 
     def _solves_mechanics(self, index: int, last: int) -> bool:
         """Whether u and p are solved at output `index` (every `mechanics.every`-th, and the last)."""

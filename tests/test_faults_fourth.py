@@ -9,6 +9,12 @@ from __future__ import annotations
 
 import errno
 import os
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -19,6 +25,7 @@ from typer.testing import CliRunner
 import solver
 from biostudy.cli import app
 from biostudy.data import netcdf_io
+from biostudy.execution import jobs
 from biostudy.inputs import resources
 
 cli = CliRunner()
@@ -135,6 +142,101 @@ def test_a_disk_filling_up_while_a_streamed_run_spools_is_one_line(streamed, sma
     line = one_line(invoke("run", streamed, "-o", disk / "out.nc", "-q"), 1)
     assert line.startswith(f"error: cannot write {disk / 'out.nc'}: {_full(disk)}") and "result is lost" in line
     assert os.listdir(disk) == ["filler"]
+
+
+# ---- 5. interrupts wherever they land -----------------------------------------------------------------------------
+
+INTERRUPTED = "interrupted: finished files are kept, nothing is left half-written"
+
+
+@pytest.mark.parametrize("sent, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_an_interrupt_raised_inside_a_finaliser_still_ends_the_command(tiny_scene, tmp_path, monkeypatch, sent,
+                                                                      status):
+    """Issue 39.5: the signal's exception raised inside a finaliser (FiPy's `Solver.__del__` in the issue: its
+    solvers are freed by the garbage collector, whenever it runs) was printed as "Exception ignored in" and lost:
+    the run went on to its end, exit 0.  Here an object made and freed just before the simulation receives it."""
+    class Freed:
+        def __del__(self):
+            signal.raise_signal(sent)
+
+    simulate = solver.simulate
+
+    def freed_first(*args, **kwargs):
+        Freed()  # made and freed at once: its finaliser runs the signal's handler
+        return simulate(*args, **kwargs)
+
+    monkeypatch.setattr(solver, "simulate", freed_first)
+    result = invoke("run", tiny_scene, "-o", tmp_path / "o.nc", "-q")
+    assert result.exit_code == status, result.output
+    assert result.stderr.strip() == INTERRUPTED and not (tmp_path / "o.nc").exists()
+
+
+@pytest.mark.parametrize("sent, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_an_interrupt_while_a_finished_simulation_is_recorded_waits_for_its_case_file(tiny_study, tmp_path,
+                                                                                     monkeypatch, sent, status):
+    """An interruption between a simulation's end and its case file threw the simulation away: here it lands as
+    the first case's file is about to be written; the file is written, then the sweep ends (no other case)."""
+    record = jobs._record
+    recorded = []
+
+    def signalled(job, *args):
+        recorded.append(job.id)
+        if len(recorded) == 1:
+            signal.raise_signal(sent)
+        return record(job, *args)
+
+    monkeypatch.setattr(jobs, "_record", signalled)
+    result = invoke("sweep", tiny_study, "-o", tmp_path / "out", "-q")
+    assert result.exit_code == status, result.output
+    assert result.stderr.strip() == INTERRUPTED
+    assert len(recorded) == 1 and [p.stem for p in (tmp_path / "out" / "cases").glob("*.nc")] == recorded
+
+
+# Interrupts at random moments of a calibration: each simulation that returns is logged before it is recorded;
+# after the process ends every logged one must have its case file (benchmarks/interrupts.py: the many-trials form).
+LOGGED = textwrap.dedent("""\
+    import os, sys
+    from biostudy.execution import backends
+
+    finished = backends.Here.finished
+    log = open("finished.txt", "a", buffering=1)
+
+    def logged(self):
+        done = finished(self)
+        log.writelines(f"{case_id}\\n" for case_id, _ in done)
+        return done
+
+    backends.Here.finished = logged
+    from biostudy.cli import app
+    sys.argv = ["biostudy", "calibrate", "c.toml", "-o", "out", "-q"]
+    app()
+    """)
+
+
+def test_interrupts_at_random_moments_end_a_calibration_and_keep_every_finished_simulation(tmp_path):
+    from test_calibration_hostile import calibration, table
+
+    calibration(tmp_path, table(*(("biomass", "", t, 2.0 + 2 * t, 0.1) for t in (0.02, 0.05, 0.08))),
+                '[estimate]\ng = [1e7, 1e10, "log"]\nr = [20.0, 250.0, "log"]\n[method]\nstarts = 2\n'
+                'profiles = false\n')
+    (tmp_path / "logged.py").write_text(LOGGED)
+    rng = random.Random(39)
+    for trial, sent in enumerate((signal.SIGINT, signal.SIGTERM, signal.SIGINT)):
+        process = subprocess.Popen([sys.executable, "logged.py"], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE, text=True)
+        time.sleep(rng.uniform(2.0, 5.0))  # imports take ~2 s: from the first simulations on
+        process.send_signal(sent)
+        try:
+            _, stderr = process.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            raise AssertionError(f"trial {trial}: still running 30 s after {sent.name}") from None
+        finished = set((tmp_path / "finished.txt").read_text().split()) if (tmp_path / "finished.txt").exists() \
+            else set()
+        recorded = {p.stem for p in (tmp_path / "out" / "cases").glob("*.nc")}
+        # 0: it had finished; -sent: it had, and the signal's default action ended its exit (a shell says 128 + sent)
+        assert process.returncode in (128 + sent, 0, -sent), (trial, process.returncode, stderr)
+        assert "Exception ignored" not in stderr and finished <= recorded, (trial, stderr, finished - recorded)
 
 
 def _scene(path: Path):

@@ -56,9 +56,9 @@ def huge_tiff(path, monkeypatch):
 def test_a_tiff_declaring_a_huge_size_is_refused_before_a_pixel_is_read(tmp_path, monkeypatch):
     """Refused from the header; reading it would fail the test, not allocate."""
     huge_tiff(tmp_path / "huge.tif", monkeypatch)
-    monkeypatch.setenv("BIOSTUDY_MEMORY", "4 GB")
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "400 MB")  # 400 MB of values, a slab averaged at a time
     one_line_error(plane(tmp_path, 'path = "huge.tif"\nvoxel = [1.0, 1.0]'),
-                   "[20000, 20000] voxels: reading and averaging it needs ~6 GB of memory, 4 GB available")
+                   "[20000, 20000] voxels: reading and averaging it needs ~459 MB of memory, 400 MB available")
 
 
 def test_a_large_png_meets_the_memory_check_not_pillows_warning(tmp_path, monkeypatch, recwarn):
@@ -69,9 +69,9 @@ def test_a_large_png_meets_the_memory_check_not_pillows_warning(tmp_path, monkey
     data[16:24] = struct.pack(">II", 10000, 10000)  # IHDR width, height
     data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
     (tmp_path / "big.png").write_bytes(bytes(data))
-    monkeypatch.setenv("BIOSTUDY_MEMORY", "1 GB")
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "200 MB")
     one_line_error(plane(tmp_path, 'path = "big.png"\nvoxel = [1.0, 1.0]'),
-                   "[10000, 10000] voxels: reading and averaging it needs ~1.6 GB of memory, 1 GB available")
+                   "[10000, 10000] voxels: reading and averaging it needs ~259 MB of memory, 200 MB available")
     assert not [w for w in recwarn if "decompression bomb" in str(w.message)]
 
 

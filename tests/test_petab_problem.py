@@ -101,6 +101,11 @@ def test_a_problem_yaml_is_read_as_the_calibration_it_came_from(calibration, tmp
     assert {n: s.to_toml() for n, s in back.scenes.items()} == {n: s.to_toml() for n, s in plan.scenes.items()}
     assert back.spec.method == plan.spec.method and back.spec.data.t_ref == "1 h"
     assert back.scene_file.resolve() == plan.scene_file.resolve() and back.spec.name == "out"
+    from test_calibration_hostile import invoke
+
+    shown = invoke("show", tmp_path / "out" / "petab" / "problem.yaml")  # what running it needs, as for its TOML
+    assert shown.exit_code == 0 and shown.stdout.startswith("out: 3 parameters, 4 measurements, 2 conditions of "
+                                                            "speck.toml"), shown.output
 
 
 def test_a_calibration_petab_cannot_hold_is_said_in_words(tmp_path, calibration):

@@ -115,9 +115,15 @@ def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # 
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
         return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
-    target = Path(output) if output is not None else default_output(loaded, continue_from)
-    replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [])
-    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+    try:
+        target = Path(output) if output is not None else default_output(loaded, continue_from)
+        replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [],
+                              history=previous.sizes["time"] if previous is not None else None)
+        return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+    except BaseException:
+        if previous is not None:
+            previous.close()  # open, read lazily (`continuation.previous_run`)
+        raise
 
 
 def _first_dataset() -> None:
@@ -176,7 +182,11 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
             except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
             ds = netcdf_io.open_dataset(loaded.target)
+        elif loaded.previous is not None:
+            ds = ds.load()  # the history it continues, read before that run's file is closed
     finally:
+        if loaded.previous is not None:
+            loaded.previous.close()
         if spool is not None:
             spool.close()
         if loaded.claim is not None:

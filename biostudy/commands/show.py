@@ -53,9 +53,12 @@ class Shown:
     __repr__ = __str__
 
 
+PETAB = (".yaml", ".yml")  # a PEtab problem: a calibration file (`calibration.petab_in`)
+
+
 def _is_scene_file(path: Path) -> bool:
-    """A scene, study or calibration file (TOML), or the name of a bundled one."""
-    return path.suffix == ".toml" or (not path.exists() and not path.suffix)
+    """A scene, study or calibration file (TOML, or a PEtab problem.yaml), or the name of a bundled one."""
+    return path.suffix in (".toml", *PETAB) or (not path.exists() and not path.suffix)
 
 
 def _dataset(path: Path):
@@ -106,7 +109,8 @@ def view(given: Sequence[str | Path]) -> tuple[RenderableType, Comparison | None
         from ..reports import needs  # lazily
 
         path = bundled.resolve(path)
-        return (cost.needs if bundled.kind(read_toml(path)) == "calibration" else needs.needs)(path), None
+        calibration = path.suffix in PETAB or bundled.kind(read_toml(path)) == "calibration"
+        return (cost.needs if calibration else needs.needs)(path), None
     from ..reports.glance import glance  # lazily
 
     at_a_glance = glance(path) if path.is_file() else None  # a run's file: netCDF4 alone, no xarray

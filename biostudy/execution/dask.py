@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Callable
 
 from ..errors import BadInput, Failed, first_line
 from ..inputs.files import read_text
+from . import interrupts
 from .worker import Outcome, solve
 
 if TYPE_CHECKING:
@@ -224,7 +225,8 @@ class DaskCluster:
 
         while True:
             try:
-                done = wait(list(self.running), timeout=NOTICE_EVERY, return_when="FIRST_COMPLETED").done
+                with interrupts.allowed():  # waiting: an interruption ends it (`backends.windowed`)
+                    done = wait(list(self.running), timeout=NOTICE_EVERY, return_when="FIRST_COMPLETED").done
             except TimeoutError:
                 self._waiting()
                 continue

@@ -45,12 +45,22 @@ STACK_AXES = {"Z", "I", "Q"}  # tifffile's names for the axis of a page stack (Z
 # Pillow's greyscale modes and the bytes a pixel takes in them (a grey palette, "P", is converted to "L")
 GREY_BYTES = {"1": 1, "L": 1, "P": 1, "I": 4, "I;16": 2, "I;16B": 2, "F": 4}
 VOXEL_MAX = 1e6  # µm: a voxel up to a metre; 1e300 would make the image's extent overflow
-# Peak bytes per voxel of reading and averaging a stack beyond its values (their item size, read once and held
-# by the cache): the region's booleans (1) and the averaging's float copies (up to 13: above 2^24 voxels the
-# float32 copy is cast to float64 inside tensordot).  Measured on 64 x 512 x 512 stacks, region by threshold, in
-# all: uint8 15.07 bytes a voxel (tracemalloc; VmHWM 15.38), uint16 16.07 (16.38), float32 18.07 (18.38); below
-# 2^24 voxels less (uint8 32 x 512 x 512: 11.15).  `python benchmarks/image_memory.py [--dtype uint16]`.
+# Peak bytes per voxel of averaging a slab of a stack beyond its values (their item size, read once and held by
+# the cache): the region's booleans (1) and the averaging's float copies (up to 13: above 2^24 voxels the float32
+# copy is cast to float64 inside tensordot).  Measured on 64 x 512 x 512 stacks averaged whole, region by
+# threshold, in all: uint8 15.07 bytes a voxel (tracemalloc; VmHWM 15.38), uint16 16.07 (16.38), float32 18.07
+# (18.38); below 2^24 voxels less (uint8 32 x 512 x 512: 11.15).  A stack is averaged `SLAB_VOXELS` at a time
+# (`images.cell_average`): these bytes are paid for a slab, not for the stack.
+# `python benchmarks/image_memory.py [--dtype uint16]`.
 AVERAGING_BYTES = 14
+SLAB_VOXELS = 1 << 22  # voxels averaged at once (whole slices along the first axis, one at least)
+
+
+def averaging_bytes(shape: tuple[int, ...], itemsize: int) -> tuple[float, float]:
+    """(bytes an image of `shape` holds once read, bytes its averaging onto a grid holds besides, at most)."""
+    voxels = math.prod(shape)
+    rows = max(1, SLAB_VOXELS // max(1, math.prod(shape[1:])))
+    return float(voxels * itemsize), float(min(voxels, rows * math.prod(shape[1:])) * AVERAGING_BYTES)
 
 
 @dataclass(frozen=True)
@@ -146,16 +156,18 @@ class Use:
     per_voxel: int  # bytes a voxel of one frame takes beyond the values, while it is worked on
     frames: bool = False  # a leading time axis (T) is allowed: values [t, [z,] y, x]
     taker: str = "a region"  # what takes the image, in messages: "a region takes a greyscale or segmented one"
+    slabs: bool = False  # worked on `SLAB_VOXELS` at a time: `per_voxel` paid for a slab, not for the stack
 
 
-AVERAGING = Use("averaging", AVERAGING_BYTES)
+AVERAGING = Use("averaging", AVERAGING_BYTES, slabs=True)
 
 
 def _fits(shape: tuple[int, ...], itemsize: int, path: str, use: Use = AVERAGING) -> None:
     frame = shape[1:] if use.frames else shape
     try:
-        problem = too_big(math.prod(shape) * itemsize + math.prod(frame) * use.per_voxel,
-                          f"reading and {use.doing} it needs")
+        need = (sum(averaging_bytes(shape, itemsize)) if use.slabs
+                else math.prod(shape) * itemsize + math.prod(frame) * use.per_voxel)
+        problem = too_big(need, f"reading and {use.doing} it needs")
     except BadInput as error:  # BIOSTUDY_MEMORY is not a size
         raise InvalidAt("path", str(error)) from None
     if problem:

@@ -37,9 +37,10 @@ phi = scale × value is biofilm (>= 0.5, as a run's biofilm_volume counts).
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Callable, Literal
 
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
@@ -50,7 +51,7 @@ from solver.series import BIOFILM_THRESHOLD
 from ..errors import InvalidAt
 from ..formatting import value_text
 from .geometry import Point, Shape, input_path, um
-from .image_files import TIFF, VOXEL_MAX, Stack, grey_voxels, read
+from .image_files import SLAB_VOXELS, TIFF, VOXEL_MAX, Stack, averaging_bytes, grey_voxels, read
 
 PICTURES = (".png", *TIFF)
 SPILL_TOLERANCE = 1e-9  # of an image's volume: a voxel edge rounded past the grid's by floating point is inside
@@ -90,14 +91,23 @@ def overlap(edges: np.ndarray, cells: np.ndarray) -> np.ndarray:
 
 
 def cell_average(values: np.ndarray, voxel: tuple[float, ...], origin: tuple[float, ...], spacing: float,
-                 cells_shape: tuple[int, ...]) -> np.ndarray:
+                 cells_shape: tuple[int, ...], of: Callable[[np.ndarray], np.ndarray] = np.asarray) -> np.ndarray:
     """The image's average over every cell of a grid (cells_shape: (nz, ny, nx) / (ny, nx), cells of `spacing`
-    from 0), voxels [z,] y, x of `voxel` sizes from `origin` ([z,] y, x), outside the image 0."""
-    result = np.asarray(values, dtype=np.float64 if values.size < 1 << 24 else np.float32)
-    for axis in reversed(range(values.ndim)):  # x first: the largest reduction for a fine stack
-        n = values.shape[axis]
-        weights = overlap(origin[axis] + voxel[axis] * np.arange(n + 1), spacing * np.arange(cells_shape[axis] + 1))
-        result = np.moveaxis(np.tensordot(weights, result, axes=([1], [axis])), 0, axis)
+    from 0), voxels [z,] y, x of `voxel` sizes from `origin` ([z,] y, x), outside the image 0; of `of(values)`
+    (a region: values >= threshold), taken a slab of `SLAB_VOXELS` at a time along the first axis: the other
+    axes are reduced slab by slab (x first: the largest reduction for a fine stack), then the first, so that
+    the float copies of the whole stack are never made (1.9 GB for a 128 MB stack)."""
+    dtype = np.float64 if values.size < 1 << 24 else np.float32
+    weights = [overlap(origin[axis] + voxel[axis] * np.arange(n + 1), spacing * np.arange(cells_shape[axis] + 1))
+               for axis, n in enumerate(values.shape)]
+    rows = max(1, SLAB_VOXELS // max(1, math.prod(values.shape[1:])))
+    reduced = []
+    for start in range(0, values.shape[0], rows):
+        block = np.asarray(of(values[start:start + rows]), dtype=dtype)
+        for axis in reversed(range(1, values.ndim)):
+            block = np.moveaxis(np.tensordot(weights[axis], block, axes=([1], [axis])), 0, axis)
+        reduced.append(block)
+    result = np.tensordot(weights[0], np.concatenate(reduced, axis=0), axes=([1], [0]))
     return np.asarray(result, dtype=float)
 
 
@@ -162,6 +172,12 @@ class Image(Shape):
             raise InvalidAt("voxel", f"has {len(voxel)} entries; {self.path} is {values.ndim}-D (give "
                                      f"{wanted})")
         return self
+
+    def memory(self) -> tuple[str, float, float]:
+        """(the file, bytes its values hold once read: for the run, cached per file; bytes averaging them onto
+        a grid holds besides, at most) for `resources.estimate`."""
+        values = self._image.values
+        return (self.path, *averaging_bytes(values.shape, values.dtype.itemsize))
 
     @property
     def voxel_size(self) -> tuple[float, ...]:
@@ -234,9 +250,8 @@ def _averaged(path: str, mtime_ns: int, size: int, of: str, threshold: float | N
     """An image's cell averages on one grid (read-only), computed once however many study cases use them: of
     its grey values ("values") or of its region ("region": 1 where value >= threshold, or where nonzero)."""
     values = read(path, mtime_ns, size).values
-    if of == "region":
-        values = values >= threshold if threshold is not None else values != 0
-    average = cell_average(values, voxel, origin, spacing, cells_shape)
+    region = (lambda block: block >= threshold) if threshold is not None else (lambda block: block != 0)
+    average = cell_average(values, voxel, origin, spacing, cells_shape, region if of == "region" else np.asarray)
     average.flags.writeable = False
     return average
 
