@@ -117,6 +117,8 @@ CALIBRATE = Command("calibrate", "Estimate scene parameters from measurements: l
     *WHERE,
     overrides("the scene of every simulation"),
     RERUN_ALL, FORCE,
+    error_estimate("for the simulation at the optimum, and compare it with each measurement's sigma in "
+                   "calibration.md"),
 ), "calibration.nc: estimates, standard errors, 95 % profile intervals, which parameters the data determine, the "
    "data beside the fitted observables")
 
