@@ -17,15 +17,15 @@ from solver.transport.bounds import ROUNDOFF
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
 
-def exact_front_position(t):
+def exact_front_position(t, r: float = 100.0):
     """The front scene's front position (µm from the initial biofilm's centroid at x = 5) at T* = t, exactly when
     beta = 0 (no phase-field diffusion: phi is advected): c is linear between the held cells, c = (x - 1) / 38 in
     the limit h -> 0, and the front moves at r c / (k + c), so s = x - 1 solves k L ln(s / s0) + s - s0 = r t
-    (L = 38, s0 = 9, k = 1, r = 100)."""
+    (L = 38, s0 = 9, k = 1, r = 100 unless given)."""
     from scipy.optimize import brentq
 
     def position(when: float) -> float:
-        return brentq(lambda s: 38 * np.log(s / 9) + s - 9 - 100 * when, 9, 40) + 1 - 5
+        return brentq(lambda s: 38 * np.log(s / 9) + s - 9 - r * when, 9, 40) + 1 - 5
 
     return np.array([position(when) for when in np.atleast_1d(t)])
 

@@ -171,16 +171,6 @@ def test_a_run_whose_companions_cannot_be_made_says_why_instead_of_a_number(tmp_
         biostudy.run("front", continue_from=tmp_path / "none.nc", error_estimate=True)
 
 
-def exact_advance(t: np.ndarray, r: float) -> np.ndarray:
-    """The front scene's exact advance at growth speed r (`test_accuracy.exact_front_position`, r = 100 there)."""
-    from scipy.optimize import brentq
-
-    def position(when: float) -> float:
-        return brentq(lambda s: 38 * np.log(s / 9) + s - 9 - r * when, 9, 40)
-
-    return np.array([position(when) - position(0.0) for when in t])
-
-
 def test_a_sweeps_study_nc_carries_each_cases_error_bars(write_toml, tmp_path):
     """`biostudy sweep --error-estimate` over the front scene's growth speed r (1/2 µm cells, 100 steps): study.nc
     has front_advance_error per case, each within a factor 3 of that case's distance from the exact front at
@@ -205,7 +195,8 @@ def test_a_sweeps_study_nc_carries_each_cases_error_bars(write_toml, tmp_path):
     assert ds.front_advance_error.dims == ("r", "time") and ds.sizes["r"] == 2
     for r in (60.0, 100.0):
         case = ds.sel(r=r)
-        true = np.abs(case.front_advance.values[1:] - exact_advance(case.time.values[1:], r))
+        exact = exact_front_position(case.time.values[1:], r) - exact_front_position(0.0, r)
+        true = np.abs(case.front_advance.values[1:] - exact)
         estimated = case.front_advance_error.values[1:]
         assert np.all((estimated > true / 3) & (estimated < 3 * true)), (r, estimated, true)
     again = invoke("sweep", study, "-o", out, "-q", "--error-estimate")
