@@ -206,6 +206,9 @@ class Numerics:
                      "(docs/paper.md)")
     front_band: float = option(3.0, "growth_velocity = front: cells within this many cells of the front take the "
                                     "front's speed", "1", ge=1, le=10)
+    threads: int | None = option(None, "threads of the run's per-step kernels and linear solvers' products (absent: "
+                                       "the cores the machine or the batch job gives the run); the results are the "
+                                       "same bit for bit for every count", "1", result=False, ge=1)
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ from threadpoolctl import threadpool_limits
 
 from .counters import Counters, declared
 from .errors import SimulationError, StepFailure
+from .parallel import SERIAL, Team, cores
 from .problem import Problem
 from .sink import Held, OutputSink
 from .snapshot import Snapshot
@@ -62,21 +63,26 @@ class _Rejected(Exception):
 
 
 class CpuTime:
-    """CPU seconds of this thread spent in a repeated piece of work, the first time apart: the first step (or
-    mechanics solve) of a run also loads the compiled kernels and builds the first hierarchies, a one-off cost
-    that would make a small run look dearer than a larger one run after it in the same process."""
+    """CPU seconds of this thread and its team's helpers spent in a repeated piece of work, the first time apart:
+    the first step (or mechanics solve) of a run also loads the compiled kernels and builds the first
+    hierarchies, a one-off cost that would make a small run look dearer than a larger one run after it in the
+    same process.  (Not the process's CPU time: other threads of the process may run other work.)"""
 
-    def __init__(self) -> None:
+    def __init__(self, team: Team) -> None:
+        self.team = team
         self.first: float | None = None
         self.rest = 0.0
 
+    def _now(self) -> float:
+        return time.thread_time() + self.team.helper_seconds()
+
     @contextlib.contextmanager
     def spent(self) -> Iterator[None]:
-        began = time.thread_time()
+        began = self._now()
         try:
             yield
         finally:
-            seconds = time.thread_time() - began
+            seconds = self._now() - began
             if self.first is None:
                 self.first = seconds
             else:
@@ -88,7 +94,8 @@ class Clock:
 
     GROW, SHRINK, SAFETY = 4.0, 0.2, 0.9
 
-    def __init__(self, transport: Transport, progress: Callable[[Progress], None] | None = None):
+    def __init__(self, transport: Transport, progress: Callable[[Progress], None] | None = None,
+                 team: Team = SERIAL):
         problem = transport.problem
         self.transport = transport
         self.progress = progress
@@ -101,7 +108,7 @@ class Clock:
         self.largest_error = 0.0
         self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
         self.output_seconds = 0.0
-        self.cpu = CpuTime()
+        self.cpu = CpuTime(team)  # the transport's threads
 
     def counters(self) -> Counters:
         return {"steps_taken": self.steps,
@@ -164,12 +171,12 @@ class Clock:
         return two
 
 
-def _mechanics(problem: Problem):
+def _mechanics(problem: Problem, team: Team):
     if problem.mechanics is None:
         return None
     from .mechanics import GrowthMechanics  # lazily: a scene without mechanics never imports scikit-fem
 
-    return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle)
+    return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle, team=team)
 
 
 class Simulation:
@@ -178,13 +185,15 @@ class Simulation:
     def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
         self.started = time.perf_counter()
         self.problem = problem
-        setup = time.thread_time()
-        with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
-            self.transport = Transport(problem)
-        self.clock = Clock(self.transport, progress)
-        self.mechanics = _mechanics(problem)
-        self.setup_cpu = time.thread_time() - setup  # the operators built for this grid: part of what a run costs
-        self.mechanics_cpu = CpuTime()
+        self.team = Team(problem.numerics.threads or cores())
+        setup = CpuTime(self.team)  # the operators built for this grid: part of what a run costs
+        with setup.spent():
+            with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
+                self.transport = Transport(problem, self.team)
+            self.clock = Clock(self.transport, progress, self.team)
+            self.mechanics = _mechanics(problem, self.team)
+        self.setup_cpu = setup.first or 0.0
+        self.mechanics_cpu = CpuTime(self.team)
         if self.mechanics is not None and problem.u0 is not None:
             alpha = np.zeros(problem.grid.cells_shape) if problem.alpha0 is None else problem.alpha0
             self.mechanics.start_from(problem.u0, problem.phi0, alpha)
@@ -239,7 +248,8 @@ class Simulation:
         """What the run cost: wall time, counters, where the time went."""
         steps, solves = self.clock.cpu, self.mechanics_cpu
         cpu = {"cpu_time_loop": steps.rest + solves.rest,
-               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0), "cpu_time_setup": self.setup_cpu}
+               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0), "cpu_time_setup": self.setup_cpu,
+               "threads": self.team.size}
         return {"wall_time": time.perf_counter() - self.started, "timings": dict(self.transport.timings),
                 **declared({**self.clock.counters(), **self.transport.counters(), **cpu})}
 

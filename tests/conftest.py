@@ -10,6 +10,9 @@ os.environ["MPLBACKEND"] = "Agg"
 # The memory a run may use, fixed for every test and the processes it starts: refusals must not depend on what
 # else the machine is doing (a test of a refusal sets its own figure).
 os.environ["BIOSTUDY_MEMORY"] = "16 GB"
+# One thread per run started through biostudy, in every test process and the processes tests start: the suite's
+# two processes fill the two cores (pyproject's -n 2); the tests of threads give their own counts.
+os.environ["BIOSTUDY_THREADS"] = "1"
 
 import shutil
 import subprocess

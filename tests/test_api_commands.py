@@ -189,6 +189,7 @@ def test_calibrate_returns_what_the_command_reports(made):
     (lambda here: biostudy.analyze(here / "sweep", outputs=[1]), "outputs: give a name or a list of names"),
     (lambda here: biostudy.convergence(here / "tiny.toml", levels=1), "levels: give a whole number, 2 or more"),
     (lambda here: biostudy.stability(here / "nowhere.toml"), "nowhere.toml: no such file"),
+    (lambda here: biostudy.run(here / "tiny.toml", threads=0), "threads: give a whole number of threads, 1 or more"),
 ])
 def test_bad_input_is_one_line_and_writes_nothing(made, call, said):
     xr.Dataset({"a": ("x", [1.0, 2.0])}).to_netcdf(made / "foreign.nc")

@@ -20,7 +20,7 @@ def problem_on(grid, phi0, held=None, value=None, obstacle=None, t_end=1.0, step
 
 def advection_matrix(transport, w, phi):
     b = transport.biofilm
-    return sp.csr_matrix((b.advection(w, phi), b.pattern.matrix.indices, b.pattern.matrix.indptr),
+    return sp.csr_matrix((b.advection(w, phi), b.matrix.indices, b.matrix.indptr),
                          shape=(transport.fv.n,) * 2)
 
 

@@ -145,7 +145,10 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert sweep(plan, out, retry_failed=True).ran == ["k_alpha=1e+100"]
 
 
-def test_local_processes_give_the_serial_results(tiny_study, tmp_path):
+def test_local_processes_give_the_serial_results(tiny_study, tmp_path, monkeypatch):
+    """The same results; each of 2 workers takes half the processors (here 6, as BIOSTUDY_THREADS says), a serial
+    sweep all of them."""
+    monkeypatch.setenv("BIOSTUDY_THREADS", "6")
     plan = load_study(tiny_study)
     serial = sweep(plan, tmp_path / "serial")
     environment = dict(os.environ)
@@ -156,6 +159,8 @@ def test_local_processes_give_the_serial_results(tiny_study, tmp_path):
     np.testing.assert_allclose(a.phi.values, b.phi.values, rtol=0, atol=1e-12)
     case = xr.open_dataset(tmp_path / "local" / "cases" / "g=1e+08_r=50.nc")
     assert case.attrs["omp_num_threads"] == "1" and case.attrs["fipy_solvers"] == "scipy"
+    assert case.attrs["threads"] == 3
+    assert xr.open_dataset(tmp_path / "serial" / "cases" / "g=1e+08_r=50.nc").attrs["threads"] == 6
 
 
 def test_sweep_on_a_dask_cluster_of_two_processes(tiny_study, tmp_path):
@@ -168,6 +173,7 @@ def test_sweep_on_a_dask_cluster_of_two_processes(tiny_study, tmp_path):
     assert (ds.status.values == "done").all() and ds.phi_mean.sel(g=1e8, r=100).notnull().all()
     case = xr.open_dataset(tmp_path / "out" / "cases" / "g=1e+09_r=50.nc")
     assert case.attrs["omp_num_threads"] == "1"  # Dask's nanny sets it for its workers
+    assert case.attrs["threads"] == 1  # a node's processors are shared by worker processes none of them sees
 
 
 def test_sweep_on_a_dask_cluster_over_tls(tiny_study, tmp_path):

@@ -68,6 +68,10 @@ class Calibrate:
         result's summary."""
         began = time.perf_counter()
         method = chosen(self.plan.spec.method)
+        if not (execution.scheduler or execution.scheduler_file):  # local workers: as many simulations at once
+            crowded = cost.workers_problem(self.plan, execution.workers)
+            if crowded is not None:
+                raise crowded
         said = cost.note(self.plan)
         if said and execution.notify is not None:
             execution.notify("note", "", said)

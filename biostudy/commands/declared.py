@@ -67,7 +67,10 @@ RERUN_ALL = Option("rerun_all", Flag(), False, "run every case again, also those
                    "software upgrade)", ("--rerun-all",))
 RETRY_FAILED = Option("retry_failed", Flag(), False, "run failed cases again (finished ones are skipped unless "
                       "--rerun-all)", ("--retry-failed",))
-EXECUTION = ("workers", "scheduler", "scheduler_file", "retry_failed", "rerun_all", "force")  # `jobs.Execution`'s
+THREADS = Option("threads", Whole(least=1, of="threads"), None, "threads of each simulation (default: the scene's "
+                 "numerics.threads, else the processors here, shared among a sweep's workers); the results are the "
+                 "same for every count", ("--threads",), "N")
+EXECUTION = ("workers", "scheduler", "scheduler_file", "retry_failed", "rerun_all", "force", "threads")  # `Execution`'s
 WHERE = (WORKERS, SCHEDULER, SCHEDULER_FILE)
 ARRAY_TASKS = "array tasks are batch jobs of the command line (docs/clusters.md)"
 FORMATS = ("vti", "vtu", "tiff")  # the first is the default
@@ -87,6 +90,7 @@ RUN = Command("run", "Run one simulation and write its dataset (netCDF).", (
     error_estimate("to the dataset"),
     Option("progress", Function(), None, "called with a `solver.Progress` after every step", side="python",
            why="the command line draws its own progress (-q leaves it out)"),
+    THREADS,
 ), "the run's dataset, the one the command writes; keys that `set` overrides are scalar coordinates of it (runs "
    "with different values combine with xr.open_mfdataset(files, combine='nested', concat_dim=KEY))")
 
@@ -95,7 +99,7 @@ SWEEP = Command("sweep", "Run every case of a study; re-running skips finished c
     directory("directory for cases/ and the results (default: from the file's name)"),
     *WHERE,
     overrides("every case"),
-    RETRY_FAILED, RERUN_ALL, FORCE,
+    RETRY_FAILED, RERUN_ALL, FORCE, THREADS,
     error_estimate("to every case's file and to study.nc"),
     Option("cases", Many(Text("a case id"), "a case id or a list of them"), None, "run only this case (an array "
            "task; repeatable): its file goes into DIR beside those of other such tasks; study.nc is left to "

@@ -33,7 +33,7 @@ from ..data.spool import Spool
 from ..errors import BadInput, Failed
 from ..execution.estimate import estimate
 from ..execution.targets import check_run, claim_run
-from ..execution.worker import provenance
+from ..execution.worker import provenance, with_threads
 from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.resources import Preflight
@@ -55,6 +55,7 @@ class Loaded:
     previous: xr.Dataset | None = None  # the run it continues
     previous_path: Path | None = None
     claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
+    threads: int | None = None  # the run's threads, instead of the scene's or the processors here
     error_estimate: bool = False  # its companions run too, each observable's Q_error added (`execution.estimate`)
 
     def __enter__(self) -> Loaded:
@@ -99,10 +100,10 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
 
 def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
          output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
-         error_estimate: bool = False, write: bool = True) -> Loaded:
+         threads: int | None = None, error_estimate: bool = False, write: bool = True) -> Loaded:
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
-    run it continues, and its output before anything is computed (the options: `declared.RUN`; `write`: the
-    dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
+    run it continues, and its output before anything is computed (the options: `declared.RUN`; `threads`: the
+    run's, checked there; `write`: the dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
     overrides = set
     preflight = Preflight(runs=True, streamed=write or output is not None)  # a run that writes streams its outputs
     if isinstance(scene, dict):
@@ -123,13 +124,14 @@ def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # 
         continue_from = Path(continue_from)
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
-        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, None, error_estimate)
+        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, threads=threads,
+                      error_estimate=error_estimate)
     try:
         target = Path(output) if output is not None else default_output(loaded, continue_from)
         replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [],
                               history=previous.sizes["time"] if previous is not None else None)
         return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target),
-                      error_estimate)
+                      threads, error_estimate)
     except BaseException:
         if previous is not None:
             previous.close()  # open, read lazily (`continuation.previous_run`)
@@ -147,7 +149,7 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
     fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     _first_dataset()
-    problem = loaded.scene.problem()
+    problem = with_threads(loaded.scene.problem(), threads=loaded.threads)
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:
@@ -184,7 +186,7 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
         except writing.NotWritten as error:  # the spool's disk filled up while it ran
             raise Failed(f"{error}; this run stopped there and its result is lost ({kept})") from None
         if loaded.error_estimate:  # companions of the whole run (never a continuation: `load`)
-            ds = estimate(loaded.scene, loaded.path or "<scene>", ds, announce=log.info).applied(ds)
+            ds = estimate(loaded.scene, loaded.path or "<scene>", ds, log.info, loaded.threads).applied(ds)
         if loaded.target is not None:
             try:
                 if loaded.claim is not None:

@@ -7,7 +7,9 @@ inside an allocation is found: docs/clusters.md).
 The cluster's workers only simulate: each receives a compiled `solver.Problem`
 (plain arrays) and returns the dataset or the reason it failed; this process
 writes every file, so the workers need no shared filesystem.  Dask's nanny
-starts its workers with one thread per library.  A `tls://` scheduler needs
+starts its workers with one thread per library, and a case runs on one thread
+unless its scene names more (``[numerics] threads``): the processors of a node
+are shared by worker processes that no one of them sees.  A `tls://` scheduler needs
 Dask's TLS configuration (certificates), checked before anything runs.
 
 What a user is told, in one line each, instead of Dask's tracebacks: an
@@ -22,6 +24,7 @@ uses the cluster.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import socket
@@ -200,6 +203,8 @@ class DaskCluster:
         return len(self.running)
 
     def submit(self, case_id: str, problem: "solver.Problem") -> None:
+        if problem.numerics.threads is None:  # a node's processors are shared by worker processes no one of them sees
+            problem = dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=1))
         future = self.client.submit(solve, problem, key=f"biostudy-{case_id}-{self.tag}", pure=False)
         self.running[future] = case_id
 

@@ -40,17 +40,18 @@ class Estimate:
         return out
 
 
-def measured(scene: Scene, file: str | Path) -> xr.Dataset | str:
-    """One companion run with its observables (a dataset), or the reason it failed."""
-    outcome = worker.solve(scene.problem())
+def measured(scene: Scene, file: str | Path, threads: int | None = None) -> xr.Dataset | str:
+    """One companion run with its observables (a dataset), or the reason it failed (`threads`: the run's)."""
+    outcome = worker.solve(worker.with_threads(scene.problem(), threads=threads))
     if outcome.status != "done" or outcome.dataset is None:
         return f"failed: {outcome.message}"
     return finish(outcome.dataset, Record.of(scene, file, ""))
 
 
-def estimate(scene: Scene, file: str | Path, ds: xr.Dataset,
-             announce: Callable[[str], None] | None = None) -> Estimate:
-    """The error estimate of `ds`, the run of `scene`: its companions run here (`announce` hears of each)."""
+def estimate(scene: Scene, file: str | Path, ds: xr.Dataset, announce: Callable[[str], None] | None = None,
+             threads: int | None = None) -> Estimate:
+    """The error estimate of `ds`, the run of `scene`: its companions run here (`announce` hears of each), on
+    `threads` as the run was (``--threads``)."""
     began = time.perf_counter()
     notes, runs = {}, {}
     for planned in companions.plan(scene, file):
@@ -60,7 +61,7 @@ def estimate(scene: Scene, file: str | Path, ds: xr.Dataset,
             continue
         if announce is not None:
             announce(notes[name])
-        found = measured(planned.scene, file)
+        found = measured(planned.scene, file, threads)
         if isinstance(found, str):
             notes[name] = f"{notes[name]}: {found}"
             continue

@@ -24,17 +24,19 @@ case with it; `dask`: a cluster).  The caller claims the directory first
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import solver
 from solver.output import versions
 
 from ..data import case_files, combine, netcdf_io, provenance, writing
 from ..data.finish import Record, finish
 from ..errors import BadInput, Failed
-from ..inputs import resources
+from ..inputs import cores, resources
 from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
 from ..quantities import alerts
@@ -64,6 +66,7 @@ class Execution:
     rerun_all: bool = False
     force: bool = False
     notify: Callable[[str, str, str], None] | None = None
+    threads: int | None = None  # each case's threads, instead of its scene's or its share of the processors
 
 
 @dataclass
@@ -164,7 +167,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     if backend is None or not ids:
         backend = _backend(execution, bool(ids), lambda message: notify("note", "", message))
     try:
-        with contextlib.closing(windowed(ids, lambda job_id: by_id[job_id].scene.problem(), backend)) as results:
+        compile_ = lambda job_id: _threaded(by_id[job_id].scene.problem(), execution.threads)
+        with contextlib.closing(windowed(ids, compile_, backend)) as results:
             for job_id, outcome in results:
                 report.note(job_id, _record(by_id[job_id], out_dir, outcome, prints[job_id]))
                 report.ran.append(job_id)
@@ -174,6 +178,13 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     except SchedulerLost as lost:
         raise SweepError(f"{lost}; {_kept(report, len(ids))}") from None
     return report
+
+
+def _threaded(problem: solver.Problem, threads: int | None) -> solver.Problem:
+    """The case's problem, on `threads` threads if given (``--threads``; no part of its identity)."""
+    if threads is None:
+        return problem
+    return dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=threads))
 
 
 def _started(out_dir: Path, tidy: bool) -> SweepReport:
@@ -229,7 +240,9 @@ def _skipped(report: SweepReport, job_id: str, record: dict) -> None:
 
 def _check_room(scenes: dict[str, Scene], processes: int, out_dir: Path) -> None:
     """`BadInput` before any case runs if the cases to run (by id) do not fit the memory of `processes` at once (0:
-    on a cluster) or the disk: the case files and the summary stacking them."""
+    on a cluster) or the disk: the case files and the summary stacking them; or if BIOSTUDY_THREADS, which the
+    cases run here take their threads from, is no thread count (`inputs.cores`)."""
+    cores.available()
     estimates = {job_id: resources.estimate(scene) for job_id, scene in scenes.items()}
     too_big = resources.run_problem(estimates, processes, out_dir, 2 * sum(e.disk for e in estimates.values()))
     if too_big:

@@ -2,8 +2,10 @@
 
 Workers are forked from a fork server that imported the solver once (start-up ~0.1 s instead of ~1.2 s of
 imports per worker), fresh interpreters (spawn) where there is no fork server; they start with
-``OMP_NUM_THREADS=1`` (one simulation per core; FiPy's suite ran 40x slower with unrestricted threads) and
-``FIPY_SOLVERS=scipy``.  What a worker runs is `worker.serve`; the loop that hands cases out is `backends.windowed`.
+``OMP_NUM_THREADS=1`` (BLAS's own threads: FiPy's suite ran 40x slower with unrestricted threads) and
+``FIPY_SOLVERS=scipy``.  The workers share the machine's processors: a case runs on its scene's threads, else
+on the processors here divided by the workers (`worker.with_threads`).  What a worker runs is `worker.serve`; the
+loop that hands cases out is `backends.windowed`.
 
 Each worker has a pipe of its own for problems and outcomes, so a worker that dies (SIGKILL, the kernel's
 out-of-memory killer, a crash in a library) takes only its own case with it: that case is recorded as
@@ -63,7 +65,7 @@ def _context():
     imports per worker); fresh interpreters (spawn) where there is no fork server."""
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["biostudy.execution.worker", "solver.output", "fipy"])
+        context.set_forkserver_preload(["biostudy.execution.worker", "solver.output"])
         return context
     return multiprocessing.get_context("spawn")
 
@@ -147,6 +149,7 @@ class LocalPool:
         return self.workers[-1]
 
     def submit(self, case_id: str, problem: "solver.Problem") -> None:
+        problem = worker.with_threads(problem, self.capacity)  # the processors here, shared by the workers
         idle = next((w for w in self.workers if w.case_id is None), None) or self._start()
         try:
             idle.tasks.send(problem)

@@ -6,6 +6,7 @@ failed simulation: a sweep records the failure and goes on.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 import signal
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import first_line
+from ..inputs import cores
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -93,14 +95,25 @@ def provenance() -> dict[str, str]:
             "fipy_solvers": os.environ.get("FIPY_SOLVERS", "unset")}
 
 
-def solve(problem: "solver.Problem") -> Outcome:
-    """Simulate one problem; a failure becomes an `Outcome`, never an exception."""
+def with_threads(problem: "solver.Problem", sharing: int = 1, threads: int | None = None) -> "solver.Problem":
+    """`problem` with the threads it runs on: `threads` if given (``--threads``), else its own (`[numerics]
+    threads`), else the processors this process may use (`inputs.cores`) shared among `sharing` cases computed on
+    this machine at once, at least one each.  The count changes how fast a case runs, never its result or its
+    identity (`identity.fingerprint`)."""
+    if threads is None and problem.numerics.threads is not None:
+        return problem
+    count = threads or max(1, cores.available().count // max(1, sharing))
+    return dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=count))
+
+
+def solve(problem: "solver.Problem", sharing: int = 1) -> Outcome:
+    """Simulate one problem (on its threads, `with_threads`); a failure becomes an `Outcome`, never an exception."""
     pin_solvers()  # a Dask worker's process was not started by biostudy: before FiPy is first imported
     from solver import SimulationError, simulate  # lazily: after pin_solvers, before FiPy is first imported
 
     began = time.perf_counter()
     try:
-        ds = simulate(problem)
+        ds = simulate(with_threads(problem, sharing))
     except SimulationError as error:
         return Outcome("failed", None, str(error), time.perf_counter() - began, type(error).__name__)
     except Exception as error:  # a bug or resource problem in this case must not sink the others

@@ -23,6 +23,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..errors import MechanicsError, describe_cell
+from ..parallel import SERIAL, Team
 from ..problem import Grid, MechanicsSetup, Parameters
 from . import constraints, material, preconditioners
 from .assembly import Assembler
@@ -50,7 +51,7 @@ class GrowthMechanics:
     """Finite-strain growth mechanics on the transport grid (paper 2.1, 2.3.1, 3)."""
 
     def __init__(self, grid: Grid, params: Parameters, setup: MechanicsSetup, obstacle: np.ndarray | None = None,
-                 settings: Settings = DEFAULT):
+                 settings: Settings = DEFAULT, team: Team = SERIAL):
         self.grid, self.params, self.setup, self.settings = grid, params, setup, settings
         self.mesh = mesh = StructuredMesh(grid, obstacle)
         if mesh.n_elements == 0:
@@ -59,7 +60,7 @@ class GrowthMechanics:
         # the reported u is pinned at the domain's corner; the solve pins where the biofilm is stiff
         self.constrained, self.pins = pin_rigid_modes(mesh, self.held)
         self.gauge_pins, self.pieces = self.pins, constraints.pieces(mesh)
-        self.assembler = Assembler(mesh, self.constrained, settings.chunk)
+        self.assembler = Assembler(mesh, self.constrained, settings.chunk, team)  # its tangents' products on `team`
         modes = rigid_modes((mesh.node_coordinates() - mesh.node_coordinates().mean(axis=0)) / mesh.h)
         self.linear = TangentSolver(preconditioners.choose(setup.linear_solver, mesh.n_dofs, mesh, self.constrained,
                                                            modes, settings), settings)

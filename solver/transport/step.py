@@ -20,8 +20,10 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..counters import Counters
+from ..parallel import SERIAL, Team
 from ..problem import Problem
 from .biofilm import Biofilm
 from .expansion import grow, table1
@@ -62,15 +64,21 @@ class State:
 
 
 class Transport:
-    """Owns the cached operators of one problem and advances its state."""
+    """Owns the cached operators of one problem and advances its state (on the threads of `team`)."""
 
-    def __init__(self, problem: Problem):
+    def __init__(self, problem: Problem, team: Team = SERIAL):
         self.problem = problem
+        self.team = team
         self.fv = FiniteVolumeGrid(problem.grid, problem.obstacle)
         self.nutrient = Nutrient(self.fv, problem.params, problem.laws.consumption, problem.nutrient_held,
-                                 problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces)
-        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces)
+                                 problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces,
+                                 team)
         self.transient = problem.laws.nutrient == "transient"
+        if problem.c0 is None and not self.transient:  # the first solve's hierarchy before the biofilm's operators
+            with threadpool_limits(limits=1, user_api="blas"):  # exist (peak memory); its coarsest pseudo-inverse:
+                self.nutrient.prepare(self.fv.to_active(problem.phi0))  # one BLAS thread
+        self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces, team)
+        self.fv.release_laplacian()  # the operators made from it hold what they need of it
         self.timings = defaultdict(float)
         self.largest_numerical_diffusion = 0.0
 
