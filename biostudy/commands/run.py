@@ -30,14 +30,15 @@ from solver.restart import start_state
 from ..data import claims, combine, continuation, incomplete, netcdf_io, writing
 from ..data.finish import Record, finish
 from ..data.spool import Spool
-from ..errors import Failed
+from ..errors import BadInput, Failed
+from ..execution.estimate import estimate
 from ..execution.targets import check_run, claim_run
 from ..execution.worker import provenance, with_threads
 from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
-from ..quantities import alerts
+from ..quantities import alerts, error_bars
 
 log = logging.getLogger(__name__)  # detail for `-v` and for Python callers who configure logging (cli.logs)
 
@@ -55,6 +56,7 @@ class Loaded:
     previous_path: Path | None = None
     claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
     threads: int | None = None  # the run's threads, instead of the scene's or the processors here
+    error_estimate: bool = False  # its companions run too, each observable's Q_error added (`execution.estimate`)
 
     def __enter__(self) -> Loaded:
         return self
@@ -74,14 +76,18 @@ class Result:
 
     def warnings(self) -> list[str]:
         """What a user should know about the result besides the summary (`quantities.alerts`): a vanished dense
-        biofilm, a biofilm lost."""
-        return alerts.said(self.dataset.attrs)
+        biofilm, a biofilm lost; error bars asked for and not made, and why."""
+        said = str(self.dataset.attrs.get(error_bars.ATTRIBUTE, ""))
+        missing = [f"no error bars: {said.removeprefix('not estimated: ')}"] if said.startswith("not estimated") else []
+        return [*alerts.said(self.dataset.attrs), *missing]
 
     def message(self) -> str:
         attrs = self.dataset.attrs
         went_on = f", continuing {attrs['continued_from'].split(' (')[0]}" if "continued_from" in attrs else ""
+        companions = (f", error bars' companions {attrs['error_estimate_wall_time']:.3g} s"
+                      if "error_estimate_wall_time" in attrs else "")
         return (f"wrote {self.target} (wall time {attrs['wall_time']:.3g} s, {attrs['steps_taken']} steps, "
-                f"{attrs['steps_bisected']} bisected{went_on}){self.replacing}")
+                f"{attrs['steps_bisected']} bisected{went_on}{companions}){self.replacing}")
 
 
 def default_output(scene: Scene, previous: Path | None = None) -> Path:
@@ -94,7 +100,7 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
 
 def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
          output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
-         threads: int | None = None, write: bool = True) -> Loaded:
+         threads: int | None = None, error_estimate: bool = False, write: bool = True) -> Loaded:
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
     run it continues, and its output before anything is computed (the options: `declared.RUN`; `threads`: the
     run's, checked there; `write`: the dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
@@ -110,18 +116,22 @@ def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # 
     log.debug("%s: %s cells of %g µm, %d steps to T* = %g, %d outputs, mechanics %s", loaded.name,
               " × ".join(map(str, loaded.grid.shape)), loaded.grid.spacing, loaded.time.steps, loaded.time.t_end,
               loaded.time.count(), "on" if loaded.mechanics is not None and loaded.mechanics.enabled else "off")
+    if continue_from is not None and error_estimate:  # its companions would have to repeat the run it continues
+        raise BadInput("a continued run has no error bars: its companions would repeat the run it continues from "
+                       "T* = 0; run the whole span with --error-estimate instead", None, "--error-estimate")
     previous = None
     if continue_from is not None:
         continue_from = Path(continue_from)
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
-        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, threads=threads)
+        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, threads=threads,
+                      error_estimate=error_estimate)
     try:
         target = Path(output) if output is not None else default_output(loaded, continue_from)
         replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [],
                               history=previous.sizes["time"] if previous is not None else None)
         return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target),
-                      threads)
+                      threads, error_estimate)
     except BaseException:
         if previous is not None:
             previous.close()  # open, read lazily (`continuation.previous_run`)
@@ -213,6 +223,8 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
                              "run's incomplete outputs are not written over it)") from None
             _write(loaded, stopped.dataset)
             raise Failed(f"{stopped.message}; {incomplete.kept(stopped.dataset, loaded.target)}") from None
+        if loaded.error_estimate:  # companions of the whole run (never a continuation: `load`)
+            ds = estimate(loaded.scene, loaded.path or "<scene>", ds, log.info, loaded.threads).applied(ds)
         if loaded.target is not None:
             _write(loaded, ds)
             ds = netcdf_io.open_dataset(loaded.target)
