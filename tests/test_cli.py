@@ -80,14 +80,21 @@ def test_scenes_lists_the_bundled_files_with_descriptions(write_toml, tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
-def test_a_failed_simulation_exits_1_and_writes_nothing(tiny_scene, tmp_path):
+def test_a_failed_simulation_exits_1_and_keeps_what_it_computed_but_no_earlier_result(tiny_scene, tmp_path):
+    """A run that stops writes its outputs up to there, marked incomplete (issue 33.3), nothing else; over an
+    earlier result of the scene it writes nothing, and that result stays as it was."""
     out = tmp_path / "fail.nc"
     result = invoke("run", tiny_scene, "-o", out, "-q", "--set", "params.k_alpha=1e100",
                     "--set", "numerics.max_substeps=40")
     assert result.exit_code == 1
     assert result.stderr.startswith(f"error: simulation failed: {tiny_scene}: t = ")
-    assert "Traceback" not in result.output
-    assert not out.exists() and sorted(os.listdir(tmp_path)) == ["tiny.toml"]
+    assert "Traceback" not in result.output and "(marked incomplete)" in result.stderr
+    assert sorted(os.listdir(tmp_path)) == ["fail.nc", "tiny.toml"] and "incomplete" in xr.open_dataset(out).attrs
+    out.unlink()
+    assert invoke("run", tiny_scene, "-o", out, "-q").exit_code == 0
+    before = out.read_bytes()
+    again = invoke("run", tiny_scene, "-o", out, "-q", "--set", "params.k_alpha=1e100")
+    assert again.exit_code == 1 and "the earlier result at" in again.stderr and out.read_bytes() == before
 
 
 def _write_mask(tmp_path, shape):

@@ -108,7 +108,7 @@ class Evaluator:
             self.failed[job.id] = failure
             return None
         ds = reading.open_dataset(case_files.case_file(self.directory, job.id))
-        ds.attrs.update(job.scene.substratum_attrs())  # as the scene says now
+        ds = observables.as_measured(ds, job.scene.substratum_attrs())  # as the scene says now
         condition = str(job.attrs["condition"])
         rows = self.rows[condition]
         series = {name: observables.evaluate(ds, name).values

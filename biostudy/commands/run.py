@@ -27,7 +27,7 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import claims, combine, continuation, netcdf_io, writing
+from ..data import claims, combine, continuation, incomplete, netcdf_io, writing
 from ..data.finish import Record, finish
 from ..data.spool import Spool
 from ..errors import BadInput, Failed
@@ -155,7 +155,16 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     try:
         ds = solver.simulate(problem, progress=progress, sink=sink)
     except solver.SimulationError as error:
-        raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
+        message = f"simulation failed: {loaded.path or loaded.scene.name}: {error}"
+        if error.partial is None:
+            raise Failed(message) from None
+        why = f"{error.cause}{' at ' + error.where if error.where else ''}"
+        raise Stopped(message, _finished(loaded, incomplete.marked(error.partial, why))) from None
+    return _finished(loaded, ds)
+
+
+def _finished(loaded: Loaded, ds: xr.Dataset) -> xr.Dataset:
+    """The simulated dataset with its history (a continuation), provenance, observables and warnings."""
     log.debug("%s: wall time %.3g s (%s)", loaded.scene.name, ds.attrs["wall_time"], ", ".join(
         f"{name.removeprefix('wall_time_')} {seconds:.3g} s" for name, seconds in ds.attrs.items()
         if name.startswith("wall_time_")))
@@ -169,6 +178,27 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
     ds = combine.with_overrides(ds, pairs)
     return ds
+
+
+class Stopped(Exception):
+    """A simulation that stopped (`solver.SimulationError`), with the dataset of what it computed up to there."""
+
+    def __init__(self, message: str, dataset: xr.Dataset):
+        super().__init__(message)
+        self.message, self.dataset = message, dataset
+
+
+def _write(loaded: Loaded, ds: xr.Dataset) -> None:
+    """The dataset to the run's target, atomically (through its claim); `Failed` if it cannot be written."""
+    assert loaded.target is not None
+    try:
+        if loaded.claim is not None:
+            loaded.claim.write_dataset(ds)
+        else:
+            writing.write_atomic(ds, loaded.target)
+    except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
+        kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+        raise Failed(f"{error}; this run's result is lost ({kept})") from None
 
 
 def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
@@ -185,16 +215,18 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
             ds = _simulated(loaded, progress, spool)
         except writing.NotWritten as error:  # the spool's disk filled up while it ran
             raise Failed(f"{error}; this run stopped there and its result is lost ({kept})") from None
+        except Stopped as stopped:  # what it computed up to there is kept, marked incomplete, but not over a result
+            if loaded.target is None:
+                raise Failed(stopped.message) from None
+            if loaded.replacing:
+                raise Failed(f"{stopped.message}; the earlier result at {loaded.target} is kept as it was (this "
+                             "run's incomplete outputs are not written over it)") from None
+            _write(loaded, stopped.dataset)
+            raise Failed(f"{stopped.message}; {incomplete.kept(stopped.dataset, loaded.target)}") from None
         if loaded.error_estimate:  # companions of the whole run (never a continuation: `load`)
             ds = estimate(loaded.scene, loaded.path or "<scene>", ds, log.info, loaded.threads).applied(ds)
         if loaded.target is not None:
-            try:
-                if loaded.claim is not None:
-                    loaded.claim.write_dataset(ds)
-                else:
-                    writing.write_atomic(ds, loaded.target)
-            except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
-                raise Failed(f"{error}; this run's result is lost ({kept})") from None
+            _write(loaded, ds)
             ds = netcdf_io.open_dataset(loaded.target)
         elif loaded.previous is not None:
             ds = ds.load()  # the history it continues, read before that run's file is closed

@@ -200,18 +200,6 @@ def write_study(plan: Plan, out_dir: str | Path) -> Path:
         return writing.write_atomic(combine(plan, out_dir, opened), Path(out_dir) / "study.nc")
 
 
-def _measured_as_now(ds: xr.Dataset, now: dict) -> xr.Dataset:
-    """A case as its scene measures it now: the substratum (face, threshold) the scene says, and the stored
-    observables that depend on it dropped where the case was measured on another one (they are computed
-    again from its fields; nothing is simulated again)."""
-    changed = any(str(ds.attrs.get(name)) != str(value) for name, value in now.items())
-    if changed:
-        stale = [o.name for o in observables.REGISTRY.values() if o.needs_attrs and o.name in ds]
-        ds = ds.drop_vars(stale)
-    ds.attrs.update(now)
-    return ds
-
-
 def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr.Dataset:
     """study.nc: the cases stacked along one dimension per swept key (grid) or along `case` (zip).
 
@@ -253,7 +241,7 @@ def _read_cases(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack,
         status = str(record.get("status", "missing"))
         if status == "done":
             ds = _as_run(opened.enter_context(netcdf_io.open_dataset(path, chunks={})), coords)
-            ds = _measured_as_now(ds, plan.scenes[case.id].substratum_attrs())
+            ds = observables.as_measured(ds, plan.scenes[case.id].substratum_attrs())
             datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
         records[case.id] = (status, str(record.get("message", "")), record)
     return records, datasets

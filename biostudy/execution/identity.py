@@ -94,7 +94,7 @@ KNOWN_IN_0_3_0: dict[type, tuple[str, ...]] = {
 }
 # Fields `solver.Problem` gained after sweeps had been recorded, with their defaults: at those 0.3.0 left them
 # out of its fingerprint, so that the cases older sweeps finished stayed finished.
-ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None}
+ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None, "step_limit": None}
 
 
 class _Unknown(Exception):

@@ -31,6 +31,7 @@ from .constraints import boundary_held, pin_rigid_modes, rigid_modes
 from .linear import TangentSolver
 from .loading import Attempts, Refused, step_load
 from .mesh import StructuredMesh
+from .newton import nearly_incompressible
 from .pressure import PressureRecovery
 from .settings import DEFAULT, Settings
 
@@ -138,8 +139,9 @@ class GrowthMechanics:
                 outcome = step_load(system, linear, self.u.copy(), reference, self.setup.newton_tolerance,
                                     self.setup.max_newton_iterations, self.settings, attempts)
             except Refused as refusal:
+                growth = float(np.max(np.abs(alpha1 - alpha0), initial=0.0))
                 raise self._refusal(time, refusal, attempts, linear.iterations - krylov0,
-                                    linear.builds - builds0) from None
+                                    linear.builds - builds0, growth) from None
             u, evaluation = outcome.u, outcome.evaluation
         self._check_inversion(time, evaluation)
         self.u, self.phi, self.alpha = u, phi1, alpha1
@@ -191,8 +193,8 @@ class GrowthMechanics:
             raise MechanicsError(when, f"det F = {evaluation.min_det[worst]:.3g} <= 0 (element inverted)",
                                  self._cell(worst))
 
-    def _refusal(self, when: float, refusal: Refused, attempts: Attempts, krylov: int,
-                 builds: int) -> MechanicsError:
+    def _refusal(self, when: float, refusal: Refused, attempts: Attempts, krylov: int, builds: int,
+                 growth: float) -> MechanicsError:
         """The diagnosis: cause, worst cell, how far the load got and what was tried."""
         outcome = refusal.outcome
         worst, cause = 0, "no Newton step was tried"
@@ -209,6 +211,7 @@ class GrowthMechanics:
         summary = (f"{refusal.why}; reached {refusal.reached:.3g} of the way from the last converged state "
                    f"(next try {refusal.target:.3g}); tried {attempts.summary()}, {krylov} Krylov iterations "
                    f"and {builds} preconditioner builds ({self.linear.name})")
+        summary += nearly_incompressible(self.params.nu, self.params.kappa, self.params.mu, growth)
         tried = {"load_steps": len(attempts.steps), "newton": attempts.newton, "krylov": krylov, "builds": builds}
         return MechanicsError(when, f"{cause}; {summary}", self._cell(worst), tried)
 
