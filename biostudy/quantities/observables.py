@@ -41,6 +41,7 @@ those attributes and has none of them.
 from __future__ import annotations
 
 import re
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Callable
 
@@ -99,19 +100,31 @@ def _recorded(series: Series) -> Observable:
                       granularity=cell_volume if counts else None)
 
 
+# While `variables` measures a dataset, its sub-cell substratum quantities are computed together, from two level
+# sets per output (`substratum.substratum_observables`) instead of one or two per quantity: [dataset, values].
+_TOGETHER: ContextVar[list | None] = ContextVar("substratum_together", default=None)
+
+
 def _on_substratum(quantity: substratum.Quantity) -> Observable:
     """A COMSTAT observable, per output, on the substratum face, with the threshold, the connected-volume filtering
     and the estimator the dataset records (`comstat`; files written before the last two: sub-cell, unfiltered)."""
     def compute(ds: xr.Dataset) -> np.ndarray:
         face, threshold = str(ds.attrs["substratum_face"]), float(ds.attrs["substratum_threshold"])
         voxel = str(ds.attrs.get("substratum_estimator", "subcell")) == "voxel"
+        together = _TOGETHER.get()
+        if together is not None and not voxel and together[0] is ds:
+            return together[1][quantity.name]
         phi = ds["phi"].transpose("time", *(d for d in CELL_DIMS if d in ds.dims)).values
         if int(ds.attrs.get("substratum_connected", 0)):
             phi = np.array([comstat.connected(field, face, threshold) for field in phi])
         h = measures.spacing(ds)
         if voxel:
             return np.array([comstat.voxel_observables(field, h, face, threshold)[quantity.name] for field in phi])
-        return np.array([quantity.compute(field, h, face, threshold) for field in phi])
+        if together is None:
+            return np.array([quantity.compute(field, h, face, threshold) for field in phi])
+        values = [substratum.substratum_observables(field, h, face, threshold) for field in phi]
+        together[:] = [ds, {name: np.array([v[name] for v in values]) for name in substratum.QUANTITIES}]
+        return together[1][quantity.name]
 
     return Observable(quantity.name, quantity.units, quantity.long_name, compute, ("phi",), SUBSTRATUM_ATTRS)
 
@@ -179,14 +192,25 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     return out.unstack("_case").transpose(*extra, "time").assign_attrs(attrs)
 
 
-def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES) -> dict[str, xr.DataArray]:
-    """Every observable this run's fields give, as time series with units and long_name (for study.nc).
+def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES,
+              names: list[str] | None = None) -> dict[str, xr.DataArray]:
+    """Every observable this run's fields give (or those of `names`), as time series with units and long_name.
     The fields are read once, at most `block_bytes` of them at a time (`_blocks`): a run whose fields stay
     on disk (`data.spool`) is measured without holding every output."""
-    fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})]
+    names = [n for n, o in REGISTRY.items() if available(ds, o)] if names is None else names
+    if not names:
+        return {}
+    token = _TOGETHER.set([None, {}])  # the substratum quantities of each dataset measured below: together
+    try:
+        return _measured(ds, names, block_bytes)
+    finally:
+        _TOGETHER.reset(token)
+
+
+def _measured(ds: xr.Dataset, names: list[str], block_bytes: float) -> dict[str, xr.DataArray]:
+    fields = ds[sorted({v for n in names for v in REGISTRY[n].needs if v in ds})]
     # lazy fields (a sweep's case files, a streamed run) are read in this thread: the HDF5 library is not
     # thread-safe, and a dataset a notebook left open may be closed by the garbage collector at any moment
-    names = [n for n, o in REGISTRY.items() if available(ds, o)]
     blocks = _blocks(fields, block_bytes)
     if len(blocks) == 1:
         fields = fields.load(scheduler="synchronous")
