@@ -60,12 +60,14 @@ def _coordinate(key: str, values: list) -> tuple[np.ndarray, dict]:
 def _shared_variables(datasets: list[xr.Dataset]) -> list[str]:
     """Variables every finished case has on identical coordinates (so they stack into study.nc)."""
     first = datasets[0]
+    axes = [d for d in first.dims if d in first.coords]
+    same = [{d for d in axes if d in ds.coords and np.array_equal(ds[d].values, first[d].values)}
+            for ds in datasets[1:]]  # the coordinates each case has as the first has them
     shared = []
-    for name in first.data_vars:
-        var = first[name]
-        if all(name in ds.data_vars and ds[name].dims == var.dims and ds[name].shape == var.shape
-               and all(np.array_equal(ds[d].values, first[d].values) for d in var.dims if d in first.coords)
-               for ds in datasets[1:]):
+    for name, var in first.data_vars.items():
+        if all(name in ds.data_vars and ds.variables[name].dims == var.dims and ds.variables[name].shape == var.shape
+               and all(d in equal for d in var.dims if d in first.coords)
+               for ds, equal in zip(datasets[1:], same)):
             shared.append(name)
     return shared
 

@@ -175,7 +175,7 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
 
     def task(job_id: str) -> Task:
         job = by_id[job_id]
-        path = case_files.case_file(out_dir, job_id)
+        path = case_files.case_file(out_dir, job_id).absolute()  # workers started before a chdir keep theirs
         return Task(job.scene.problem(), _record(job, prints[job_id]), str(path) if backend.sees_files else None,
                     job.layout, job.measure, made_by)
 
