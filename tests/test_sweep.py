@@ -89,6 +89,9 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     partial = xr.open_dataset(out / "study.nc")
     assert partial.status.sel(g=1e9, r=100).item() == "missing" and partial.attrs["cases_missing"] == 1
     assert np.isnan(partial.phi_mean.sel(g=1e9, r=100)).all() and partial.phi_mean.sel(g=1e9, r=50).notnull().all()
+    with xr.open_dataset(out / "cases" / "g=1e+09_r=50.nc") as one:  # the fields, written case by case
+        np.testing.assert_array_equal(partial.phi.sel(g=1e9, r=50).values, one.phi.values[0, 0])
+    assert np.isnan(partial.phi.sel(g=1e9, r=100)).all()
     again = sweep(load_study(tiny_study), out)
     assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
     assert [p.name for p in again.removed] == [leftover]

@@ -139,8 +139,24 @@ def _nest(items: list, sizes: list[int]) -> list:
 
 
 def write_study(plan: Plan, out_dir: str | Path) -> Path:
-    """Combine the case files under DIR/cases/ into DIR/study.nc (atomically), the fields one case at a time."""
-    return writing.write_atomic(combine(plan, out_dir), Path(out_dir) / "study.nc")
+    """Combine the case files under DIR/cases/ into DIR/study.nc (atomically); the fields stacked along the study
+    are written case by case, each case file opened once for them (not through dask: its store of thousands of
+    lazy reads costs time that grows with their square)."""
+    combined, cases = _combined(plan, out_dir)
+    dims, _ = _study_coordinates(plan)
+    stacked = [name for name, var in combined.data_vars.items()
+               if var.chunks is not None and tuple(var.dims[:len(dims)]) == tuple(dims)]
+
+    def fill(nc) -> None:
+        for number, case in enumerate(plan.cases):
+            at = tuple(case.index) if plan.mode == "grid" else (number,)
+            found = cases[case.id]
+            values = study_cases.read_fields(found.path, {n: found.lazy[n] for n in stacked}) \
+                if found.run is not None else {}
+            for name in stacked:
+                nc.variables[name][at] = values.get(name, np.nan)
+
+    return writing.write_atomic(combined, Path(out_dir) / "study.nc", deferred=(stacked, fill))
 
 
 def combine(plan: Plan, out_dir: str | Path) -> xr.Dataset:
@@ -149,6 +165,10 @@ def combine(plan: Plan, out_dir: str | Path) -> xr.Dataset:
     Each case file's observables, coordinates and attributes are read at once, its fields lazily
     (`study_cases`): a sweep of many large cases is streamed into study.nc, not held in memory at once.
     """
+    return _combined(plan, out_dir)[0]
+
+
+def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, study_cases.Case]]:
     dims, coords = _study_coordinates(plan)
     reader = study_cases.Reader(coords)
     cases = {case.id: reader.read(case_files.case_file(out_dir, case.id), plan.scenes[case.id].substratum_attrs())
@@ -172,7 +192,7 @@ def combine(plan: Plan, out_dir: str | Path) -> xr.Dataset:
             combined = combined.assign_coords({n: first[n] for n in first.coords if n not in combined.coords})
     omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
     combined.attrs = _study_attrs(plan, done, [cases[c.id].status for c in plan.cases], omitted)
-    return combined
+    return combined, cases
 
 
 def _case_parts(plan: Plan, cases: dict[str, study_cases.Case], shared: list[str]) -> list[xr.Dataset]:

@@ -42,6 +42,8 @@ class Case:
     attrs: dict
     run: xr.Dataset | None = None  # a finished case as its run wrote it: small variables read, fields lazy
     computed: bool = False  # observables it lacked were computed from its fields
+    path: Path | None = None  # its file (finished)
+    lazy: dict = field(default_factory=dict)  # name -> (shape, dtype, as stored) of its lazy variables (`read_fields`)
 
 
 @dataclass
@@ -52,6 +54,7 @@ class Template:
     layout: dict  # file variable name -> (dimensions, shape, dtype) as stored
     run: xr.Dataset  # the case as its run wrote it (small variables read, fields lazy)
     usable: bool
+    lazy: dict  # its `Case.lazy`
 
 
 @dataclass
@@ -77,12 +80,13 @@ class Reader:
             if status != "done":
                 return Case(status, message, attrs)
             if self._fits(layout, attrs, now):
-                return Case(status, message, attrs, self._as_template(nc, path, attrs, now))
+                return Case(status, message, attrs, self._as_template(nc, path, attrs, now), False, path,
+                            self.template.lazy)
         case = read(path, self.coords, now)
         if self.template is None and case.run is not None:
             fine = set(case.run.data_vars) - set(_lazy_names(case.run))
             usable = not case.computed and all(as_stored(case.run[name]) for name in [*fine, *case.run.coords])
-            self.template = Template(layout, case.run, usable)
+            self.template = Template(layout, case.run, usable, case.lazy)
         return case
 
     def _fits(self, layout: dict, attrs: dict, now: dict) -> bool:
@@ -136,7 +140,12 @@ def read(path: Path, coords: dict, now: dict) -> Case:
         lazy = _lazy_names(run)
         small = run.drop_vars(lazy).load()
         fields = _lazy(path, {name: run[name] for name in lazy})
-    return Case(status, str(attrs.get("message", "")), attrs, small.assign(fields).assign(computed), bool(computed))
+    return Case(status, str(attrs.get("message", "")), attrs, small.assign(fields).assign(computed), bool(computed),
+                path, _specs({name: run[name] for name in lazy}))
+
+
+def _specs(variables: dict[str, xr.DataArray]) -> dict[str, tuple]:
+    return {name: (var.shape, var.dtype, as_stored(var)) for name, var in variables.items()}
 
 
 def as_run(ds: xr.Dataset, coords: dict) -> xr.Dataset:
@@ -176,9 +185,9 @@ def _lazy(path: Path, variables: dict[str, xr.DataArray]) -> dict[str, xr.Variab
     import dask.array as da
 
     token = dask.base.tokenize(str(path), sorted(variables))
-    names = {name: (var.shape, var.dtype, as_stored(var)) for name, var in variables.items()}
+    names = _specs(variables)
     if sum(var.nbytes for var in variables.values()) <= AT_ONCE:
-        together = dask.delayed(_read, pure=True)(str(path), names)
+        together = dask.delayed(read_fields, pure=True)(str(path), names)
         data = {name: da.from_delayed(together[name], var.shape, var.dtype, name=f"case-{token}-{name}")
                 for name, var in variables.items()}
     else:
@@ -193,7 +202,7 @@ def _blocks(path: Path, name: str, var: xr.DataArray, stored: bool, key: str):
     import dask.array as da
 
     if not var.ndim:
-        return da.from_delayed(dask.delayed(_read)(str(path), {name: (var.shape, var.dtype, stored)})[name],
+        return da.from_delayed(dask.delayed(read_fields)(str(path), {name: (var.shape, var.dtype, stored)})[name],
                                var.shape, var.dtype, name=key)
     step = max(1, int(AT_ONCE // max(var.nbytes / max(var.shape[0], 1), 1)))
     parts = []
@@ -204,9 +213,9 @@ def _blocks(path: Path, name: str, var: xr.DataArray, stored: bool, key: str):
     return da.concatenate(parts)
 
 
-def _read(path: str, names: dict) -> dict[str, np.ndarray]:
-    """The values of the variables `names` ({name: (shape, dtype, as stored)}), their study dimensions (of length 1)
-    dropped: as stored where that is what xarray decodes them to, else through xarray."""
+def read_fields(path: str | Path, names: dict) -> dict[str, np.ndarray]:
+    """The values of a case file's variables `names` ({name: (shape, dtype, as stored)}: `Case.lazy`), their study
+    dimensions (of length 1) dropped: as stored where that is what xarray decodes them to, else through xarray."""
     with netcdf_io.opened(path) as nc:
         values = {}
         for name, (shape, dtype, stored) in names.items():
@@ -225,7 +234,7 @@ def _read(path: str, names: dict) -> dict[str, np.ndarray]:
 
 def _read_block(path: str, name: str, start: int, stop: int, shape: tuple, dtype, stored: bool) -> np.ndarray:
     """Entries start:stop along the first dimension of variable `name` (of the run's `shape`)."""
-    return _read(path, {name: (shape, dtype, stored)})[name][start:stop] if not stored else \
+    return read_fields(path, {name: (shape, dtype, stored)})[name][start:stop] if not stored else \
         _stored_block(path, name, start, stop, shape, dtype)
 
 
