@@ -56,7 +56,8 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from biostudy.commands import calibrate, twin  # noqa: E402
+from biostudy.calibration import twin  # noqa: E402
+from biostudy.commands import calibrate  # noqa: E402
 from biostudy.execution.jobs import Execution  # noqa: E402
 from biostudy.inputs import bundled  # noqa: E402
 
@@ -69,7 +70,7 @@ def load_average() -> str:
 
 
 def run(path: Path, out: Path, workers: int | None, profiles: bool) -> xr.Dataset:
-    job = calibrate.load(path, output=out)
+    job = calibrate.load(path, directory=out)
     job.plan.spec.method.profiles = profiles
     job.run(Execution(workers=workers))
     return xr.load_dataset(out / "calibration.nc")
@@ -154,7 +155,7 @@ def posterior_cost() -> None:
         with tempfile.TemporaryDirectory() as scratch:
             out = Path(scratch) / "out"
             began = time.perf_counter()
-            calibrate.load(source, output=out).run(Execution(workers=workers))
+            calibrate.load(source, directory=out).run(Execution(workers=workers))
             wall = time.perf_counter() - began
             ds = xr.load_dataset(out / "calibration.nc")
         a = ds.attrs
@@ -186,7 +187,7 @@ def posterior_coverage(seeds: int, workers: int | None) -> None:
             (here / "twin.tsv").write_text(twin.table(here / "agar.toml", truth=TRUTH, observables_measured=[
                 "biomass", "max_thickness"], times=HOURS, time_factor=1 / 20, noise=0.05, seed=1000 + seed))
             shutil.rmtree(here / "out", ignore_errors=True)
-            calibrate.load(here / "post.toml", output=here / "out").run(Execution(workers=workers))
+            calibrate.load(here / "post.toml", directory=here / "out").run(Execution(workers=workers))
             ds = xr.load_dataset(here / "out" / "calibration.nc")
             simulations += ds.attrs["simulations"]
             warned += bool(ds.attrs["posterior_statements"])
@@ -237,8 +238,8 @@ def noise() -> None:
 
 
 def posterior_grid(workers: int | None) -> None:
-    from biostudy.execution.evaluator import Evaluator
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.evaluator import Evaluator
+    from biostudy.calibration.problem import load_calibration
 
     plan = load_calibration(bundled.resolve("calibrate-agar"))
     low, high = np.log10([1e7, 20.0]), np.log10([1e10, 400.0])  # the calibration's [estimate] ranges

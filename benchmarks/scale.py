@@ -41,7 +41,7 @@ pin_solvers()
 from biostudy.commands import run as command
 from biostudy.inputs import resources
 target, overrides = Path(sys.argv[1]), sys.argv[2:]
-loaded = command.load(Path(SCENE), overrides=overrides, output=target)
+loaded = command.load(Path(SCENE), set=overrides, output=target)
 result = command.compute(loaded)
 attrs = result.dataset.attrs
 peak = int(re.search(r"VmHWM:\\s+(\\d+) kB", open("/proc/self/status").read()).group(1)) * 1024

@@ -6,8 +6,8 @@ processes or a Dask cluster.  Data flows one way: scene file -> `Scene` ->
 `solver.Problem` -> `solver.simulate` -> xarray Dataset -> netCDF.
 
 The packages are stages whose imports run one way (`tests/test_layout.py` holds the order): fitting (plain
-maths), inputs, quantities, data, plans, execution, reports, plots, commands, cli; each imports only the
-stages before it (and `solver`, `formatting`, `errors`).
+maths), inputs, quantities, data, plans, execution, reports, plots, calibration (a feature in one place),
+commands, cli; each imports only the stages before it (and `solver`, `formatting`, `errors`).
 
 From Python (a notebook, a script; docs/results.md):
 
@@ -34,7 +34,8 @@ import logging
 logging.getLogger("biostudy").addHandler(logging.NullHandler())
 
 _API = {"run": "run", "sweep": "sweep", "calibrate": "calibrate", "convergence": "convergence",
-        "stability": "stability", "analyze": "analyze", "plot": "plot", "export": "export", "show": "show",
+        "stability": "stability", "analyze": "analyze", "plot": "plot", "export": "export", "measure": "measure",
+        "show": "show",
         "scenes": "scenes", "open": "open_result"}
 __all__ = [*_API, "BadInput", "Failed"]
 

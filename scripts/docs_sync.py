@@ -10,20 +10,34 @@ A generated block in README.md or a guide (`PAGES`) is marked
     <!-- end: NAME -->
 
 and its text comes from `BLOCKS[NAME]()`, which reads a table that a measuring
-script wrote: `docs/gallery/runs.md` (`scripts/gallery.py`: the bundled scenes
-at paper size) and `docs/measured/suite.md` (`scripts/suite_time.py`: the test
-suite on this machine).
+script wrote: `docs/gallery/runs.md` and `docs/gallery/findings.md`
+(`scripts/gallery.py`: the bundled scenes at paper size, and the paper's
+section-4 statements measured on them with their verdicts, `scripts/findings.py`),
+`docs/measured/agar-tension.txt` (`benchmarks/agar_tension.py`: where the colony
+on agar is in tension), `docs/measured/model-laws.txt` (`benchmarks/model_laws.py`:
+the bundled scenes under each form of the model's laws),
+`docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine),
+and docs/accuracy.md's convergence summaries and benchmark tables
+(`scripts/accuracy_tables.py`: each with the command that made it, which must be
+the one that script lists).
 """
 from __future__ import annotations
 
+import functools
 import re
 import sys
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from accuracy_tables import MEASURED, MEASURED_OUT, OUT, TABLES  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-PAGES = (README, ROOT / "docs" / "gallery.md")  # the files holding generated blocks
+PAGES = (README, *(ROOT / "docs" / f"{page}.md" for page in ("gallery", "paper", "model", "accuracy")))  # with blocks
 RUNS = ROOT / "docs" / "gallery" / "runs.md"
+FINDINGS = ROOT / "docs" / "gallery" / "findings.md"
+TENSION = ROOT / "docs" / "measured" / "agar-tension.txt"
+LAWS = ROOT / "docs" / "measured" / "model-laws.txt"
 SUITE = ROOT / "docs" / "measured" / "suite.md"
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
 
@@ -43,6 +57,15 @@ def gallery_runs() -> str:
     return RUNS.read_text(encoding="utf-8")
 
 
+def paper_findings() -> str:
+    return FINDINGS.read_text(encoding="utf-8")
+
+
+def table_lines(path: Path) -> str:
+    """The lines of a measuring script's output that are a markdown table."""
+    return "".join(line + "\n" for line in path.read_text(encoding="utf-8").splitlines() if line.startswith("|"))
+
+
 def setup_time() -> str:
     row = table_rows(RUNS)["directional"]
     return (f"the paper's directional-growth scene ({row['run s']} s on 2 cores, of which the mechanics "
@@ -56,7 +79,22 @@ def suite_time() -> str:
             f"{facts['load average']}: `docs/measured/suite.md`; `-m \"not slow\"` leaves out the longest checks):\n")
 
 
-BLOCKS = {"gallery-runs": gallery_runs, "setup-time": setup_time, "suite-time": suite_time}
+def made_by(path: Path, command: str) -> str:
+    """A table written with its command on the first line, as the command (a sh block) and the table; a table
+    made by another command than the listed one is stale."""
+    first, _, rest = path.read_text(encoding="utf-8").partition("\n")
+    if first != f"command: {command}":
+        raise SystemExit(f"{path.relative_to(ROOT)} was made by another command than `{command}`: run python "
+                         f"scripts/accuracy_tables.py {path.name.split('.')[0]}")
+    return f"```sh\n{command}\n```\n\n{rest.lstrip()}"
+
+
+BLOCKS = {"gallery-runs": gallery_runs, "paper-findings": paper_findings, "agar-tension": lambda: table_lines(TENSION),
+          "model-laws": lambda: table_lines(LAWS), "setup-time": setup_time, "suite-time": suite_time,
+          **{f"accuracy-{name}": functools.partial(made_by, OUT / f"{name}.summary.md", command)
+             for name, (command, _) in TABLES.items()},
+          **{f"measured-{name}": functools.partial(made_by, MEASURED_OUT / f"{name}.txt", command)
+             for name, command in MEASURED.items()}}
 
 
 def synced(text: str) -> tuple[str, list[str]]:
@@ -66,7 +104,7 @@ def synced(text: str) -> tuple[str, list[str]]:
     def rewrite(match: re.Match) -> str:
         name = match["name"]
         if name not in BLOCKS:
-            raise SystemExit(f"README.md: unknown generated block {name!r}")
+            raise SystemExit(f"unknown generated block {name!r} (scripts/docs_sync.py BLOCKS)")
         body = BLOCKS[name]()
         if body != match["body"]:
             changed.append(name)

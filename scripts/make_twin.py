@@ -1,4 +1,4 @@
-"""Write a twin experiment's measurement table: the model at known parameters plus noise (`biostudy.commands.twin`).
+"""Write a twin experiment's measurement table: the model at known parameters plus noise (`biostudy.calibration.twin`).
 
 The bundled example's table was made by
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 os.environ.setdefault("FIPY_SOLVERS", "scipy")
 
-from biostudy.commands.twin import table  # noqa: E402
+from biostudy.calibration.twin import table  # noqa: E402
 
 
 def main() -> None:
@@ -30,12 +30,13 @@ def main() -> None:
     parser.add_argument("--t-ref-hours", type=float, default=None, help="the real time of T* = 1, in hours")
     parser.add_argument("--noise", type=float, default=0.05, help="sigma as a fraction of each true value")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--condition", default="", help="every row's simulationConditionId (a PEtab id)")
     args = parser.parse_args()
     truth = {key: float(value) for key, value in (t.split("=", 1) for t in args.truth)}
     times = [float(t) for t in args.times.split(",")]
     factor = 1.0 / args.t_ref_hours if args.t_ref_hours else 1.0
     text = table(args.scene, truth=truth, observables_measured=args.observable, times=times, time_factor=factor,
-                 noise=args.noise, seed=args.seed, overrides=args.overrides)
+                 noise=args.noise, seed=args.seed, overrides=args.overrides, condition=args.condition)
     Path(args.output).write_text(text, encoding="utf-8")
     print(f"wrote {args.output} ({len(text.splitlines()) - 1} measurements)")
 

@@ -9,6 +9,7 @@ The equations and where they depart from the paper: docs/model.md.
 Nothing here knows about files, schemas or command lines.
 """
 from .errors import MechanicsError, SimulationError, StepFailure
+from .laws import Laws
 from .problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
 
 _TIMELOOP = ("Progress", "Simulation", "Snapshot", "evolve", "simulate")
@@ -25,7 +26,7 @@ def __getattr__(name: str):
 
 
 __all__ = [
-    "Grid", "Parameters", "Numerics", "MechanicsSetup", "Problem",
+    "Grid", "Parameters", "Laws", "Numerics", "MechanicsSetup", "Problem",
     "simulate", "evolve", "Simulation", "Snapshot", "Progress",
     "SimulationError", "MechanicsError", "StepFailure",
 ]

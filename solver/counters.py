@@ -21,10 +21,12 @@ MEANINGS = {
     "projected_c_largest": "largest correction of c by that projection",
     "projected_phi_count": "values of phi the solver projected onto their bounds (round-off)",
     "projected_phi_largest": "largest correction of phi by that projection",
-    "numerical_diffusion_max": "largest numerical diffusivity |v| h / 2 of upwinding (um2 per T*)",
+    "numerical_diffusion_max": "largest numerical diffusivity |v| h / 2 of upwinding (µm² per T*)",
     "cpu_time_loop": "CPU seconds (this thread) of the time loop's steps and mechanics solves, the first of each apart",
     "cpu_time_first": "CPU seconds of the first step and first mechanics solve (compiled kernels loaded, first "
                       "hierarchies built: one-off)",
+    "cpu_time_setup": "CPU seconds of the run's set-up: its operators built (Laplacian, face tables, mechanics mesh) "
+                      "and the initial nutrient solved",
     "next_step": "the clock's step after the last output: where a continuation of the run goes on",
 }
 # How the counters of a run and of its continuation add up to the whole history's (`solver.restart`): the

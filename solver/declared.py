@@ -13,7 +13,7 @@ from typing import Any, get_type_hints
 
 
 def parameter(default: float, units: str, long_name: str, **bounds: float):
-    """A field of `Parameters`: default, units (the model's, e.g. um2/T*; datasets write their udunits form,
+    """A field of `Parameters`: default, units (the model's, e.g. um^2/T*; datasets write their udunits form,
     `solver.output.cf_units`), meaning and allowed range
     (bounds: gt, ge, lt, le).  The scene schema, the dataset's attributes and the tables of `show` and
     `stability` are all derived from these declarations, so a new parameter is declared here once."""

@@ -21,7 +21,6 @@ import xarray as xr
 
 from .problem import AXES, PRESSURES, Problem, parameter_infos
 from .series import BIOFILM_THRESHOLD, SERIES, SLAB_THICKNESS, cell_volume
-from .sink import Held
 from .transport.bounds import ROUNDOFF
 
 if TYPE_CHECKING:
@@ -39,8 +38,9 @@ NORMALISED_TIME = "T*"  # t / t_ref: dimensionless
 
 def cf_units(units: str) -> str:
     """The udunits spelling of a model unit.  T* = t / t_ref is dimensionless, so a rate per T* has the
-    units of its numerator: 'um2/T*' -> 'um2', 'um/T*' -> 'um', '1/T*' -> '1'; other units are udunits
-    spellings already ('um', 'um3', 'Pa', 's', '1')."""
+    units of its numerator: 'um^2/T*' -> 'um^2', 'um/T*' -> 'um', '1/T*' -> '1'; other units are written as
+    they are ('um', 'um^3', 'Pa', 's', '1'), spelled so that udunits and plain pint both read them (powers with
+    '^': pint reads 'um3' as a unit named um3, and 'um-1' as um minus 1)."""
     head, per, rest = units.partition("/" + NORMALISED_TIME)
     if NORMALISED_TIME in rest or NORMALISED_TIME in head:
         raise ValueError(f"T* may only divide a unit: {units!r}")
@@ -129,7 +129,9 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
         "grid_spacing": problem.grid.spacing,
         **{info.name: float(getattr(p, info.name)) for info in parameter_infos(p)},
         "kappa": p.kappa,
-        "consumption": problem.consumption,
+        "consumption": problem.laws.consumption,
+        "expansion": problem.laws.expansion,
+        "nutrient_dynamics": problem.laws.nutrient,
         "advection": n.advection,
         "growth_velocity": n.growth_velocity,
         **({"front_band": n.front_band} if n.growth_velocity == "front" else {}),
@@ -167,14 +169,6 @@ def _attributes(problem: Problem, report: dict, snapshots) -> dict:
             if isinstance(value, (int, float, str)) and not isinstance(value, bool):
                 attrs[f"mechanics_{key}"] = value
     return attrs
-
-
-def to_dataset(problem: Problem, snapshots: list[Snapshot], report: dict) -> xr.Dataset:
-    """The run as a Dataset from its snapshots held in memory (`assemble`)."""
-    held = Held()
-    for snapshot in snapshots:
-        held.add(snapshot)
-    return assemble(problem, [record(problem, s) for s in snapshots], held.fields(), report)
 
 
 def assemble(problem: Problem, records: list[Record], fields: dict[str, Any], report: dict) -> xr.Dataset:

@@ -18,11 +18,12 @@ from typing import Literal, get_args
 import numpy as np
 
 from .declared import OptionError, ParameterInfo, option, parameter
+from .laws import Consumption as Consumption  # Consumption: re-exported (transport imports it here)
+from .laws import Laws
 
 AXES = ("x", "y", "z")
 Face = Literal["x-", "x+", "y-", "y+", "z-", "z+"]
 FACES: tuple[Face, ...] = get_args(Face)
-Consumption = Literal["first-order", "zero-order"]
 Advection = Literal["upwind", "tvd"]
 GrowthVelocity = Literal["front", "pointwise"]
 LinearSolver = Literal["auto", "multigrid", "direct", "amg"]
@@ -155,8 +156,8 @@ class Parameters:
 
     mu: float = parameter(3.3557, "Pa", "shear modulus mu", gt=0)
     nu: float = parameter(0.49, "1", "Poisson ratio nu", ge=0, lt=0.5)
-    d: float = parameter(1e10, "um2/T*", "nutrient diffusivity d", gt=0)
-    beta: float = parameter(2.0, "um2/T*", "phase-field regularisation beta", ge=0)
+    d: float = parameter(1e10, "um^2/T*", "nutrient diffusivity d", gt=0)
+    beta: float = parameter(2.0, "um^2/T*", "phase-field regularisation beta", ge=0)
     k_alpha: float = parameter(1e-3, "1/T*", "growth factor k_alpha", ge=0)
     k: float = parameter(1.0, "1", "half-velocity constant k (Monod)", gt=0)
     g: float = parameter(1e8, "1/T*", "consumption g (0: no consumption)", ge=0)
@@ -266,6 +267,7 @@ class Problem:
     output_times: the output clock, increasing, within [0, t_end].
     steps: nominal number of steps over [0, t_end] (the model clock).
     mechanics: None leaves the mechanics out entirely.
+    laws: which form of the model's laws (consumption, expansion, the nutrient's dynamics; `laws.Laws`).
 
     A continuation (`solver.restart`) starts from another run's last state
     instead of from rest: at ``start_time`` (> 0) with ``phi0``, ``alpha0``
@@ -283,7 +285,7 @@ class Problem:
     steps: int
     output_times: np.ndarray
     params: Parameters = field(default_factory=Parameters)
-    consumption: Consumption = "first-order"
+    laws: Laws = field(default_factory=Laws)
     nutrient_value: np.ndarray = None  # type: ignore[assignment]  # None: 1 everywhere (__post_init__)
     nutrient_faces: tuple[tuple[str, float], ...] = ()
     obstacle: np.ndarray = None  # type: ignore[assignment]  # None: no obstacle (__post_init__)
@@ -314,8 +316,6 @@ class Problem:
         self._check()
 
     def _check(self):
-        if self.consumption not in ("first-order", "zero-order"):
-            raise ValueError(f"unknown consumption law {self.consumption!r}")
         if not (self.t_end > 0 and self.steps >= 1):
             raise ValueError("t_end must be positive and steps at least 1")
         times = self.output_times

@@ -15,6 +15,7 @@ import numpy as np
 BIOFILM_THRESHOLD = 0.5  # biofilm is phi >= 0.5
 SLAB_THICKNESS = 1.0  # µm: a 2-D scene's volumes are per µm of thickness, whatever the cell size
 PER_THICKNESS = " (2-D: per µm of thickness)"  # what a volume's long name says in 2-D
+VOLUME = "um^3"  # a volume's units: udunits and plain pint both read this spelling (not "um3")
 
 
 def cell_volume(h: float, ndim: int) -> float:
@@ -34,7 +35,7 @@ class Series:
 
     def attrs(self, ndim: int) -> dict:
         """Its units and long name in a dataset of an `ndim`-D run (a 2-D volume is per µm of thickness)."""
-        thin = self.units == "um3" and ndim == 2
+        thin = self.units == VOLUME and ndim == 2
         return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if thin else "")}
 
 
@@ -51,5 +52,5 @@ def biofilm_volume(phi: np.ndarray, open_cells: np.ndarray, volume: float) -> fl
 SERIES = (
     Series("phi_mean", "1", "mean biofilm density over non-obstacle cells", "phi", open_mean),
     Series("c_mean", "1", "mean nutrient concentration over non-obstacle cells", "c", open_mean),
-    Series("biofilm_volume", "um3", f"volume of cells with phi >= {BIOFILM_THRESHOLD:g}", "phi", biofilm_volume),
+    Series("biofilm_volume", VOLUME, f"volume of cells with phi >= {BIOFILM_THRESHOLD:g}", "phi", biofilm_volume),
 )

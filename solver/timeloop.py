@@ -50,6 +50,8 @@ class Progress:
     mechanics_solves: int = 0  # to simulated time (they come at outputs), so a time-left estimate counts them
     mechanics_left: int = 0  # apart: how many are done and how many are still to come
     outputs: int = 0  # how many outputs this run makes: the dataset made of them at the end takes time too
+    output_seconds: float = 0.0  # wall time its outputs took so far where they were handed over (a sink writing
+    # them to disk), which is not a step's: the time left prices the dataset made at the end in steps without it
 
 
 class _Rejected(Exception):
@@ -98,6 +100,7 @@ class Clock:
         self.steps = self.bisections = self.rejected = 0
         self.largest_error = 0.0
         self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
+        self.output_seconds = 0.0
         self.cpu = CpuTime()
 
     def counters(self) -> Counters:
@@ -134,7 +137,7 @@ class Clock:
             if self.progress is not None:
                 self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected,
                                        self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
-                                       self.mechanics_left, self.outputs))
+                                       self.mechanics_left, self.outputs, self.output_seconds))
         return state
 
     def _check_smallest(self, state: State, dt: float, cause: str, where: str):
@@ -175,10 +178,12 @@ class Simulation:
     def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
         self.started = time.perf_counter()
         self.problem = problem
+        setup = time.thread_time()
         with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
             self.transport = Transport(problem)
         self.clock = Clock(self.transport, progress)
         self.mechanics = _mechanics(problem)
+        self.setup_cpu = time.thread_time() - setup  # the operators built for this grid: part of what a run costs
         self.mechanics_cpu = CpuTime()
         if self.mechanics is not None and problem.u0 is not None:
             alpha = np.zeros(problem.grid.cells_shape) if problem.alpha0 is None else problem.alpha0
@@ -186,8 +191,10 @@ class Simulation:
 
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
+        setup = time.thread_time()
         with threadpool_limits(limits=1, user_api="blas"):  # the first hierarchy's coarse pseudo-inverse too
             state = transport.initial()
+        self.setup_cpu += time.thread_time() - setup
         last = len(problem.output_times) - 1
         # a continuation's outputs up to its start belong to the run it continues (indices stay the scene's:
         # the mechanics is solved at the same outputs as in a run straight to t_end)
@@ -211,7 +218,9 @@ class Simulation:
                 self._solve_mechanics(snapshot)
                 clock.mechanics_solves += 1
             snapshot.elapsed = time.perf_counter() - self.started
+            handed = time.perf_counter()
             yield snapshot
+            clock.output_seconds += time.perf_counter() - handed  # the caller's: its record, its sink
 
     def _solves_mechanics(self, index: int, last: int) -> bool:
         """Whether u and p are solved at output `index` (every `mechanics.every`-th, and the last)."""
@@ -230,7 +239,7 @@ class Simulation:
         """What the run cost: wall time, counters, where the time went."""
         steps, solves = self.clock.cpu, self.mechanics_cpu
         cpu = {"cpu_time_loop": steps.rest + solves.rest,
-               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0)}
+               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0), "cpu_time_setup": self.setup_cpu}
         return {"wall_time": time.perf_counter() - self.started, "timings": dict(self.transport.timings),
                 **declared({**self.clock.counters(), **self.transport.counters(), **cpu})}
 

@@ -11,6 +11,8 @@ os.environ["MPLBACKEND"] = "Agg"
 # else the machine is doing (a test of a refusal sets its own figure).
 os.environ["BIOSTUDY_MEMORY"] = "16 GB"
 
+import shutil
+import subprocess
 import textwrap
 from collections import Counter
 from pathlib import Path
@@ -204,3 +206,24 @@ def pytest_collection_modifyitems(items):
         if item.get_closest_marker("slow"):
             slow.add(item.path)
     items.sort(key=lambda item: (item.path not in slow, -count[item.path]))  # stable: a file's order is kept
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 2 MB tmpfs; fill() leaves it about full."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs needs root")
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(disk)], capture_output=True)
+    if mounted.returncode:
+        pytest.skip(f"cannot mount a tmpfs here ({mounted.stderr.decode().strip()})")
+
+    def fill():
+        with open(disk / "filler", "ab") as handle:
+            handle.write(b"\0" * shutil.disk_usage(disk).free)
+
+    try:
+        yield disk, fill
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], check=True)

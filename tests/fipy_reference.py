@@ -11,12 +11,13 @@ Paper Eqs. 34-36 as FiPy equations, rebuilt and solved by FiPy at every step:
 conservative div(v phi) minus phi div(v): the non-conservative v . grad(phi).
 Tests compare these matrices with `Biofilm`/`Nutrient` and a short run with
 `Transport`; the benchmark times it with FiPy's default solvers (LU) and with
-iterative ones.  First-order consumption only, no obstacles.
+iterative ones.  The default laws only (`solver.Laws()`), no obstacles.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from solver.laws import Laws
 from solver.problem import Problem
 from solver.transport.finite_volume import fipy_mesh
 
@@ -29,8 +30,9 @@ class FipyTransport:
     def __init__(self, problem: Problem, solvers: str = "default", tolerance: float = 1e-10):
         import fipy
 
-        if problem.obstacle.any() or problem.consumption != "first-order":
-            raise ValueError("the FiPy reference covers first-order consumption without obstacles")
+        if problem.obstacle.any() or problem.laws != Laws():
+            raise ValueError("the FiPy reference covers the default laws (first-order consumption, Eq. 36, "
+                             "quasi-steady c) without obstacles")
         self.fipy = fipy
         self.problem = problem
         p = problem.params

@@ -2,7 +2,7 @@
 
 The same discrete problem as the project's assembler (paper 2.1, 2.3.1, 3; docs/model.md, departures
 3, 4, 5 and 10), set up the way scikit-fem's nearly-incompressible hyperelasticity example
-(docs/examples/ex36.py) sets up its own: a mixed displacement/pressure formulation, one
+(its ex36.py) sets up its own: a mixed displacement/pressure formulation, one
 `LinearForm` / `BilinearForm` per block, and the pressure block eliminated afterwards (paper
 Table 1, step 7, the Schur complement).
 

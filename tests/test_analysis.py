@@ -130,3 +130,30 @@ def test_designs_are_nested_in_n_inside_their_ranges_and_on_their_scale():
     assert abs(np.mean(r < 125.0) - 0.5) < 0.02  # linear: half below the arithmetic middle
     lhs = sample("lhs", 10, ranges).unit_points()
     assert all(sorted(np.floor(lhs[:, j] * 10).astype(int)) == list(range(10)) for j in range(3))  # one per stratum
+
+
+def test_sobol_indices_from_too_few_samples_are_said_to_be_so_with_the_n_needed():
+    """Issue 36.6: Ishigami at n = 8 has 95 % intervals of ±0.9; the warning asks for the n whose intervals are
+    ±0.1 (n (w / 0.1)², up to a power of 2), and at that n the analysis is quiet and its intervals are ±0.1."""
+    ranges = {"x1": [-PI, PI], "x2": [-PI, PI], "x3": [-PI, PI]}
+    small = analysis.analyze(study_dataset(sample("sobol", 8, ranges), ishigami), ["y"], [1.0])
+    widest = float(max(small.S1_conf.max(), small.ST_conf.max()))
+    needed = 2 ** int(np.ceil(np.log2(8 * (widest / 0.1) ** 2)))
+    warning = small.attrs["warning"]
+    assert warning.startswith("Sobol' indices at n = 8 base samples are not yet estimates") and widest > 0.5
+    assert f"about n = {needed} brings them to ±0.1" in warning and f"[sample] n = {needed}" in warning
+    assert warning in analysis.table_text(small)
+    large = analysis.analyze(study_dataset(sample("sobol", needed, ranges), ishigami), ["y"], [1.0])
+    assert "warning" not in large.attrs and float(max(large.S1_conf.max(), large.ST_conf.max())) <= 0.1
+
+
+def test_an_impossible_sobol_estimate_is_named():
+    """S1 > ST beyond both intervals (a toy of the issue's S1 = 1.2 > ST = 0.73 at n = 8)."""
+    from biostudy.reports.sensitivity_notes import sobol_warning
+
+    design = sample("sobol", 8, {"x1": [0.0, 1.0], "x2": [0.0, 1.0]})
+    data = {"S1": np.array([[[1.2, 0.1]]]), "ST": np.array([[[0.73, 0.1]]]),
+            "S1_conf": np.array([[[0.2, 0.05]]]), "ST_conf": np.array([[[0.2, 0.05]]])}
+    said = sobol_warning(data, ["biomass"], ["r", "g"], np.array([[8]]), design)
+    assert "(S1 = 1.2, ST = 0.73 for r (biomass): not possible for indices)" in said
+    assert "about n = 32 brings them to ±0.1" in said  # 8 (0.2 / 0.1)² = 32

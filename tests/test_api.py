@@ -13,7 +13,8 @@ import biostudy
 from biostudy.cli import app
 
 NOTEBOOK = Path(__file__).resolve().parents[1] / "docs" / "examples" / "notebook.ipynb"
-PER_RUN = {"created", "history", "wall_time", "host", "cpu_time_loop", "cpu_time_first"}  # differ between two runs
+# differ between two runs
+PER_RUN = {"created", "history", "wall_time", "host", "cpu_time_loop", "cpu_time_first", "cpu_time_setup"}
 
 
 def test_run_returns_the_dataset_the_command_writes(tiny_scene, tmp_path):

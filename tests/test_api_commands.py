@@ -79,7 +79,7 @@ def made(tmp_path_factory):
 def test_every_command_of_the_command_line_is_a_function():
     commands = {command.name or command.callback.__name__ for command in app.registered_commands}
     assert commands == {"run", "sweep", "calibrate", "convergence", "stability", "analyze", "plot", "export",
-                        "show", "scenes"}
+                        "measure", "show", "scenes"}
     assert all(callable(getattr(biostudy, name)) for name in commands) and callable(biostudy.open)
 
 
@@ -128,18 +128,18 @@ def test_scenes_is_the_commands_json_of_the_bundled_files():
 
 def test_plot_and_export_write_the_files_the_command_writes_and_print_nothing(made, capfd):
     pictures = biostudy.plot(made / "a.nc", output=made / "api.png", variable="phi", time=0.1)
-    vtu = biostudy.export(made / "a.nc", made / "vtu-api")
+    vti = biostudy.export(made / "a.nc", made / "vti-api")
     tiff = biostudy.export(made / "a.nc", made / "tiff-api", format="tiff")
     assert capfd.readouterr() == ("", "")
     said = invoke("plot", made / "a.nc", "-o", made / "cli.png", "--variable", "phi", "--time", "0.1")
     assert [p.name for p in pictures] == ["api_series.png", "api_maps.png"]
     assert said.splitlines() == [f"wrote {p.with_name(p.name.replace('api', 'cli'))}" for p in pictures]
-    invoke("export", made / "a.nc", made / "vtu-cli")
+    invoke("export", made / "a.nc", made / "vti-cli")
     invoke("export", made / "a.nc", made / "tiff-cli", "--format", "tiff")
-    assert [p.name for p in vtu] == ["snapshot_0000.vtu", "snapshot_0001.vtu", "snapshot_0002.vtu", "series.pvd"]
+    assert [p.name for p in vti] == ["snapshot_0000.vti", "snapshot_0001.vti", "snapshot_0002.vti", "series.pvd"]
     assert [p.name for p in tiff] == ["phi.tif", "c.tif"]
     for written, other in ((pictures, lambda p: p.with_name(p.name.replace("api", "cli"))),
-                           (vtu, lambda p: made / "vtu-cli" / p.name), (tiff, lambda p: made / "tiff-cli" / p.name)):
+                           (vti, lambda p: made / "vti-cli" / p.name), (tiff, lambda p: made / "tiff-cli" / p.name)):
         assert all(filecmp.cmp(p, other(p), shallow=False) for p in written)
 
 
@@ -166,7 +166,7 @@ def test_convergence_and_stability_return_what_the_command_reports(made):
 
 @pytest.mark.filterwarnings("ignore:1 of its simulations lost")  # the tiny colony retreats where it starves
 def test_calibrate_returns_what_the_command_reports(made):
-    from biostudy.commands import twin
+    from biostudy.calibration import twin
 
     (made / "twin.tsv").write_text(twin.table(made / "tiny.toml", truth={"r": 80.0}, observables_measured=["biomass"],
                                               times=[0.1, 0.2], noise=0.05, seed=3))

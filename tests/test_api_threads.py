@@ -73,3 +73,46 @@ def test_a_second_thread_writing_the_same_output_is_refused_at_once_and_the_firs
         go_on.set()
         thread.join(120)
     assert ended and biostudy.open(out).attrs["steps_taken"] == 4
+
+
+# Issue 39.3: eight threads of a fresh process read their first real times at once: four show a calibration file
+# with t_ref (what it needs), four calibrate it into one directory.  pint's registry, made lazily, was made by
+# several threads, and quantities of two registries do not compute together: 3 of 4 raised "Cannot operate with
+# Quantity and Quantity of different registries", which also replaced the refusal of a directory in use.
+FIRST_TIMES = textwrap.dedent("""\
+    import threading
+    import biostudy
+
+    said = {}
+    def call(name, function, *args, **options):
+        try:
+            found = function(*args, **options)
+            said[name] = str(found) if name.startswith("show") else type(found).__name__
+        except Exception as error:
+            said[name] = f"{type(error).__name__}: {error}"
+    threads = [threading.Thread(target=call, args=(f"calibrate{i}", biostudy.calibrate, "c.toml", "out"))
+               for i in range(4)]
+    threads += [threading.Thread(target=call, args=(f"show{i}", biostudy.show, "c.toml")) for i in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for name, value in sorted(said.items()):
+        print(name, "|", value.splitlines()[0])
+    """)
+
+
+def test_threads_reading_their_first_real_times_share_one_unit_registry(tmp_path):
+    from test_calibration_hostile import calibration, table
+
+    calibration(tmp_path, table(("biomass", "", 0.05, 2.0, 0.1), ("biomass", "", 0.1, 2.2, 0.1)),
+                '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n')
+    done = subprocess.run([sys.executable, "-c", FIRST_TIMES], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=300)
+    said = dict(line.split(" | ", 1) for line in done.stdout.splitlines())
+    assert done.returncode == 0 and len(said) == 8, done.stderr[-2000:]
+    assert all(said[f"show{i}"].startswith("c: 1 parameters, 2 measurements") for i in range(4)), said
+    calibrations = sorted(said[f"calibrate{i}"] for i in range(4))
+    assert calibrations[-1] == "Dataset", said  # one calibrated
+    assert all(text.startswith("BadInput: ") and "another biostudy run is writing into this directory" in text
+               for text in calibrations[:3]), said  # the others refused at once, naming the one that writes

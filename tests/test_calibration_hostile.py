@@ -68,8 +68,8 @@ def _digest(path: Path) -> str:
 
 
 def test_conditions_named_like_paths_write_their_case_files_under_cases(tmp_path):
+    from biostudy.calibration.evaluator import Evaluator
     from biostudy.commands.calibrate import load
-    from biostudy.execution.evaluator import Evaluator
     from biostudy.execution.jobs import Execution
 
     folder = tmp_path / "lab"
@@ -84,7 +84,7 @@ def test_conditions_named_like_paths_write_their_case_files_under_cases(tmp_path
     path = calibration(folder, rows, "[conditions.a.estimate]\nr = [50.0, 150.0]\n"
                        + "".join(f'[conditions."{name}"]\n"params.k" = 2.0\n' for name in hostile))
     out = folder / "out"
-    simulations = Evaluator(load(path, output=out).plan, out, Execution())
+    simulations = Evaluator(load(path, directory=out).plan, out, Execution())
     [residuals] = simulations.evaluate([np.array([0.5])])
     assert residuals is not None and np.all(np.isfinite(residuals))
     assert _digest(victim) == before and not (tmp_path / "elsewhere").exists()
@@ -131,7 +131,7 @@ def test_estimated_keys_are_checked_before_anything_runs(tmp_path, body, expecte
 
 
 def test_a_key_shared_and_estimated_by_a_condition_under_another_spelling_is_the_condition_s_own(tmp_path):
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.problem import load_calibration
 
     path = calibration(tmp_path, TWO_ROWS.replace("\t\t0.05", "\ta\t0.05").replace("\t\t", "\tb\t"), """\
         [estimate]
@@ -185,7 +185,7 @@ def test_posterior_chains_that_cannot_fit_are_refused_before_anything_runs(tmp_p
                                            'walkers = 1000\nsteps = 1000000\n')
     one_line(invoke("calibrate", path, "-o", tmp_path / "out", "-q"),
              "c.toml: method.steps: the posterior's chains (1000 walkers × 1000000 steps × 1 parameters) need ~32 GB "
-             "of memory, 16 GB available: lower steps or walkers")
+             "of memory, 16 GB available (BIOSTUDY_MEMORY=16 GB): lower steps or walkers")
     assert not (tmp_path / "out").exists()
     shown = invoke("show", path)
     assert shown.exit_code == 0 and "chains        ~32 GB of memory" in shown.stdout, shown.output
@@ -200,9 +200,10 @@ COST = {"simulations": 0, "simulations_reused": 0, "rounds": 0, "wall_time": 0.0
 def fitted(folder: Path, rows: str, body: str, model):
     """calibration.nc's dataset and table of a fit whose simulations are `model(values) -> one value per row`
     (an analytic model in place of the solver: what is tested is what the fit's numbers are said as)."""
+    from biostudy.calibration.methods import chosen
+    from biostudy.calibration.problem import load_calibration
+    from biostudy.calibration.report import dataset, table_text
     from biostudy.fitting.objective import Objective
-    from biostudy.plans.calibration import load_calibration
-    from biostudy.reports.calibration import dataset, table_text
 
     plan = load_calibration(calibration(folder, rows, body))
     data = np.array([m.value for m in plan.measurements])
@@ -211,7 +212,7 @@ def fitted(folder: Path, rows: str, body: str, model):
     def evaluate(points):
         return [(model(plan.values(p)) - data) / sigma for p in points]
 
-    result = plan.spec.method.method()(Objective(evaluate, len(data), np.full(len(data), 1e-9),
+    result = chosen(plan.spec.method)(Objective(evaluate, len(data), np.full(len(data), 1e-9),
                                                  tuple(p.name for p in plan.parameters)))
     ds = dataset(plan, result, model(plan.values(result.estimate.best.x)), COST, {}, {})
     return ds, table_text(ds)
@@ -265,7 +266,7 @@ def test_sigma_in_the_wrong_unit_says_how_far_the_fit_is_not_that_every_evaluati
 # ---- Ctrl-C during a fit (issue 28: no threads in the driver) -------------------------------------------------------
 
 def test_ctrl_c_between_rounds_ends_the_calibration_at_once_and_its_finished_runs_are_reused(tmp_path, monkeypatch):
-    from biostudy.execution import evaluator
+    from biostudy.calibration import evaluator
 
     path = calibration(tmp_path, TWO_ROWS, '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 2\nprofiles = false\n')
     out = tmp_path / "out"

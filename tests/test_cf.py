@@ -14,6 +14,7 @@ import pytest
 import xarray as xr
 from conftest import CUBE_SCENE, TINY_SCENE
 from typer.testing import CliRunner
+from unit_readers import assert_every_unit_read_alike, assert_read_alike, plain
 
 from biostudy.cli import app
 
@@ -89,28 +90,32 @@ def datasets(root: Path) -> dict[str, xr.Dataset]:
     return loaded
 
 
-def test_every_units_string_parses_with_cf_xarrays_pint_registry(made):
+def test_every_units_string_parses_with_udunits_plain_pint_and_cf_xarray_alike(made):
+    """Issue 36.3: pint-xarray's own registry quantifies every file (it failed on um2, um3, um-1), UDUNITS and
+    cf_xarray's registry read the same quantities."""
     import cf_xarray.units
-    import pint_xarray  # noqa: F401  (the .pint accessor)
 
     registry = cf_xarray.units.units
     for name, ds in datasets(made).items():
-        for var in ds.variables:
-            if "units" in ds[var].attrs:
-                registry.parse_units(ds[var].attrs["units"])  # raises on a unit udunits would refuse
+        assert_every_unit_read_alike(ds, name)
         quantified = ds.pint.quantify(unit_registry=registry)
         assert str(quantified["time"].pint.units) == "dimensionless", name
         if "phi" in ds:
             assert quantified["x"].pint.units == registry.micrometer, name
         if "r" in ds:  # a parameter, or a swept coordinate: µm/T* with T* dimensionless
             assert quantified["r"].pint.units == registry.micrometer, name
+        if "biofilm_volume" in ds:
+            assert quantified["biofilm_volume"].pint.units == registry.micrometer**3, name
+        if "surface_to_biovolume" in ds:
+            per_mm = ds.pint.quantify(unit_registry=plain())["surface_to_biovolume"].pint.to("1/mm")
+            assert per_mm.pint.units == plain().parse_units("1/mm"), name
 
 
 def test_the_declared_units_of_every_other_dataset_parse_too():
-    """stability.nc, convergence.nc and the observables, whose datasets cost too much to make here."""
-    import cf_xarray.units
-
-    from biostudy.inputs.scene import SCENE_KEYS, key_info  # noqa: F401
+    """stability.nc, convergence.nc, calibration.nc and the observables, whose datasets cost too much to make
+    here (a calibration's own file is checked in tests/test_calibration.py)."""
+    from biostudy.calibration import units as parameter_units
+    from biostudy.inputs.real_time import real_time
     from biostudy.quantities import observables
     from biostudy.reports import convergence, stability
     from solver.output import cf_units
@@ -119,8 +124,31 @@ def test_the_declared_units_of_every_other_dataset_parse_too():
     declared = [u for u, _ in (*stability.NUMBERS.values(), *stability.COORDS.values())]
     declared += [c.units for c in convergence.COMPARED] + [o.units for o in observables.REGISTRY.values()]
     declared += [cf_units(p.units) for p in parameter_infos()]
+    clock = real_time("48 h")
+    declared += [parameter_units.per_real_time(p.units, clock)[0] for p in parameter_infos() if "/T*" in p.units]
+    assert {"um^3", "um^-1", "um^2", "um^2/h", "1/h", "um/h"} <= set(declared)
     for units in declared:
-        cf_xarray.units.units.parse_units(units)
+        assert_read_alike(units)
+
+
+def test_files_of_earlier_versions_with_glued_powers_are_read_with_todays_spellings(made, tmp_path):
+    """A run or a case written with 'um3', 'um-1', 'um2' (biostudy 0.4) is read back as 'um^3', ... (show, plot,
+    combine, --continue read through `reading`), and shown as µm³."""
+    from biostudy.data import reading
+    from biostudy.formatting import units_text
+
+    old = xr.load_dataset(made / "run2d.nc")
+    spelled = {"biofilm_volume": "um3", "surface_to_biovolume": "um-1", "d": "um2"}
+    for name, units in spelled.items():
+        old[name].attrs["units"] = units
+    old.to_netcdf(tmp_path / "old.nc")
+    read = reading.open_dataset(tmp_path / "old.nc")
+    assert {n: read[n].attrs["units"] for n in spelled} == {"biofilm_volume": "um^3", "surface_to_biovolume": "um^-1",
+                                                            "d": "um^2"}
+    assert_every_unit_read_alike(read, "old.nc")
+    assert [units_text(u) for u in spelled.values()] == ["µm³", "µm⁻¹", "µm²"]
+    result = CliRunner().invoke(app, ["show", str(tmp_path / "old.nc")])
+    assert result.exit_code == 0 and "µm³" in result.output and "um3" not in result.output, result.output
 
 
 def compare(study: xr.Dataset, combined: xr.Dataset, dims: list[str]) -> list[str]:

@@ -22,7 +22,11 @@ def test_plot_and_export_a_run(tiny_scene, tmp_path, drawn):
         assert (shown.mask == np.isnan(phi)).all()
         np.testing.assert_array_equal(shown.compressed(), phi[~np.isnan(phi)])
 
-    result = invoke("export", run, tmp_path / "vtk")
+    result = invoke("export", run, tmp_path / "vti")  # the default: VTK image data
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "vti").iterdir()) == ["series.pvd", *(f"snapshot_000{t}.vti" for t in
+                                                                                    range(3))]
+    result = invoke("export", run, tmp_path / "vtk", "--format", "vtu")
     assert result.exit_code == 0, result.output
     snapshots = sorted((tmp_path / "vtk").glob("snapshot_*.vtu"))
     assert len(snapshots) == 3

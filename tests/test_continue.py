@@ -100,6 +100,30 @@ def test_run_continue_writes_the_whole_history_and_says_so(runs, tmp_path):
     assert "front_advance" in ds and float(ds.front_advance[0]) == 0.0
 
 
+def test_the_run_continued_is_read_an_output_at_a_time_and_counted(runs, tmp_path, monkeypatch):
+    """Issue 39.6: `run --continue` read the whole history into memory, uncounted (from a streamed run of 101
+    outputs of 32³: peak 531 MB where the scene run fresh peaks at 365 MB, estimate ~386 MB).  The run continued
+    stays open, its fields read an output at a time as the history is written again (and the run's estimate
+    counts it); closed when the run ends, whatever ended it; the API's result read whole before that."""
+    from biostudy.commands import run as command
+    from biostudy.inputs import resources
+
+    path, _, _ = runs
+    scene = tmp_path / "grow.toml"
+    scene.write_text(SCENE.replace("every = 2", "enabled = false"))
+    assert _run(scene, "-o", tmp_path / "grow.nc").exit_code == 0
+    estimated = []
+    monkeypatch.setattr(resources, "run_problem", lambda found, *args, **kw: estimated.extend(found.values()) or "")
+    loaded = command.load(scene, overrides=LATER, output=tmp_path / "later.nc", continue_from=tmp_path / "grow.nc")
+    assert loaded.previous is not None and loaded.previous["phi"].chunks == ((1, 1, 1), (12,), (12,))  # lazily
+    assert estimated[-1].continuing == resources.CONTINUATION + 3 * resources.CONTINUATION_PER_OUTPUT
+    command.compute(loaded)
+    with pytest.raises(RuntimeError, match="Not a valid ID"):  # closed with the run: its file is held no longer
+        loaded.previous["phi"].load()
+    kept = command.compute(command.load(scene, overrides=LATER, write=False, continue_from=tmp_path / "grow.nc"))
+    assert kept.dataset.sizes["time"] == 5 and np.isfinite(kept.dataset.phi.values).any()  # read before closing
+
+
 def test_continue_refuses_what_it_cannot_go_on_from(runs, tmp_path, write_toml):
     path, first, _ = runs
     scene = tmp_path / "grow.toml"

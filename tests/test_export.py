@@ -1,4 +1,5 @@
-"""ParaView export (`biostudy.data.export`): every VTU read back with meshio against the dataset, and the PVD."""
+"""ParaView export (`biostudy.data.export`): every VTI read back with VTK's own reader and every VTU with meshio and
+VTK, against the dataset; the PVD; `mechanics_solved` where the mechanics was not solved (issue 36.4)."""
 import xml.etree.ElementTree as ET
 
 import meshio
@@ -37,7 +38,7 @@ def cell_index(mesh, ds):
 
 def test_three_dimensional_round_trip(run3d, with_mechanics, tmp_path):
     ds = with_mechanics(run3d)
-    meshes = read_series(export(ds, tmp_path / "vtk"))
+    meshes = read_series(export(ds, tmp_path / "vtk", "vtu"))
     obstacle = ds["obstacle"].values.astype(bool)
     assert obstacle.any() and len(meshes) == ds.sizes["time"]
     for t, mesh in enumerate(meshes):
@@ -59,7 +60,7 @@ def test_three_dimensional_round_trip(run3d, with_mechanics, tmp_path):
 
 def test_two_dimensional_quads_with_u_padded_to_three_components(run2d, with_mechanics, tmp_path):
     ds = with_mechanics(run2d)
-    meshes = read_series(export(ds, tmp_path))
+    meshes = read_series(export(ds, tmp_path, "vtu"))
     for t, mesh in enumerate(meshes):
         assert [block.type for block in mesh.cells] == ["quad"]
         assert np.all(mesh.points[:, 2] == 0)
@@ -73,7 +74,7 @@ def test_two_dimensional_quads_with_u_padded_to_three_components(run2d, with_mec
 
 
 def test_collection_lists_every_snapshot_with_its_time(run3d, tmp_path):
-    paths = export(run3d, tmp_path)
+    paths = export(run3d, tmp_path, "vtu")
     entries = ET.parse(paths[-1]).getroot().find("Collection").findall("DataSet")
     assert [float(e.get("timestep")) for e in entries] == run3d["time"].values.tolist()
     assert [e.get("file") for e in entries] == [p.name for p in paths[:-1]]
@@ -83,11 +84,21 @@ def test_collection_lists_every_snapshot_with_its_time(run3d, tmp_path):
 def test_times_are_written_as_people_write_them(run3d, tmp_path):
     """0.05 * 3 is the float64 0.15000000000000002: the PVD and the VTU's TimeValue say 0.15."""
     ds = run3d.assign_coords(time=[0.0, 0.05 * 3, 0.3])
-    paths = export(ds, tmp_path)
+    paths = export(ds, tmp_path, "vtu")
     entries = ET.parse(paths[-1]).getroot().find("Collection").findall("DataSet")
     assert [e.get("timestep") for e in entries] == ["0", "0.15", "0.3"]
     value = ET.parse(paths[1]).getroot().find("UnstructuredGrid/FieldData/DataArray[@Name='TimeValue']")
     assert value.text == "0.15"
+
+
+def vtk_read(path):
+    """The dataset VTK's own XML reader (as ParaView's) makes of a .vti or .vtu file."""
+    from vtkmodules.vtkIOXML import vtkXMLImageDataReader, vtkXMLUnstructuredGridReader
+
+    reader = vtkXMLImageDataReader() if path.suffix == ".vti" else vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    return reader.GetOutput()
 
 
 def vtk_arrays(path):
@@ -114,7 +125,7 @@ def test_every_file_has_the_same_arrays_its_time_and_u_as_active_vectors(run3d, 
     latest output where it was: `mechanics_time` says which), each file's T* as `TimeValue`, u the active
     vectors, phi the active scalars; read with meshio and with VTK's reader."""
     ds = with_mechanics(run3d, unsolved=1)  # solved at outputs 0 and 2
-    paths = export(ds, tmp_path)
+    paths = export(ds, tmp_path, "vtu")
     meshes = read_series(paths)
     times = ds.time.values.tolist()
     for mesh in meshes:
@@ -129,10 +140,12 @@ def test_every_file_has_the_same_arrays_its_time_and_u_as_active_vectors(run3d, 
     open_cells = np.count_nonzero(ds.obstacle.values == 0)
     for found, when in zip(seen, times):
         assert found["cells"] == ["alpha", "c", "nutrient_source", "p", "phi"] and found["points"] == ["u"]
-        assert found["field"] == {"TimeValue": when, "mechanics_time": found["field"]["mechanics_time"]}
+        assert found["field"] == {"TimeValue": when, "mechanics_time": found["field"]["mechanics_time"],
+                                  "mechanics_solved": found["field"]["mechanics_solved"]}
         assert found["active"] == ("phi", "u") and found["n_cells"] == open_cells
+    assert [f["field"]["mechanics_solved"] for f in seen] == [1, 0, 1]  # output 1: p and u are output 0's
 
-    plain = [vtk_arrays(p) for p in export(run3d, tmp_path / "plain")[:-1]]  # no mechanics: no p, u
+    plain = [vtk_arrays(p) for p in export(run3d, tmp_path / "plain", "vtu")[:-1]]  # no mechanics: no p, u
     assert {(tuple(f["cells"]), tuple(f["points"]), f["active"]) for f in plain} == {
         (("alpha", "c", "nutrient_source", "phi"), (), ("phi", None))}
     assert [f["field"] for f in plain] == [{"TimeValue": t} for t in times]
@@ -143,7 +156,7 @@ def test_a_dataset_written_before_time_mechanics_is_exported_the_same(run3d, wit
     ds = with_mechanics(run3d, unsolved=1)
     old = on_output_times(ds)
     assert "time_mechanics" not in old.dims and np.isnan(old.p.values[1]).all()
-    new, before = read_series(export(ds, tmp_path / "new")), read_series(export(old, tmp_path / "old"))
+    new, before = read_series(export(ds, tmp_path / "new", "vtu")), read_series(export(old, tmp_path / "old", "vtu"))
     for a, b in zip(new, before):
         np.testing.assert_array_equal(a.point_data["u"], b.point_data["u"])
         np.testing.assert_array_equal(a.cell_data["p"][0], b.cell_data["p"][0])
@@ -154,4 +167,93 @@ def test_a_sweep_is_refused(tmp_path):
     ds = xr.Dataset({"phi": (("g", "time", "y", "x"), np.zeros((2, 1, 3, 3)))},
                     coords={"g": [1e8, 1e9], "time": [0.0], "y": [0.5, 1.5, 2.5], "x": [0.5, 1.5, 2.5]})
     with pytest.raises(ValueError, match="not a sweep"):
-        export(ds, tmp_path)
+        export(ds, tmp_path, "vtu")
+
+
+# ---- VTK image data, the default (issue 36.4) ---------------------------------------------------------------------
+
+def image_arrays(path) -> dict:
+    """Every array of a .vti as VTK reads it: cell and point arrays as numpy, field data as numbers, the grid."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    image = vtk_read(path)
+    cells, points, field = image.GetCellData(), image.GetPointData(), image.GetFieldData()
+    return {"cells": {cells.GetArrayName(i): vtk_to_numpy(cells.GetArray(i)) for i in range(cells.GetNumberOfArrays())},
+            "points": {points.GetArrayName(i): vtk_to_numpy(points.GetArray(i))
+                       for i in range(points.GetNumberOfArrays())},
+            "field": {field.GetArrayName(i): field.GetArray(i).GetValue(0) for i in range(field.GetNumberOfArrays())},
+            "dimensions": image.GetDimensions(), "spacing": image.GetSpacing(), "origin": image.GetOrigin(),
+            "active": (cells.GetScalars().GetName() if cells.GetScalars() else None,
+                       points.GetVectors().GetName() if points.GetVectors() else None)}
+
+
+@pytest.mark.parametrize("shape", [(6, 5, 4), (7, 5)])
+def test_image_data_holds_every_cell_and_node_of_the_dataset_exactly(tiny_run, with_mechanics, shape, tmp_path):
+    """Read with VTK's reader: the grid's points (n + 1 per axis; 2-D one layer), spacing H and origin 0; every
+    field bit for bit in the dataset's cell order (x fastest), obstacle cells NaN and flagged, u at every node."""
+    ds = with_mechanics(tiny_run(shape, H), unsolved=1)
+    paths = export(ds, tmp_path)
+    assert [p.suffix for p in paths] == [".vti"] * ds.sizes["time"] + [".pvd"]
+    solved = {0: 0, 1: 0, 2: 1}  # output -> its mechanics output shown
+    for t, path in enumerate(paths[:-1]):
+        found = image_arrays(path)
+        assert found["dimensions"] == (*(n + 1 for n in shape), *([1] if len(shape) == 2 else []))
+        assert found["spacing"] == (H, H, H) and found["origin"] == (0.0, 0.0, 0.0)
+        assert sorted(found["cells"]) == ["alpha", "c", "nutrient_source", "obstacle", "p", "phi"]
+        for name in ("phi", "c", "alpha"):
+            np.testing.assert_array_equal(found["cells"][name], ds[name].values[t].ravel(), err_msg=name)
+        np.testing.assert_array_equal(found["cells"]["p"], ds.p.values[solved[t]].ravel())
+        np.testing.assert_array_equal(found["cells"]["obstacle"], ds.obstacle.values.ravel())
+        np.testing.assert_array_equal(found["cells"]["nutrient_source"], ds.nutrient_source.values.ravel())
+        assert np.isnan(found["cells"]["phi"][ds.obstacle.values.ravel() == 1]).all()
+        u = ds.u.values[solved[t]].reshape(-1, len(shape))
+        np.testing.assert_array_equal(found["points"]["u"][:, :len(shape)], u)
+        assert found["points"]["u"].shape[1] == 3 and not found["points"]["u"][:, len(shape):].any()
+        assert found["field"] == {"TimeValue": ds.time.values[t], "mechanics_time": ds.time_mechanics.values[solved[t]],
+                                  "mechanics_solved": float(t != 1)}
+        assert found["active"] == ("phi", "u")
+
+
+def test_image_data_of_a_cell_is_where_its_coordinates_are(run3d, tmp_path):
+    """VTK's own cell lookup: the cell holding a dataset cell's centre has that cell's phi (no axis mix-up)."""
+    from vtkmodules.vtkCommonCore import reference
+
+    image = vtk_read(export(run3d, tmp_path)[1])
+    phi, values = image.GetCellData().GetArray("phi"), run3d.phi.values[1]
+    for k, j, i in [(0, 0, 0), (3, 4, 5), (1, 2, 5), (3, 0, 2), (2, 3, 4)]:
+        centre = [float(run3d[a].values[n]) for a, n in zip("xyz", (i, j, k))]
+        cell = image.FindCell(centre, None, 0, 1e-9, reference(0), [0.0] * 3, [0.0] * 8)
+        assert phi.GetValue(cell) == values[k, j, i] or np.isnan(values[k, j, i]) and np.isnan(phi.GetValue(cell))
+    assert len(np.unique(values[np.isfinite(values)])) > 3  # the cells told apart differ
+
+
+def test_image_data_is_the_default_and_a_run_without_mechanics_has_no_p_u_or_mechanics_fields(run3d, tmp_path):
+    paths = export(run3d, tmp_path)
+    found = [image_arrays(p) for p in paths[:-1]]
+    assert {tuple(sorted(f["cells"])) for f in found} == {("alpha", "c", "nutrient_source", "obstacle", "phi")}
+    assert [f["points"] for f in found] == [{}] * 3 and [f["field"] for f in found] == [
+        {"TimeValue": t} for t in run3d.time.values]
+    entries = ET.parse(paths[-1]).getroot().find("Collection").findall("DataSet")
+    assert [e.get("file") for e in entries] == [p.name for p in paths[:-1]]
+
+
+def test_an_image_larger_than_one_compressed_block_reads_back(tiny_run, tmp_path):
+    """40 x 30 x 20 float64 cells: 192 kB, three zlib blocks and a partial one in VTK's header."""
+    from biostudy.data import vtk_image
+
+    ds = tiny_run((40, 30, 20), H).isel(time=[0])
+    assert ds.phi.values[0].nbytes > 2 * vtk_image.BLOCK and ds.phi.values[0].nbytes % vtk_image.BLOCK
+    found = image_arrays(export(ds, tmp_path)[0])
+    np.testing.assert_array_equal(found["cells"]["phi"], ds.phi.values[0].ravel())
+
+
+def test_a_snapshot_larger_than_a_read_whole_file_is_still_known_as_biostudys(run3d, tmp_path):
+    """The mark is the first comment of every VTK file: found there however large the file (a 128³ snapshot is
+    tens of MB), so a second export replaces the first; a file without it stays foreign."""
+    from biostudy.data.claims import marked
+
+    for format in ("vti", "vtu"):  # noqa: A001
+        paths = export(run3d, tmp_path / format, format)
+        assert all(marked(p, most=10) for p in paths[:-1]), format
+    (tmp_path / "other.vti").write_bytes(b"<VTKFile>" + b" " * 5000 + b"<!-- written by biostudy 0.4 -->")
+    assert not marked(tmp_path / "other.vti", most=10) and marked(tmp_path / "other.vti")

@@ -403,7 +403,7 @@ def test_a_case_out_of_memory_is_recorded_as_such_and_the_others_go_on(tiny_stud
 def test_an_oversized_grid_is_refused_before_allocating(tiny_scene, tmp_path, monkeypatch, shape):
     import tracemalloc
 
-    monkeypatch.setattr(resources, "available_memory", lambda: 16e9)  # the same answer on any machine
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "16 GB")  # the same answer on any machine
     began = time.perf_counter()
     tracemalloc.start()
     try:
@@ -412,15 +412,17 @@ def test_an_oversized_grid_is_refused_before_allocating(tiny_scene, tmp_path, mo
     finally:
         tracemalloc.stop()
     line = one_line_error(result)
-    assert line.startswith("error: --set: grid.shape: ") and "of memory, 16 GB available; running would need ~" in line
+    assert line.startswith("error: --set: grid.shape: ")
+    assert "of memory, 16 GB available (BIOSTUDY_MEMORY=16 GB); running would need ~" in line
     assert peak < 50e6 and time.perf_counter() - began < 5  # refused before any array of the grid's size
 
 
 def test_too_many_outputs_workers_or_bytes_are_refused_before_running(tiny_scene, tiny_study, tmp_path, monkeypatch,
                                                                      no_simulation):
-    monkeypatch.setattr(resources, "available_memory", lambda: 0.5e9)
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "500 MB")
     line = one_line_error(invoke("run", tiny_scene, "-o", tmp_path / "o.nc", "--set", "time.outputs=1000000"))
-    assert line.startswith("error: --set: time.outputs: needs ~") and "of memory, 500 MB available (tiny: " in line
+    assert line.startswith("error: --set: time.outputs: needs ~") and "of memory (tiny: " in line
+    assert line.endswith(", 500 MB available (BIOSTUDY_MEMORY=500 MB)")
     assert "outputs ~" in line
     out = tmp_path / "out"
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
@@ -476,9 +478,11 @@ def test_a_file_a_command_cannot_use_is_one_line_and_leaves_nothing(results, tmp
     assert sorted(os.listdir(tmp_path)) == before
 
 
-def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, monkeypatch):
+@pytest.mark.parametrize("format", ["vti", "vtu"])
+def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, monkeypatch, format):
     import meshio
 
+    import biostudy.data.vtk_image as vtk_image
     import biostudy.plots.fields as fields
 
     def broken(*args, **kwargs):
@@ -488,7 +492,8 @@ def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, mo
     line = one_line_error(invoke("plot", results["run"], "-o", tmp_path / "fig.png"))
     assert "broken on purpose" in line and not list(tmp_path.glob("fig*"))
     calls = []
-    write = meshio.write
+    module, name = (vtk_image, "write_vti") if format == "vti" else (meshio, "write")
+    write = getattr(module, name)
 
     def second_fails(path, *args, **kwargs):
         calls.append(path)
@@ -496,10 +501,10 @@ def test_a_plot_or_export_that_fails_midway_leaves_no_file(results, tmp_path, mo
             raise ValueError("disk trouble on purpose")
         return write(path, *args, **kwargs)
 
-    monkeypatch.setattr(meshio, "write", second_fails)
-    assert "disk trouble" in one_line_error(invoke("export", results["run"], tmp_path / "vtk"))
-    assert not (tmp_path / "vtk").exists()
-    assert not [p for p in tmp_path.rglob("*") if p.suffix in (".tmp", ".png", ".vtu", ".pvd")]
+    monkeypatch.setattr(module, name, second_fails)
+    assert "disk trouble" in one_line_error(invoke("export", results["run"], tmp_path / "vtk", "--format", format))
+    assert len(calls) == 2 and not (tmp_path / "vtk").exists()
+    assert not [p for p in tmp_path.rglob("*") if p.suffix in (".tmp", ".png", ".vti", ".vtu", ".pvd")]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -64,6 +64,23 @@ def test_a_parameter_the_data_cannot_see_is_not_identifiable_and_its_interval_re
     assert np.ptp(second.chi2) < 1e-6
 
 
+def test_after_a_refit_every_profile_and_interval_comes_from_the_new_optimum():
+    """Issue 39.1: a start on a flat stretch of chi² (the model does not move while a <= 0.4) ends at once; a's
+    profile steps off the stretch and finds chi² far below it, so the fit is repeated from there.  The profiles
+    must then be centred on that optimum: b, which the data determine once a > 0.4, is identifiable and its
+    interval holds the truth; read from branches around the abandoned start it stayed open from bound to bound."""
+    truth = np.array([0.7, 0.5])
+    model = lambda u: 1 + 2 * max(u[0] - 0.4, 0.0) * (2 * T + 3 * T**2 * u[1])  # noqa: E731
+    data = model(truth) + SIGMA * np.random.default_rng(4).normal(size=8)
+    found = least_squares(np.array([[0.2, 0.3]]), objective(residuals_of(data, model)))
+    assert found.starts_chi2 is not None and found.starts_chi2 > found.best.chi2 + 100  # the refit happened
+    for j, profile in enumerate(found.profiles):
+        assert found.best.x[j] in profile.u  # centred on the estimate reported
+        assert profile.chi2.min() == pytest.approx(found.best.chi2, abs=0.1)  # nothing below it (`REFIT`)
+        assert profile.identifiable and profile.lower < truth[j] < profile.upper
+    assert found.minimum == pytest.approx(found.best.chi2, abs=0.1)
+
+
 def test_a_failed_evaluation_is_a_penalty_and_the_fit_stops_at_its_edge():
     data = linear_data(3, truth=(0.9, 0.6))
     good = residuals_of(data)

@@ -31,16 +31,18 @@ def grow(problem, kind, **new):
 
 
 def fingerprint_0_3_0(problem):
-    """biostudy 0.3.0's `execution.jobs.fingerprint`, verbatim: what its case files carry."""
+    """biostudy 0.3.0's `execution.jobs.fingerprint`, verbatim, over 0.3.0's fields: what its case files carry
+    (its Problem had `consumption` where today's has `laws`)."""
     digest = hashlib.sha256()
     for part in dataclasses.fields(problem):
         if part.name == "name":
             continue
-        value = getattr(problem, part.name)
-        if part.name in identity.ADDED_LATER and not isinstance(value, np.ndarray) \
-                and value == identity.ADDED_LATER[part.name]:
+        name, value = part.name, getattr(problem, part.name)
+        if name == "laws":
+            name, value = "consumption", value.consumption
+        if name in identity.ADDED_LATER and not isinstance(value, np.ndarray) and value == identity.ADDED_LATER[name]:
             continue
-        digest.update(part.name.encode())
+        digest.update(name.encode())
         digest.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
     return digest.hexdigest()
 

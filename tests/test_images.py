@@ -74,6 +74,19 @@ def test_cells_take_the_image_average_over_their_volume():
     assert images.cell_average(np.ones((4, 4)), (0.5, 0.5), (0.0, 0.0), 1.0, (3, 3)).sum() == pytest.approx(4.0)
 
 
+def test_a_stack_averaged_a_slab_at_a_time_gives_the_whole_stack_s_average(monkeypatch):
+    """Issue 39.8: the averaging went over the whole stack at once (14 bytes a voxel: 1.9 GB for a 128 MB stack);
+    in slabs of a few slices it holds a slab's worth and gives the same cell averages (sums in the same order:
+    per row along x, then y, then z)."""
+    stack = np.random.default_rng(3).random((13, 24, 20)) * 255
+    args = ((0.4, 0.3, 0.35), (0.2, -0.1, 0.3), 1.0, (6, 8, 8))
+    whole = images.cell_average(stack, *args, of=lambda block: block >= 100)
+    monkeypatch.setattr(images, "SLAB_VOXELS", 24 * 20 * 3)  # three slices at a time: 5 slabs, the last of one
+    slabs = images.cell_average(stack, *args, of=lambda block: block >= 100)
+    np.testing.assert_allclose(slabs, whole, rtol=1e-14, atol=1e-15)
+    assert whole.shape == (6, 8, 8) and 0 < whole.max() <= 1
+
+
 def test_greyscale_pictures_by_threshold_or_as_phi(tmp_path):
     grey = np.zeros((12, 16), np.uint8)  # a 2-D picture, y-x, 0.5 µm pixels over a 8 x 6 grid of 1 µm
     grey[2:6, 4:8] = 200  # cells x 2..3, y 1..2

@@ -6,7 +6,8 @@ ROOT = Path(__file__).resolve().parents[1]
 # bottom to top: a module may import its own stage and the stages below it, never one above
 STAGES = ["solver", "biostudy.formatting", "biostudy.errors", "biostudy.fitting", "biostudy.inputs",
           "biostudy.quantities", "biostudy.data",
-          "biostudy.plans", "biostudy.execution", "biostudy.reports", "biostudy.plots", "biostudy.commands",
+          "biostudy.plans", "biostudy.execution", "biostudy.reports", "biostudy.plots", "biostudy.calibration",
+          "biostudy.commands",
           "biostudy.cli", "biostudy"]
 
 
@@ -104,17 +105,26 @@ def test_imports_run_one_way_through_the_stages():
     assert not wrong, "imports that run up the stages: " + "; ".join(sorted(wrong))
 
 
-def test_the_check_sees_a_cycle_and_an_upward_import():
+def test_the_check_sees_a_cycle_and_an_upward_import(tmp_path):
     """The checks above on made-up input: they must be able to fail."""
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert cycles({"a": {"b"}, "b": set()}) == []
     assert stage("biostudy.plans.study") > stage("biostudy.inputs.scene") > stage("solver.problem")
     assert stage("biostudy.cli.app") > stage("biostudy.commands.run")
     known = {"biostudy.inputs.a", "biostudy.inputs.b"}
-    source = ROOT / "tests" / "_layout_probe.py"
+    source = tmp_path / "a.py"
     source.write_text("from . import b\nfrom ..plans import study\n")
-    try:
-        assert imports("biostudy.inputs.a", source, known | {"biostudy.plans.study"}) == {"biostudy.inputs.b",
-                                                                                          "biostudy.plans.study"}
-    finally:
-        source.unlink()
+    assert imports("biostudy.inputs.a", source, known | {"biostudy.plans.study"}) == {"biostudy.inputs.b",
+                                                                                      "biostudy.plans.study"}
+
+
+def test_a_fitting_method_is_asked_for_its_name_only_in_its_declaration():
+    """A fitting method is declared once (`calibration.methods`): the rest of biostudy asks the declaration what
+    the method needs and makes, never compares its name (issue 38.1)."""
+    from biostudy.calibration.methods import METHODS
+
+    found = [f"{path.relative_to(ROOT)}:{node.lineno} {node.value!r}" for name, path in modules().items()
+             if name.startswith("biostudy") and name != "biostudy.calibration.methods"
+             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+             if isinstance(node, ast.Constant) and node.value in METHODS]
+    assert not found, found

@@ -6,6 +6,8 @@ of the tiny colony end to end."""
 from __future__ import annotations
 
 import math
+import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -172,8 +174,8 @@ ESTIMATE = '[estimate]\nr = [20.0, 250.0]\n[method]\nstarts = 1\n'
 
 
 def test_a_named_sigma_is_grouped_by_its_name(tmp_path):
-    from biostudy.plans.calibration import load_calibration
-    from biostudy.plans.calibration_noise import divisors
+    from biostudy.calibration.noise import divisors
+    from biostudy.calibration.problem import load_calibration
 
     plan = load_calibration(calibration(tmp_path, GROUPED, ESTIMATE))
     (noise,) = plan.noise
@@ -208,9 +210,10 @@ def test_noise_parameters_that_cannot_be_estimated_are_one_line_before_anything_
 def fitted_with_noise(path, model):
     """calibration.nc's dataset and table of a fit whose simulations are `model(values)` (one value per row), the
     residuals divided as the evaluator divides them."""
-    from biostudy.plans.calibration import load_calibration
-    from biostudy.plans.calibration_noise import divisors, likelihood
-    from biostudy.reports.calibration import dataset, table_text
+    from biostudy.calibration.methods import chosen
+    from biostudy.calibration.noise import divisors, likelihood
+    from biostudy.calibration.problem import load_calibration
+    from biostudy.calibration.report import dataset, table_text
 
     plan = load_calibration(path)
     data = np.array([m.value for m in plan.measurements])
@@ -219,7 +222,7 @@ def fitted_with_noise(path, model):
     def evaluate(points):
         return [(model(plan.values(p)) - data) / divisor for p in points]
 
-    result = plan.spec.method.method()(Objective(evaluate, len(data), np.full(len(data), 1e-9),
+    result = chosen(plan.spec.method)(Objective(evaluate, len(data), np.full(len(data), 1e-9),
                                                  tuple(p.name for p in plan.parameters),
                                                  likelihood=likelihood(plan.noise)))
     ds = dataset(plan, result, model(plan.values(result.estimate.best.x)), COST, {}, {})
@@ -251,6 +254,47 @@ def test_calibration_nc_and_its_table_give_the_estimated_sigma_and_no_p_value(tm
     assert ("The noise parameter sigma_b is estimated from 3 measurements for 1 parameter: with so few the 95 % "
             f"intervals are short (with a model linear in its parameters they would hold the truth {held * 100:.0f} % "
             f"of the time, σ's {of_sigma * 100:.0f} %: docs/calibration.md).**") in text  # one paragraph
+
+
+def test_a_named_sigma_the_model_fits_exactly_is_said_in_words_not_a_crash(tmp_path):
+    """Issue 39.2: two t = 0 replicates equal to the initial biomass share a named σ the model fits exactly at every
+    parameter value: σ̂ = 0, -2 log L unbounded in it.  The fit of the other rows goes on; the σ is reported 0,
+    without an interval, and calibration.md says why (it raised a math domain error after every simulation)."""
+    rows = GROUPED.replace("\n", "\nbiomass\t\t0.0\t1.0\tsigma_zero\n" * 2, 1)  # before GROUPED's rows
+
+    def model(values):  # the initial biomass, then GROUPED's rows as in the test above
+        times = np.array([0.02, 0.05, 0.08])
+        return np.concatenate([[1.0, 1.0], values["r"] / 100 * (1 + 10 * times),
+                               values["r"] / 50 * (1 + 10 * times[1:])])
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning of a 0 / 0 residual reaches the user
+        ds, text = fitted_with_noise(calibration(tmp_path, rows, ESTIMATE), model)
+    assert list(ds.noise_parameter.values) == ["sigma_zero", "sigma_b"]
+    assert float(ds.noise_estimate[0]) == 0.0 and np.isnan(ds.noise_lower[0]) and np.isnan(ds.noise_upper[0])
+    assert 0 < float(ds.noise_lower[1]) < float(ds.noise_estimate[1]) < float(ds.noise_upper[1]) < math.inf
+    assert np.isnan(ds.residual.values[:2]).all() and np.isfinite(ds.residual.values[2:]).all()
+    assert ("**The model fits the 2 measurements of sigma_zero exactly (σ̂ = 0): their σ cannot be estimated (the "
+            "likelihood grows without bound as σ shrinks) and has no interval, and they do not move with the "
+            "parameters, so the estimate and intervals are those of the other rows (give their σ as a number in "
+            "noiseParameters: the error you expect of them).**") in text
+    assert "sigma_zero is estimated from" not in text  # no word of short intervals for a σ without one
+    without, _ = fitted_with_noise(calibration(tmp_path, GROUPED, ESTIMATE), lambda values: model(values)[2:])
+    assert float(ds.estimate[0]) == pytest.approx(float(without.estimate[0]), rel=1e-12)  # the others' fit, alone
+
+
+def test_an_exact_fit_that_moves_with_the_parameters_is_said_to_draw_the_fit():
+    from biostudy.calibration.noise import NoiseParameter
+    from biostudy.calibration.report_noise import _exact
+    from biostudy.fitting.likelihood import Sigma
+
+    plan = SimpleNamespace(noise=[NoiseParameter("s", (0, 1), "um", 1.0)])
+    for column, said in ((0.0, "they do not move with the parameters"), (0.5, "the fit is drawn to where the model "
+                                                                               "goes through them")):
+        found = SimpleNamespace(sigmas=[Sigma(0.0, math.nan, math.nan, 2)],
+                                best=SimpleNamespace(jacobian=np.array([[column], [0.0], [1.0]])))
+        (words,) = _exact(plan, found)
+        assert said in words and "; " not in words  # statements are joined by '; '
 
 
 def test_calibrate_estimates_sigma_from_the_tiny_colony_end_to_end(tmp_path):

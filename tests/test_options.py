@@ -1,6 +1,6 @@
-"""The solver's options: declared once on `solver.Numerics` and `solver.MechanicsSetup` (`solver.declared.option`),
-they are the scene's [numerics] and [mechanics] keys, with the same types, defaults, meanings, units and ranges, and
-the rules between them are the solver's, told at the scene's key."""
+"""The solver's options: declared once on `solver.Laws`, `solver.Numerics` and `solver.MechanicsSetup`
+(`solver.declared.option`), they are the scene's [model], [numerics] and [mechanics] keys, with the same types,
+defaults, meanings, units and ranges, and the rules between them are the solver's, told at the scene's key."""
 import json
 import subprocess
 import sys
@@ -11,11 +11,11 @@ import pytest
 import solver
 from biostudy.errors import BadInput
 from biostudy.execution.identity import fingerprint
-from biostudy.inputs.scene import MechanicsSpec, NumericsSpec, load_scene
+from biostudy.inputs.scene import MechanicsSpec, Model, NumericsSpec, load_scene
 from solver.declared import OptionError, option_infos
 
 
-@pytest.mark.parametrize("settings, table, own", [(solver.Numerics, NumericsSpec, []),
+@pytest.mark.parametrize("settings, table, own", [(solver.Numerics, NumericsSpec, []), (solver.Laws, Model, []),
                                                   (solver.MechanicsSetup, MechanicsSpec, ["enabled"])])
 def test_every_option_is_a_scene_key_as_declared(settings, table, own):
     infos = option_infos(settings)

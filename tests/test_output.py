@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from solver import Grid, MechanicsSetup, Parameters, Problem, simulate
+from solver import Grid, Laws, MechanicsSetup, Parameters, Problem, simulate
 from solver.output import cf_units, on_output_times
 
 
@@ -76,19 +76,20 @@ def test_the_dataset_says_what_the_solver_projected_onto_the_bounds_and_how_c_wa
     assert (attrs["projected_phi_count"] > 0) == (attrs["projected_phi_largest"] > 0)  # counted where it happened
     assert attrs["projected_phi_largest"] <= attrs["bounds_roundoff"]
     assert attrs["nutrient_active_set_iterations"] == 0  # first-order consumption: no active set
-    zero = simulate(replace(base, consumption="zero-order", params=Parameters(g=1e10)))
+    zero = simulate(replace(base, laws=Laws(consumption="zero-order"), params=Parameters(g=1e10)))
     assert zero.attrs["nutrient_active_set_iterations"] > zero.attrs["steps_taken"]  # every solve iterates
 
 
 def test_cf_units_are_udunits_spellings_and_parameters_are_variables():
     """T* is dimensionless: a rate per T* has its numerator's units; the model's units stay in the long name."""
-    assert [cf_units(u) for u in ("um2/T*", "um/T*", "1/T*", "um3", "Pa", "1")] == ["um2", "um", "1", "um3", "Pa", "1"]
+    assert [cf_units(u) for u in ("um^2/T*", "um/T*", "1/T*", "um^3", "Pa", "1")] == ["um^2", "um", "1", "um^3", "Pa",
+                                                                                    "1"]
     with pytest.raises(ValueError):
         cf_units("T*")
     ds = simulate(small_problem())
     assert float(ds.g) == 2e8 and ds.g.dims == () and ds.g.attrs == {"units": "1", "long_name": "consumption g "
                                                                       "(0: no consumption) [1/T*]"}
-    assert ds.d.attrs["units"] == "um2" and ds.r.attrs["units"] == "um" and ds.mu.attrs["units"] == "Pa"
+    assert ds.d.attrs["units"] == "um^2" and ds.r.attrs["units"] == "um" and ds.mu.attrs["units"] == "Pa"
     assert ds.attrs["g"] == 2e8  # still an attribute too
     assert ds.time.attrs == {"units": "1", "long_name": "normalised time T* = t / t_ref (dimensionless)"}
     assert ds.z.attrs["positive"] == "up" and "positive" not in ds.x.attrs

@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 import xarray as xr
 from test_calibration_hostile import COST, SCENE, calibration, invoke, one_line
+from unit_readers import assert_every_unit_read_alike
 
 from biostudy.formatting import number
 
@@ -34,9 +35,10 @@ def model(values: dict) -> np.ndarray:
 def fit(folder: Path, text: str):
     """calibration.nc's dataset of an analytic fit of r to the table `text` (times in min, t_ref = 1 h), as
     `test_calibration_hostile.fitted` makes it."""
+    from biostudy.calibration.methods import chosen
+    from biostudy.calibration.problem import load_calibration
+    from biostudy.calibration.report import dataset
     from biostudy.fitting.objective import Objective
-    from biostudy.plans.calibration import load_calibration
-    from biostudy.reports.calibration import dataset
 
     (folder / "speck.toml").write_text(SCENE)
     (folder / "t.tsv").write_text(text)
@@ -50,7 +52,7 @@ def fit(folder: Path, text: str):
     def evaluate(points):
         return [(model(plan.values(p)) - data) / sigma for p in points]
 
-    result = plan.spec.method.method()(Objective(evaluate, len(data), np.full(len(data), 1e-9), ("r",)))
+    result = chosen(plan.spec.method)(Objective(evaluate, len(data), np.full(len(data), 1e-9), ("r",)))
     return dataset(plan, result, model(plan.values(result.estimate.best.x)), COST, {}, {})
 
 
@@ -59,9 +61,9 @@ def table(header: str = HEADER, rows=ROWS) -> str:
 
 
 def test_dataset_and_replicate_ids_reach_calibration_nc_its_table_and_its_picture(tmp_path):
+    from biostudy.calibration.pictures import fit_figure
+    from biostudy.calibration.report import table_text
     from biostudy.data import writing
-    from biostudy.plots.calibration import fit_figure
-    from biostudy.reports.calibration import table_text
 
     ds = fit(tmp_path, table())
     writing.write_atomic(ds, tmp_path / "calibration.nc")
@@ -90,8 +92,8 @@ def test_dataset_and_replicate_ids_reach_calibration_nc_its_table_and_its_pictur
 
 
 def test_a_table_without_ids_says_nothing_of_them(tmp_path):
-    from biostudy.plots.calibration import fit_figure
-    from biostudy.reports.calibration import table_text
+    from biostudy.calibration.pictures import fit_figure
+    from biostudy.calibration.report import table_text
 
     ds = fit(tmp_path, table("observableId\ttime\tmeasurement\tnoiseParameters\n", [row[:4] for row in ROWS]))
     assert set(ds["dataset"].values) == set(ds["replicate"].values) == {""}
@@ -111,7 +113,7 @@ def test_a_table_without_ids_says_nothing_of_them(tmp_path):
 def test_the_simulation_table_is_petabs_with_the_model_at_the_estimate(tmp_path, header, columns):
     """PEtab: the measurement table's format with `simulation` for `measurement`, in PEtab's column order; one
     row per measurement; times in the table's own unit (min, not T*)."""
-    from biostudy.reports.petab import simulation_table
+    from biostudy.calibration.petab import simulation_table
 
     full = "preequilibrationConditionId" in header
     rows = [(row[1], row[0], row[2], row[3], "", *row[4:], "", "") if full else row[:4] for row in ROWS]
@@ -190,3 +192,14 @@ def test_a_users_simulation_table_that_appears_while_a_calibration_computes_is_n
         assert path.read_bytes() == users
     claims.write_digested(path, "ours\n", claims.digested("simulation.tsv", users.decode()), "calibration.nc")
     assert path.read_text() == "ours\n"
+
+
+def test_calibration_nc_units_read_alike_by_udunits_plain_pint_and_cf_xarray(tmp_path):
+    """Issue 36.3: calibration.nc as written (r per T* in um, per hour in um/h, the times in min) quantified by
+    pint-xarray with plain pint's registry; UDUNITS and cf_xarray read the same."""
+    from biostudy.data import writing
+
+    writing.write_atomic(fit(tmp_path, table()), tmp_path / "calibration.nc")
+    with xr.open_dataset(tmp_path / "calibration.nc") as back:
+        assert back["estimate_r"].attrs["units"] == "um" and back["estimate_r_real"].attrs["units"] == "um/h"
+        assert_every_unit_read_alike(back.load(), "calibration.nc")

@@ -204,7 +204,7 @@ def sweep_dataset(zip_mode=False):
         {"phi_mean": (("g", "r", "time"), phi, {"units": "1", "long_name": "mean biofilm density"}),
          "c_mean": (("g", "r", "time"), c, {"units": "1", "long_name": "mean nutrient concentration"}),
          "biofilm_volume": (("g", "r", "time"), 8000 * phi,
-                            {"units": "um3", "long_name": "volume with phi >= 0.5"}),
+                            {"units": "um^3", "long_name": "volume with phi >= 0.5"}),
          "status": (("g", "r"), status)},
         coords={"g": ("g", g, {"units": "1/T*"}), "r": ("r", r, {"units": "um/T*"}), "time": time})
     if zip_mode:

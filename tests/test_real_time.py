@@ -88,7 +88,7 @@ def calibration_folder(root, scene_t_ref: str, data_t_ref: str = "20 h"):
 
 
 def test_a_calibration_whose_t_ref_is_not_the_scenes_is_one_line(tmp_path):
-    from biostudy.plans.calibration import load_calibration
+    from biostudy.calibration.problem import load_calibration
 
     path = calibration_folder(tmp_path, scene_t_ref="48 h")
     result = CliRunner().invoke(app, ["calibrate", str(path), "-o", str(tmp_path / "out"), "-q"])
@@ -111,17 +111,26 @@ def test_the_cf_checker_accepts_the_real_time_coordinate(real_run, tmp_path):
 
 def test_paraview_times_are_real_times_with_t_star_beside(real_run, tmp_path):
     import meshio
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLImageDataReader
 
-    result = CliRunner().invoke(app, ["export", str(real_run / "real.nc"), str(tmp_path / "vtu")])
-    assert result.exit_code == 0, result.output
-    pvd = (tmp_path / "vtu" / "series.pvd").read_text()
-    assert [line.split('timestep="')[1].split('"')[0] for line in pvd.splitlines() if "timestep" in line] == \
-        ["0", "12", "24"]
+    for form in ("vti", "vtu"):
+        result = CliRunner().invoke(app, ["export", str(real_run / "real.nc"), str(tmp_path / form), "--format", form])
+        assert result.exit_code == 0, result.output
+        pvd = (tmp_path / form / "series.pvd").read_text()
+        assert [line.split('timestep="')[1].split('"')[0] for line in pvd.splitlines() if "timestep" in line] == \
+            ["0", "12", "24"]
     mesh = meshio.read(tmp_path / "vtu" / "snapshot_0001.vtu")
     assert "phi" in mesh.cell_data
     text = (tmp_path / "vtu" / "snapshot_0001.vtu").read_text(errors="replace")
     assert 'Name="TimeValue" NumberOfTuples="1" format="ascii">12<' in text
     assert 'Name="T_star" NumberOfTuples="1" format="ascii">0.25<' in text
+    reader = vtkXMLImageDataReader()
+    reader.SetFileName(str(tmp_path / "vti" / "snapshot_0001.vti"))
+    reader.Update()
+    fields = reader.GetOutput().GetFieldData()
+    assert vtk_to_numpy(fields.GetArray("TimeValue")).tolist() == [12.0]
+    assert vtk_to_numpy(fields.GetArray("T_star")).tolist() == [0.25]
 
 
 def test_show_heads_its_columns_with_real_time(real_run):

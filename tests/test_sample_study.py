@@ -107,6 +107,9 @@ def test_a_sampled_study_runs_resumes_grows_and_is_analysed(write_toml, tiny_sce
         undefined = int((~np.isfinite(values)).sum())
         assert (f"{name} at T* = 0.2 has no value in {undefined} of 32" in result.stdout) == (undefined > 0), name
     assert int(analysed.blocks_used.sel(output="biofilm_volume")) == 8
+    # n = 8 base samples: intervals far wider than ±0.1, said on stderr with the n needed (issue 36.6)
+    warned = [line for line in result.stderr.splitlines() if line.startswith("warning: Sobol' indices at n = 8")]
+    assert len(warned) == 1 and "set [sample] n = " in warned[0] and warned[0][9:] == analysed.attrs["warning"]
 
 
 RANGES = {"g": '[1e8, 1e10, "log"]', "r": "[50.0, 200.0]"}

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 import solver
+from biostudy.calibration.problem import load_calibration
 from biostudy.errors import BadInput
 from biostudy.inputs import bundled
 from biostudy.inputs.keys import parse_override
 from biostudy.inputs.scene import Scene, key_info, load_scene
 from biostudy.inputs.tomltext import dumps
 from biostudy.plans import catalogue
-from biostudy.plans.calibration import load_calibration
 from biostudy.plans.study import load_study
 
 
@@ -20,7 +20,7 @@ def test_defaults_are_the_solvers_and_the_papers(tiny_scene):
     problem = scene.problem()
     assert problem.params == solver.Parameters(g=1e8)
     assert problem.numerics == solver.Numerics()
-    assert problem.mechanics is None and problem.consumption == "first-order"
+    assert problem.mechanics is None and problem.laws.consumption == "first-order"
     assert problem.name == "tiny"
     assert np.allclose(problem.output_times, [0, 0.1, 0.2])
 
@@ -51,7 +51,7 @@ def test_overrides_are_toml_values_on_dotted_keys(tiny_scene):
     assert scene.grid.shape == [16, 18] and scene.params.g == 1e10 and scene.params.r == 0
     assert scene.mechanics is not None and not scene.mechanics.enabled
     problem = scene.problem()
-    assert problem.mechanics is None and problem.consumption == "zero-order"
+    assert problem.mechanics is None and problem.laws.consumption == "zero-order"
     assert problem.numerics.advection == "tvd"
     assert list(problem.output_times) == [0, 0.05, 0.2]  # t_end added
 
@@ -152,7 +152,7 @@ def test_mask_file_relative_to_the_scene(write_toml, tmp_path):
 
 def test_key_info_gives_units_for_sweep_coordinates():
     assert key_info("g") == ("consumption g (0: no consumption), 1/T*", "1/T*")
-    assert key_info("params.d")[1] == "um2/T*"
+    assert key_info("params.d")[1] == "um^2/T*"
     assert key_info("biofilm.0.radius") == ("radius, µm", "um")
     assert key_info("grid.spacing")[1] == "um"
 
@@ -160,7 +160,7 @@ def test_key_info_gives_units_for_sweep_coordinates():
 def test_json_schema_documents_units_and_meaning():
     schema = Scene.model_json_schema()
     params = schema["$defs"]["Params"]["properties"]
-    assert params["d"]["units"] == "um2/T*" and "diffusivity" in params["d"]["description"]
+    assert params["d"]["units"] == "um^2/T*" and "diffusivity" in params["d"]["description"]
     assert params["d"]["exclusiveMinimum"] == 0
 
 

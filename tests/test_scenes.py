@@ -12,7 +12,7 @@ from scipy import ndimage
 
 from biostudy.inputs import bundled
 from biostudy.inputs.scene import load_scene
-from biostudy.quantities import measures
+from biostudy.quantities import dead_ends, measures
 from solver import simulate
 
 DENSE, EXTENT = measures.DENSE, measures.THRESHOLD
@@ -118,38 +118,41 @@ def test_grate_splits_the_front_and_it_recombines():
     assert np.all(counts[-1] == 1) and np.all(phi[-1][rows] >= EXTENT), counts[-1]  # recombined
 
 
-def test_maze_biofilm_finds_the_way_to_the_centre():
-    """4.4 (4 µm cells): "the biofilm arrives at a steady state while also reaching the middle of the maze": the
-    biofilm (phi >= 0.5) nearest the centre gets closer, reaching the innermost ring corridor; and where it
-    passed and used up the nutrient (the entrance) it recedes ("the biofilm either stays at the level that was
-    before, or it retracts")."""
-    scene, ds = run("maze", "grid.shape=[140,140]", "grid.spacing=4.0", "time.steps=300", "time.outputs=9")
+def test_maze_biofilm_finds_its_way_in_and_grows_into_the_dead_ends_it_passes():
+    """4.4 (4 µm cells, to T* = 8 of the bundled 20): the biofilm (phi >= 0.5) nearest the centre gets closer,
+    never faster than a front moves (r/2 per T*, a cell's slack), and is two rings in by T* = 8; "the biofilm first
+    grows from the entrance in all directions ... even if the biofilm grows into a dead-end": biofilm enters
+    dead ends off its way (found in the walls: `quantities.dead_ends`).  Reaching the core and settling take the
+    full run (docs/paper.md)."""
+    scene, ds = run("maze", "grid.shape=[140,140]", "grid.spacing=4.0", "time.t_end=8.0", "time.steps=400",
+                    "time.outputs=9")
     maze = scene.obstacle[0].layout()
     x, y = scene.grid.solver_grid().cell_coordinates()
     radius = np.hypot(x - maze.center[0], y - maze.center[1])
-    phi, c = ds.phi.values, ds.c.values
-    nearest = np.array([radius[p >= EXTENT].min() for p in phi])
-    assert np.all(np.diff(nearest) <= scene.grid.spacing) and nearest[-1] < maze.radii[1], (nearest, maze.radii)
-    sector, names, way = maze.sector(x, y), maze.sectors(), maze.path()
-    entrance = sector == names.index(way[0])
-    inside = np.count_nonzero(phi[:, entrance] >= EXTENT, axis=1)
-    assert inside[0] > 10 and inside[-1] == 0, inside
-    assert np.nanmean(c[-1][entrance]) < np.nanmean(c[0][entrance])
+    nearest = np.array([radius[p >= EXTENT].min() for p in np.nan_to_num(ds.phi.values)])
+    speed = scene.params.r / 2 * np.diff(ds.time.values)
+    assert np.all(np.diff(nearest) <= scene.grid.spacing) and np.all(-np.diff(nearest) <= speed + 2 * 4.0)
+    assert nearest[-1] < maze.radii[2], (nearest, maze.radii)
+    invaded = dead_ends.per_dead_end(ds)
+    assert invaded[:, 0].sum() == 0 and np.count_nonzero(invaded[:, -1]) >= 2, invaded
 
 
-@pytest.mark.parametrize("name", ["directional", "agar-g1e8", "agar-g1e10", "obstacles", "maze", "grate"])
+@pytest.mark.parametrize("name", ["directional", "agar-g1e8", "agar-g1e10", "obstacles", "maze", "dead-end", "grate"])
 def test_paper_scenes_use_the_papers_parameters(name):
+    """Table 2, or the maze's Table 6 (and its dead-end corridor's); 2-D where the paper is semi-2-D; mechanics where
+    the paper shows stresses (not in the corridor, which shows the maze's transport alone)."""
     scene = load_scene(bundled.resolve(name))
     params = scene.params
-    if name == "maze":  # Table 6
+    maze = name in ("maze", "dead-end")
+    if maze:  # Table 6
         assert (params.d, params.beta, params.k_alpha, params.r) == (1e13, 10.0, 1e-6, 200.0)
     else:  # Table 2
         assert (params.d, params.beta, params.k_alpha, params.r, params.mu, params.nu) == (1e10, 2.0, 1e-3, 100.0,
                                                                                            3.3557, 0.49)
-    assert scene.grid.solver_grid().ndim == (2 if name in ("maze", "grate") else 3)
+    assert scene.grid.solver_grid().ndim == (2 if name in ("maze", "dead-end", "grate") else 3)
     assert scene.numerics.advection == "tvd"
-    assert scene.numerics.growth_velocity == ("pointwise" if name == "maze" else "front")
-    assert scene.mechanics is not None and scene.mechanics.enabled
+    assert scene.numerics.growth_velocity == ("pointwise" if maze else "front")
+    assert (scene.mechanics is not None and scene.mechanics.enabled) == (name != "dead-end")
 
 
 def test_agar_scenes_differ_only_in_consumption():

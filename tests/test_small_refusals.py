@@ -35,7 +35,7 @@ def lines_of(result, status: int = 2) -> list[str]:
 
 def test_tasks_0_blames_tasks(tiny_study, tmp_path):
     lines = lines_of(invoke("sweep", tiny_study, "-o", tmp_path / "out", "--task", "0", "--tasks", "0"))
-    assert len(lines) == 1 and lines[0].startswith("error: --tasks: must be at least 1 (got 0)"), lines
+    assert len(lines) == 1 and lines[0].startswith("error: --tasks: give a whole number, 1 or more (got 0)"), lines
 
 
 def test_a_closed_port_is_nothing_listening(tiny_study, tmp_path, monkeypatch):

@@ -1,11 +1,15 @@
 """Generated geometries (maze, grate), their scene keys, and smooth initial biofilm edges."""
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import ndimage
 
 from biostudy.errors import BadInput
-from biostudy.inputs.scene import Scene, initial_biofilm, scene_from_data
+from biostudy.inputs import bundled
+from biostudy.inputs.scene import Scene, initial_biofilm, load_scene, scene_from_data
 from biostudy.inputs.structures import CircularMaze, grate
+from biostudy.quantities import dead_ends
 from solver import Grid
 
 
@@ -39,6 +43,40 @@ def test_maze_is_a_perfect_maze_from_the_entrance_to_the_core(seed):
     assert edges == len(maze.sectors()) - 1
     way = maze.path()
     assert way[0] == (5, 0) and way[-1][0] == 0
+
+
+def test_the_bundled_maze_is_the_first_whose_way_in_passes_three_dead_ends():
+    """studies/maze.toml's rule for its seed: the first seed whose way in is at most 25 sectors long and passes three
+    or more dead ends (side branches of the tree) before its last sector."""
+    maze = load_scene(bundled.resolve("maze")).obstacle[0].layout()
+
+    def passes(seed):
+        chosen = dataclasses.replace(maze, seed=seed)
+        way = chosen.path()
+        return len(way) <= 25 and sum(here != way[-1] for here, _ in chosen.side_branches()) >= 3
+
+    assert passes(maze.seed) and not any(passes(seed) for seed in range(maze.seed))
+
+
+def test_the_bundled_maze_s_dead_ends_are_found_in_its_walls():
+    """The dead ends a run measures, found in the walls alone (`quantities.dead_ends`), are the tree's: the way
+    found through the walls runs through the sectors of the tree's way in, and every side branch of the tree off
+    it lies, most of it, in one dead end of its own."""
+    scene = load_scene(bundled.resolve("maze"))
+    problem, maze = scene.problem(), scene.obstacle[0].layout()
+    found = dead_ends.find(problem.obstacle, problem.phi0 >= 0.5, problem.nutrient_held, scene.grid.spacing)
+    sector, names = maze.sector(*problem.grid.cell_coordinates()), maze.sectors()
+    way = maze.path()
+    assert {names[i] for i in sector[found.route] if i >= 0} == set(way)
+    branches = [branch for here, branch in maze.side_branches() if here != way[-1]]
+    owners = []
+    for branch in branches:
+        cells = np.isin(sector, [names.index(b) for b in branch]) & ~problem.obstacle
+        labels = found.label[cells]
+        owner = np.bincount(labels[labels > 0]).argmax() if (labels > 0).any() else 0
+        assert owner > 0 and np.mean(labels == owner) > 0.5, (branch, np.bincount(labels))
+        owners.append(owner)
+    assert len(set(owners)) == len(branches) == 3
 
 
 def test_maze_walls_and_corridors_have_the_asked_sizes():

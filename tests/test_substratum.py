@@ -334,9 +334,9 @@ def test_table_names_units_and_functions():
     assert tuple(sub.QUANTITIES) == NAMES
     units = {q.name: q.units for q in sub.QUANTITIES.values()}
     assert units == {"biomass": "um", "mean_thickness": "um", "max_thickness": "um", "roughness": "1",
-                     "coverage": "1", "surface_to_biovolume": "um-1"}
+                     "coverage": "1", "surface_to_biovolume": "um^-1"}
     cf_units = pytest.importorskip("cf_units")  # udunits: the reduced spellings are the ratios they stand for
-    assert cf_units.Unit("um3/um2").convert(1.0, "um") == 1.0 and cf_units.Unit("um2/um3").convert(1.0, "um-1") == 1.0
+    assert cf_units.Unit("um3/um2").convert(1.0, "um") == 1.0 and cf_units.Unit("um2/um3").convert(1.0, "um^-1") == 1.0
     phi = asymmetric(3)
     together = observe(phi, 1.0, "z-")
     for q in sub.QUANTITIES.values():

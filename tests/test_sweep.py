@@ -143,7 +143,7 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert record.attrs["status"] == "failed" and record.attrs["message"] == message
     assert set(record.data_vars) == set(CASE_VARIABLES)  # its place in the study, no fields
     assert record.status.dims == ("case",) and record.k_alpha.values.tolist() == [1e100]
-    for new_defaults in (False, True):  # the README's recipe, under xarray's present and coming defaults
+    for new_defaults in (False, True):  # docs/results.md's recipe, under xarray's present and coming defaults
         with xr.set_options(use_new_combine_kwarg_defaults=new_defaults), xr.open_mfdataset(
                 sorted((out / "cases").glob("*.nc")), data_vars="minimal", join="outer", compat="no_conflicts",
                 combine_attrs="drop_conflicts") as cases:
@@ -184,9 +184,10 @@ def test_sweep_on_a_dask_cluster_of_two_processes(tiny_study, tmp_path):
 
 
 def test_sweep_on_a_dask_cluster_over_tls(tiny_study, tmp_path):
-    """The README's secure recipe: a scheduler that requires TLS, reached with Dask's TLS configuration (here set
-    in-process; DASK_CONFIG for a real cluster); without it, one line and exit 2; a plain tcp:// client is
-    refused by the scheduler.  A self-signed certificate for 127.0.0.1 made with openssl."""
+    """The secure recipe (docs/clusters.md, 'Local workers and a Dask cluster'): a scheduler that requires TLS,
+    reached with Dask's TLS configuration (here set in-process; DASK_CONFIG for a real cluster); without it, one
+    line and exit 2; a plain tcp:// client is refused by the scheduler.  A self-signed certificate for 127.0.0.1
+    made with openssl."""
     import shutil
 
     import dask
@@ -294,9 +295,10 @@ def test_cases_on_different_grids_keep_their_time_series_in_study_nc(write_toml,
 
 
 def test_ctrl_c_cancels_the_cases_submitted_to_dask_and_keeps_the_finished(tiny_study, tmp_path):
-    """Ctrl-C while cases run on a cluster (README: 'Ctrl-C cancels the submitted cases'): the KeyboardInterrupt
-    unwinds through the submit loop, which cancels every case still submitted, so the scheduler is left with
-    no task of this sweep; the case that finished before is on disk, and a re-run resumes after it."""
+    """Ctrl-C while cases run on a cluster (docs/clusters.md: Ctrl-C cancels the submitted cases): the
+    KeyboardInterrupt unwinds through the submit loop, which cancels every case still submitted, so the scheduler
+    is left with no task of this sweep; the case that finished before is on disk, and a re-run resumes after
+    it."""
     distributed = pytest.importorskip("distributed")
     plan = load_study(tiny_study, ["time.steps=400"])  # long enough that cases are still queued at the interrupt
 

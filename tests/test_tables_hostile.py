@@ -21,12 +21,13 @@ import pytest
 from conftest import TINY_SCENE
 from typer.testing import CliRunner
 
+from biostudy.calibration import measurements
+from biostudy.calibration.measurements import read_measurements
+from biostudy.calibration.problem import load_calibration
+from biostudy.calibration.table import DataSpec
 from biostudy.cli import app
 from biostudy.errors import BadInput
 from biostudy.execution import dask
-from biostudy.inputs import measurements
-from biostudy.inputs.measurements import read_measurements
-from biostudy.plans.calibration import DataSpec, load_calibration
 
 cli = CliRunner()
 HEADER = "observableId\ttime\tmeasurement\tnoiseParameters\n"

@@ -1,18 +1,19 @@
 """How a command of the command line ends: one line per error, and an exit status that says why.
 
 Usage errors (click's) are one line and exit 2 (`OneLineErrors`); inside a command (`guarded`) bad input is
-exit 2 with one line per problem, a failure exit 1, Ctrl-C 130 and SIGTERM 143 (128 + the signal), leaving
-nothing half-written; warnings are held and told after the command, not after bad input.
+exit 2 with one line per problem, a failure exit 1, Ctrl-C 130 and SIGTERM 143 (128 + the signal) wherever they
+land, finalisers included (`execution.interrupts`), leaving nothing half-written; warnings are held and told after
+the command, not after bad input.
 """
 from __future__ import annotations
 
 import contextlib
-import signal
 import sys
 
 import typer
 
 from ..errors import BadInput, Failed
+from ..execution import interrupts
 from .held import held_warnings
 
 _USAGE_ERROR = typer.BadParameter.__mro__[1]  # click's UsageError, wherever this typer takes click from
@@ -55,17 +56,8 @@ def fail(message: str, status: int) -> typer.Exit:
     return typer.Exit(status)
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, unwinding as Ctrl-C does (temporary files are removed on the way out), told apart by its exit
-    status: 143 (128 + 15), where Ctrl-C's is 130 (128 + 2)."""
-
-
 def interrupted_status(error: BaseException | None) -> int:
-    return 128 + (signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT)
-
-
-def _terminate(signum, frame):
-    raise Terminated
+    return interrupts.status(error)
 
 
 def _unwinding(error: BaseException) -> KeyboardInterrupt | None:
@@ -81,10 +73,9 @@ def _unwinding(error: BaseException) -> KeyboardInterrupt | None:
 def guarded():
     """Bad input -> exit 2 with one line per problem; a failure -> exit 1 with its line; Ctrl-C -> exit 130,
     SIGTERM -> exit 143.  Warnings are held and told after the command, one line each, not after bad input."""
-    previous = signal.signal(signal.SIGTERM, _terminate)
     held = []
     try:
-        with held_warnings() as held:
+        with interrupts.obeyed() as seen, held_warnings() as held:
             try:
                 yield
             except Exception as error:
@@ -92,6 +83,9 @@ def guarded():
                 if interruption is None:
                     raise
                 raise interruption from None
+            lost = seen.lost()
+            if lost is not None:  # received, and swallowed by something on its way (`interrupts`)
+                raise lost
     except BadInput as error:
         held.clear()  # a bad input prints only its own lines
         raise fail("\n".join(f"error: {line}" for line in error.lines()), 2) from None
@@ -101,6 +95,5 @@ def guarded():
         raise fail("interrupted: finished files are kept, nothing is left half-written",
                     interrupted_status(error)) from None
     finally:
-        signal.signal(signal.SIGTERM, previous)
         for line in held:
             typer.echo(f"warning: {line}", err=True)

@@ -1,34 +1,27 @@
-"""The one path of every job command of the command line (sweep, convergence, stability, calibrate)."""
+"""The command line's side of every job command (sweep, convergence, stability, calibrate): progress and print."""
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any
 
 import typer
 
+from ..commands.options import Command
 from . import output, progress
 from .guard import fail, guarded
 
 
-def job_command(quiet: bool, load: Callable, as_json: bool = False, **execution) -> None:
-    """The one path of every job command (sweep, convergence, stability).
-
-    load() reads and validates (bad input: exit 2 before anything runs) and returns a `commands.JobCommand`,
-    which runs the jobs on the chosen pool and says what came of them (`commands.finished.Finished`).  A job
-    that failed, or a pool that broke down, is exit status 1.  `as_json`: the result as JSON on stdout
-    instead of the table (`output.finished`).
+def job_command(declared: Command, options: dict[str, Any], quiet: bool, as_json: bool = False) -> None:
+    """Start the job (`commands.jobs.started`: bad input is exit 2 before anything runs), run it with a progress
+    display, and say what came of it (`commands.finished.Finished`).  A job that failed, or a pool that broke
+    down, is exit status 1.  `as_json`: the result as JSON on stdout instead of the table (`output.finished`).
     """
     with guarded():
-        from ..execution.dask import check_choice  # lazily: --version and -h pay for no execution machinery
+        from ..commands.jobs import started  # lazily: --version and -h pay for no execution machinery
         from ..execution.jobs import Execution  # lazily
 
-        check_choice(execution.get("workers"), execution.get("scheduler"), execution.get("scheduler_file"))
-        if execution.get("workers"):
-            from ..execution.pool import warm_up  # lazily
-
-            warm_up()  # the fork server imports the solver while this process imports it and validates
-        job = load()
+        job, where = started(declared, options)
         with progress.jobs(job.title, quiet, job.noun) as notify:
-            finished = job.run(Execution(notify=notify, **execution))
+            finished = job.run(Execution(notify=notify, **where))
         if as_json:
             output.emit(output.finished(job, finished.result))
         elif finished.table:

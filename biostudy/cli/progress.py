@@ -107,7 +107,7 @@ def simulation(name: str, t_end: float, quiet: bool):
         yield lambda p: lines.update(p.time, f"T* = {p.time:.4g} / {t_end:g}",
                                      f"steps {p.steps}, bisections {p.bisections}",
                                      work=Work(p.steps, p.mechanics_seconds, p.mechanics_solves, p.mechanics_left,
-                                               p.outputs))
+                                               p.outputs, p.output_seconds))
         return
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 

@@ -68,11 +68,12 @@ def _common(attrs: dict, study: bool, study_file: str) -> list[str]:
     return [f"{key}={literal(value)}" for key, value in given.items()]
 
 
-def analyze(source: str | Path, *, outputs: list[str] | None = None,
+def analyze(study: str | Path, *, outputs: list[str] | None = None,
             times: Sequence[float | str] | None = None) -> tuple[list[Path], str]:
     """Analyse a study (its study.nc, or its directory) and write analysis.nc, analysis.md and the pictures
-    beside it; returns the files written and the table.  Anything wrong with the request is `BadInput`."""
-    source = Path(source)
+    beside it (the options: `declared.ANALYZE`); returns the files written and the table.  Anything wrong with
+    the request is `BadInput`."""
+    source = Path(study)
     source = source / "study.nc" if source.is_dir() else source
     directory = source.parent
     _replaceable(directory)  # before anything is read or computed

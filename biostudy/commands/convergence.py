@@ -14,7 +14,6 @@ from pathlib import Path
 import xarray as xr
 
 from ..data import claims, provenance, writing
-from ..errors import BadInput
 from ..execution.jobs import Execution, Job, SweepReport, run_jobs
 from ..execution.ownership import Owner
 from ..execution.targets import owned
@@ -22,9 +21,11 @@ from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, overrides_text, read_scene_data, scene_from_data
-from ..plans.refinement import FIRST_TOLERANCE, SERIES, check_refinable, chosen_series, plan, refined
+from ..plans.refinement import check_refinable, plan, refined, with_reference
 from ..plots.accuracy import work_precision
-from ..reports.convergence import load_reference, measure, table_text
+from ..reports.convergence import measure
+from ..reports.convergence_levels import Level, given_reference
+from ..reports.convergence_table import table_text
 from .finished import Finished
 
 REPORTS = ("convergence.md", "work_precision.png")
@@ -43,13 +44,17 @@ class Convergence:
     common: dict  # the overrides (level 0 and every level)
     directory: Path
     reference: Path | None = None  # a run every level is measured against
-    given: dict | None = None  # its final state (`reports.convergence.final_state`)
+    given: Level | None = None  # its quantities at the scene's output times
     time: float | None = None
     noun: str = "runs"
 
     @property
     def title(self) -> str:
         return f"convergence {self.path.stem}"
+
+    @property
+    def summary(self) -> Path:
+        return self.directory / "convergence.nc"
 
     def run(self, execution: Execution) -> Finished:
         ds, report = self.measure(execution)
@@ -64,34 +69,35 @@ class Convergence:
         """Run every level (skipping finished ones), measure, write DIR/convergence.nc; DIR belongs to this
         scene's convergence runs (`targets.owned`; `execution.force` takes over another's)."""
         given = self.given
-        wanted = plan(self.base, self.levels, self.series, self.tolerance)
+        wanted = plan(self.base, self.levels, self.series, self.tolerance, reference=given is None)
         scenes = {level.job_id: refined(self.data, self.path, level) for level in wanted}
         text = overrides_text(self.common)
         jobs = [Job(job_id, scene, self.path, text, {"case_id": job_id}) for job_id, scene in scenes.items()]
         owner = Owner("convergence", self.path.stem, str(self.path.resolve()))
         with owned(self.directory, owner, "convergence.nc", execution.force, reports=REPORTS):
             report = run_jobs(jobs, self.directory, execution)
-            ds = measure(wanted, self.directory, self.levels, self.series, self.base, given, self.time)
+            series = self.series if given is not None else with_reference(self.series)
+            ds = measure(wanted, self.directory, self.levels, series, self.base, given, self.time, scenes)
             if self.reference is not None and given is not None:
-                ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()} (T* = {given['time']:g})"
+                ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()}"
             ds.attrs = provenance.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
                                               "scene_file": str(self.path.resolve()), "overrides": text})
             writing.write_atomic(ds, self.directory / "convergence.nc")
         return ds, report
 
 
-def load(scene: str | Path, *, output: Path | None = None, levels: int = 3, series: str | tuple[str, ...] = SERIES,
-         tolerance: float = FIRST_TOLERANCE, overrides: tuple[str, ...] | list[str] = (),
-         reference: Path | None = None, time: float | None = None) -> Convergence:
-    """Read and validate the scene and the plan; bad input is `BadInput`."""
-    chosen = chosen_series(series) if isinstance(series, str) else tuple(series)
-    if levels < 2:
-        raise BadInput("needs at least 2 levels (the finest is the reference)", None, "--levels")
+def load(scene: str | Path, *, levels: int, series: tuple[str, ...], tolerance: float, directory: Path | None = None,
+         set: list[str] | tuple[str, ...] = (), reference: Path | None = None,  # noqa: A002
+         time: float | None = None, runs_here: bool = False) -> Convergence:
+    """Read and validate the scene with the overrides `set` (level 0's) and the plan of `levels` per `series`
+    (the options, their defaults and rules: `declared.CONVERGENCE`); bad input is `BadInput` (`runs_here`: level
+    0 runs here, as for `commands.sweep.load`)."""
     path = bundled.resolve(scene)
     data = read_scene_data(path)
-    common = dict(apply_overrides(data, overrides))
-    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"), Preflight())
+    common = dict(apply_overrides(data, set))
+    base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"), Preflight(runs=runs_here))
     check_refinable(base, path)
-    directory = Path(output) if output is not None else Path(f"{path.stem}-convergence")
-    given = None if reference is None else load_reference(reference, base, time)
-    return Convergence(path, data, base, levels, chosen, tolerance, common, directory, reference, given, time)
+    directory = Path(directory) if directory is not None else Path(f"{path.stem}-convergence")
+    given = None if reference is None else given_reference(reference, base)
+    return Convergence(path, data, base, levels, tuple(series), tolerance, common, directory, reference, given,
+                       time)

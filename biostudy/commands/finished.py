@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Protocol
 
 from ..execution.jobs import Execution
@@ -27,9 +28,13 @@ class Finished:
 
 
 class JobCommand(Protocol):
-    """A loaded, validated job command, nothing run yet: its progress title and what runs it."""
+    """A loaded, validated job command, nothing run yet: its progress title, what runs it, and the file it sums
+    up in (study.nc, convergence.nc, ...: what the Python function returns)."""
 
     title: str
     noun: str
+
+    @property
+    def summary(self) -> Path: ...
 
     def run(self, execution: Execution) -> Finished: ...

@@ -12,14 +12,15 @@ from ..data.real_time import t_star
 from ..errors import BadInput
 
 
-def plot(path: str | Path, *, output: str | Path | None = None, variable: str | None = None,
+def plot(result: str | Path, *, output: str | Path | None = None, variable: str | None = None,
          time: float | str | None = None, cut: str | None = None, warp: float | None = None) -> list[Path]:
     """Draw the pictures of a run's or a study's dataset (a study's directory: its study.nc) and return the
     files written: OUTPUT (default: the dataset's name as .png), with _series, _cut, ... suffixes when there are
-    several.  `time`: the output nearest this T* (or a real time, '12 h', with the scene's t_ref)."""
+    several (the options: `declared.PLOT`).  `time`: the output nearest this T* (or a real time, '12 h', with the
+    scene's t_ref)."""
     from ..plots import plot as draw  # lazily: matplotlib only where a picture is drawn
 
-    path = Path(path)
+    path = Path(result)
     source = path / "study.nc" if path.is_dir() else path
     ds = open_result(source, ("run", "study"), "nothing to plot")
     try:

@@ -91,11 +91,13 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
     return Path(re.sub(r"[^\w.+-]", "-", scene.name) + ".nc")
 
 
-def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (), output: Path | None = None,
-         force: bool = False, continue_from: str | Path | None = None, write: bool = True) -> Loaded:
-    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides, the run
-    it continues, and its output before anything is computed (`write`: the dataset goes to `output` or
-    NAME.nc); bad input is `BadInput`."""
+def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
+         output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
+         write: bool = True) -> Loaded:
+    """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
+    run it continues, and its output before anything is computed (the options: `declared.RUN`; `write`: the
+    dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
+    overrides = set
     preflight = Preflight(runs=True, streamed=write or output is not None)  # a run that writes streams its outputs
     if isinstance(scene, dict):
         data = {"name": "scene", **scene}
@@ -113,9 +115,15 @@ def load(scene: str | Path | dict, *, overrides: tuple[str, ...] | list[str] = (
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
         return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
-    target = Path(output) if output is not None else default_output(loaded, continue_from)
-    replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [])
-    return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+    try:
+        target = Path(output) if output is not None else default_output(loaded, continue_from)
+        replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [],
+                              history=previous.sizes["time"] if previous is not None else None)
+        return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+    except BaseException:
+        if previous is not None:
+            previous.close()  # open, read lazily (`continuation.previous_run`)
+        raise
 
 
 def _first_dataset() -> None:
@@ -160,7 +168,11 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
     try:
         if loaded.target is not None and resources.streams(loaded.scene):
             spool = Spool(loaded.target)  # no file until the first output
-        ds = _simulated(loaded, progress, spool)
+        kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+        try:
+            ds = _simulated(loaded, progress, spool)
+        except writing.NotWritten as error:  # the spool's disk filled up while it ran
+            raise Failed(f"{error}; this run stopped there and its result is lost ({kept})") from None
         if loaded.target is not None:
             try:
                 if loaded.claim is not None:
@@ -168,10 +180,13 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
                 else:
                     writing.write_atomic(ds, loaded.target)
             except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
-                kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
                 raise Failed(f"{error}; this run's result is lost ({kept})") from None
             ds = netcdf_io.open_dataset(loaded.target)
+        elif loaded.previous is not None:
+            ds = ds.load()  # the history it continues, read before that run's file is closed
     finally:
+        if loaded.previous is not None:
+            loaded.previous.close()
         if spool is not None:
             spool.close()
         if loaded.claim is not None:

@@ -53,9 +53,12 @@ class Shown:
     __repr__ = __str__
 
 
+PETAB = (".yaml", ".yml")  # a PEtab problem: a calibration file (`calibration.petab_in`)
+
+
 def _is_scene_file(path: Path) -> bool:
-    """A scene, study or calibration file (TOML), or the name of a bundled one."""
-    return path.suffix == ".toml" or (not path.exists() and not path.suffix)
+    """A scene, study or calibration file (TOML, or a PEtab problem.yaml), or the name of a bundled one."""
+    return path.suffix in (".toml", *PETAB) or (not path.exists() and not path.suffix)
 
 
 def _dataset(path: Path):
@@ -101,9 +104,13 @@ def view(given: Sequence[str | Path]) -> tuple[RenderableType, Comparison | None
         return compare(runs, paths, found), found
     path = paths[0]
     if _is_scene_file(path):
-        from ..reports.needs import needs  # lazily
+        from ..calibration import cost  # lazily
+        from ..inputs.files import read_toml  # lazily
+        from ..reports import needs  # lazily
 
-        return needs(bundled.resolve(path)), None
+        path = bundled.resolve(path)
+        calibration = path.suffix in PETAB or bundled.kind(read_toml(path)) == "calibration"
+        return (cost.needs if calibration else needs.needs)(path), None
     from ..reports.glance import glance  # lazily
 
     at_a_glance = glance(path) if path.is_file() else None  # a run's file: netCDF4 alone, no xarray

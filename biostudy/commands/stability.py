@@ -15,7 +15,7 @@ from ..execution.jobs import Execution, SweepReport, plan_jobs, plan_owner, run_
 from ..execution.targets import owned
 from ..inputs import bundled
 from ..inputs.resources import Preflight
-from ..plans import catalogue
+from ..plans import catalogue as catalogues
 from ..plans.cases import Plan
 from ..reports.stability import table_text, verdicts
 from .finished import Finished
@@ -48,6 +48,10 @@ class Stability:
     def title(self) -> str:
         return f"stability {self.path.stem}"
 
+    @property
+    def summary(self) -> Path:
+        return self.directory / "stability.nc"
+
     def run(self, execution: Execution) -> Finished:
         ds, report = run_catalogue(self.plan, self.directory, execution)
         table = table_text(ds)
@@ -58,10 +62,10 @@ class Stability:
                         failed, ds.sizes["case"], table, warnings=report.warnings(), result=ds)
 
 
-def load(path: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = (),
-         runs_here: bool = False) -> Stability:
-    """Read and validate a catalogue (a path or a bundled name) and every case; bad input is `BadInput`
-    (`runs_here`: as for `commands.sweep.load`)."""
-    path = bundled.resolve(path)
-    return Stability(catalogue.load(path, overrides, Preflight(runs=runs_here)), path,
-                     Path(output) if output is not None else Path(f"{path.stem}-results"))
+def load(catalogue: str | Path, *, directory: Path | None = None,
+         set: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Stability:  # noqa: A002
+    """Read and validate a catalogue (a path or a bundled name) and every case with the overrides `set` (the
+    options: `declared.STABILITY`); bad input is `BadInput` (`runs_here`: as for `commands.sweep.load`)."""
+    path = bundled.resolve(catalogue)
+    return Stability(catalogues.load(path, set, Preflight(runs=runs_here)), path,
+                     Path(directory) if directory is not None else Path(f"{path.stem}-results"))

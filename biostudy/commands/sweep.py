@@ -63,8 +63,6 @@ def choose(plan: Plan, share: Share) -> list[str]:
             raise BadInput(f"no case number {share.task} in this study (its {len(ids)} cases are numbered 0.."
                            f"{len(ids) - 1} in the study's order)", "--task")
         return [ids[share.task]]
-    if share.tasks < 1:
-        raise BadInput(f"must be at least 1 (got {share.tasks})", "--tasks")
     if not 0 <= share.task < share.tasks:
         raise BadInput(f"must be in 0..{share.tasks - 1} for --tasks {share.tasks} (got {share.task})", "--task")
     return ids[share.task::share.tasks]
@@ -126,6 +124,10 @@ class Sweep:
     def title(self) -> str:
         return self.plan.spec.name + (f" ({self.share.describe()})" if self.share else "")
 
+    @property
+    def summary(self) -> Path:
+        return self.directory / "study.nc"
+
     def run(self, execution: Execution) -> Finished:
         if self.combine_only:
             written = combine_study(self.plan, self.directory, execution.force)
@@ -163,13 +165,15 @@ def _statuses(study: Path) -> str:
         return ", ".join(f"{nc.getncattr(f'cases_{s}')} {s}" for s in ("done", "failed", "missing"))
 
 
-def load(study: str | Path, *, output: Path | None = None, overrides: tuple[str, ...] | list[str] = (),
-         cases: tuple[str, ...] | list[str] = (), task: int | None = None, tasks: int | None = None,
-         combine_only: bool = False, runs_here: bool = False) -> Sweep:
-    """Read and validate a study (a path or a bundled name) and every case, and which cases to run (`cases`,
-    or share `task` of `tasks`; `combine_only`: none); bad input is `BadInput`.  `runs_here`: the cases run on
-    this machine, so one too big for its memory is refused by its estimate before its masks are made."""
-    plan = load_study(bundled.resolve(study), overrides, Preflight(runs=runs_here and not combine_only))
+def load(study: str | Path, *, directory: Path | None = None, set: list[str] | tuple[str, ...] = (),  # noqa: A002
+         cases: list[str] | tuple[str, ...] = (), task: int | None = None, tasks: int | None = None,
+         combine: bool = False, runs_here: bool = False) -> Sweep:
+    """Read and validate a study (a path or a bundled name) and every case with the overrides `set`, and which
+    cases to run (`cases`, or share `task` of `tasks`; `combine`: none; the options: `declared.SWEEP`); bad input
+    is `BadInput`.  `runs_here`: the cases run on this machine, so one too big for its memory is refused by its
+    estimate before its masks are made."""
+    combine_only = combine
+    plan = load_study(bundled.resolve(study), set, Preflight(runs=runs_here and not combine_only))
     share = None
     if cases or task is not None or tasks is not None:
         if cases and (task is not None or tasks is not None):
@@ -178,5 +182,5 @@ def load(study: str | Path, *, output: Path | None = None, overrides: tuple[str,
         choose(plan, share)  # bad input now, before anything runs
     if combine_only and share is not None:
         raise BadInput("--combine runs no case; leave out --case and --task", "--combine")
-    return Sweep(plan, Path(output) if output is not None else Path(plan.spec.name), share=share,
+    return Sweep(plan, Path(directory) if directory is not None else Path(plan.spec.name), share=share,
                  combine_only=combine_only)

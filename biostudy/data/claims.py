@@ -44,13 +44,20 @@ def mark() -> str:
     return f"written by biostudy {version()}"
 
 
+HEAD = 4096  # bytes at the start of a file where a VTK file's mark stands (its first comment), whatever its size
+
+
 def marked(path: str | Path, most: int = 1 << 25) -> bool:
-    """Whether a file (of at most `most` bytes, a picture or a VTU) carries biostudy's `mark`."""
+    """Whether a file (a picture, a VTK file) carries biostudy's `mark`: in its first `HEAD` bytes, or anywhere in
+    a file of at most `most` bytes."""
     path = Path(path)
     try:
-        if not path.is_file() or path.stat().st_size > most:
+        if not path.is_file():
             return False
-        return b"written by biostudy " in path.read_bytes()
+        with open(path, "rb") as handle:
+            if b"written by biostudy " in handle.read(HEAD):
+                return True
+        return path.stat().st_size <= most and b"written by biostudy " in path.read_bytes()
     except OSError:
         return False
 

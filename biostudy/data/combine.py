@@ -101,14 +101,12 @@ def _study_coordinates(plan: Plan) -> tuple[list[str], dict]:
     return ["case"], coords
 
 
-SCENE_STATICS = ("grid", "nutrient", "obstacle")  # what the masks and cell bounds depend on
-
-
 def with_overrides(ds: xr.Dataset, pairs: dict) -> xr.Dataset:
     """One run's dataset made with overrides (`biostudy run --set KEY=VALUE`): each overridden key a scalar
     coordinate holding its value, never a new dimension, so that a run keeps its shape however its values were
     given (the `overrides` attribute lists them too).  Runs of one scene with different values combine along a
-    key with ``xr.open_mfdataset(files, combine="nested", concat_dim=KEY)`` (README).  An overridden parameter
+    key with ``xr.open_mfdataset(files, combine="nested", concat_dim=KEY)`` (docs/results.md, "Looking at the
+    results").  An overridden parameter
     keeps the units and long name of its variable in `ds`."""
     coords = {}
     for key, value in pairs.items():

@@ -70,10 +70,20 @@ def _lacking(ds: xr.Dataset, scene: Scene) -> list[str]:
 
 
 def previous_run(path: str | Path, scene: Scene) -> xr.Dataset:
-    """The finished run of `scene` that a continuation starts from; `BadInput` (naming RUN.nc) for anything
-    else: not a run, a failed case, an unfinished run, a run of another scene, a t_end not after its end."""
+    """The finished run of `scene` that a continuation starts from, open and read lazily (its outputs one at a
+    time as the history is written again: `reading.open_dataset`; close() it after); `BadInput` (naming
+    RUN.nc) for anything else: not a run, a failed case, an unfinished run, a run of another scene, a t_end not
+    after its end."""
     path = Path(path)
-    ds = reading.open_result(path, ("run",), "--continue starts from a finished run's last state")
+    ds = reading.open_result(path, ("run",), "--continue starts from a finished run's last state", lazy=True)
+    try:
+        return _checked(ds, path, scene)
+    except BadInput:
+        ds.close()
+        raise
+
+
+def _checked(ds: xr.Dataset, path: Path, scene: Scene) -> xr.Dataset:
     attrs = ds.attrs
     last = float(ds["time"].values[-1])
     if str(attrs.get("status", "done")) != "done" or last < float(attrs.get("t_end", last)) * (1 - 1e-12):

@@ -35,9 +35,9 @@ class Record:
     @classmethod
     def of(cls, scene: Scene, scene_file: str | Path | None, overrides: str, **attrs: Any) -> Record:
         """The record of `scene`: with what its observables and alerts read (`Scene.substratum_attrs`,
-        `Scene.real_time_attrs`) and `attrs`."""
+        `Scene.real_time_attrs`, the images' provenance `Scene.image_attrs`) and `attrs`."""
         return cls(scene.to_toml(), str(scene_file or ""), overrides,
-                   {**scene.substratum_attrs(), **scene.real_time_attrs(), **attrs})
+                   {**scene.substratum_attrs(), **scene.real_time_attrs(), **scene.image_attrs(), **attrs})
 
 
 def finish(ds: xr.Dataset, record: Record, **attrs: Any) -> xr.Dataset:

@@ -23,7 +23,7 @@
 * `as_run`: a sweep's case file carries its place in the study as dimensions of
   length 1 (`combine.CaseLayout`, so that ``xr.open_mfdataset`` combines the
   cases by itself); read as one run, they are squeezed to scalar coordinates.
-  A file written before takes today's names (`renamed`).
+  A file written before takes today's names and unit spellings (`renamed`: 'um3' is 'um^3').
 """
 from __future__ import annotations
 
@@ -100,9 +100,20 @@ def history(argv: list[str] | None = None) -> str:
 
 
 def renamed(ds: xr.Dataset) -> xr.Dataset:
-    """A dataset written before a variable was renamed, with today's names."""
+    """A dataset written before a variable was renamed, or before units were spelled for pint too ('um3', 'um-1'),
+    with today's names and spellings (`formatting.current_units`)."""
+    from ..formatting import current_units
+
     old = {name: new for name, new in OLD_NAMES.items() if name in ds.variables and new not in ds.variables}
-    return ds.rename(old) if old else ds
+    ds = ds.rename(old) if old else ds
+    spelled = {name: current_units(str(var.attrs["units"])) for name, var in ds.variables.items()
+               if "units" in var.attrs and current_units(str(var.attrs["units"])) != str(var.attrs["units"])}
+    if not spelled:
+        return ds
+    ds = ds.copy(deep=False)
+    for name, units in spelled.items():
+        ds.variables[name].attrs = {**ds.variables[name].attrs, "units": units}
+    return ds
 
 
 def as_run(ds: xr.Dataset) -> xr.Dataset:

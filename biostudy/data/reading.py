@@ -44,9 +44,16 @@ def looks_like_netcdf(path: Path) -> bool:
     return head == HDF5_SIGNATURE or head[:3] == b"CDF"
 
 
-def open_dataset(path: str | Path) -> xr.Dataset:
+LAZY_CHUNKS: dict = {}  # a dataset read lazily: in the chunks it was written in (netcdf.encoding: an output each)
+LAZY_SLAB = 1 << 22  # bytes read at once to check such a dataset whole (the check's own default: 64 MiB)
+
+
+def open_dataset(path: str | Path, lazy: bool = False) -> xr.Dataset:
     """A result file, loaded into memory and closed (a sweep's case file as one run: `netcdf.as_run`);
-    a file that is not netCDF, or one that cannot be read whole (damaged), is `BadInput` in one line."""
+    a file that is not netCDF, or one that cannot be read whole (damaged), is `BadInput` in one line.
+    `lazy`: checked whole (`netcdf_io.intact`, a slab at a time) and left open, its outputs read one at a time
+    as they are used (a run continued, whose history is written again: its memory does not grow with it);
+    close() it when done."""
     path = Path(path)
     if not path.is_file():
         raise BadInput(LOOP if link_loop(path) else "no such file" if not path.exists() else "is not a regular file",
@@ -54,6 +61,10 @@ def open_dataset(path: str | Path) -> xr.Dataset:
     from . import netcdf_io  # lazily, as in `attributes`
 
     try:
+        if lazy:
+            if not netcdf_io.intact(path, LAZY_SLAB):
+                raise RuntimeError("a header, an attribute or a checksum failed")
+            return netcdf.as_run(netcdf_io.open_dataset(path, LAZY_CHUNKS, one_chunk_cached=True))
         with netcdf_io.HDF5:  # read whole and closed before another thread calls HDF5
             ds = netcdf_io.open_dataset(path)
             try:
@@ -82,10 +93,19 @@ def kind(ds: xr.Dataset) -> str:
     return "run" if "phi" in ds and "time" in ds.dims else "summary"
 
 
-def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "failed"), doing: str = "") -> xr.Dataset:
+def open_result(path: str | Path, wanted: tuple[str, ...] = ("run", "study", "failed"), doing: str = "",
+                lazy: bool = False) -> xr.Dataset:
     """`open_dataset` for a command that reads results (show, plot, export): `BadInput` in one line for a
     file that is not of the kinds it takes (`kind`), e.g. a netCDF file biostudy did not write."""
-    ds = open_dataset(path)
+    ds = open_dataset(path, lazy)
+    try:
+        return _of_kind(ds, path, wanted, doing)
+    except BadInput:
+        ds.close()
+        raise
+
+
+def _of_kind(ds: xr.Dataset, path: str | Path, wanted: tuple[str, ...], doing: str) -> xr.Dataset:
     found = kind(ds)
     if found == "study":
         dims = [d.strip() for d in str(ds.attrs.get("sweep_dimensions", "")).split(",") if d.strip()]

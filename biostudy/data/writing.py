@@ -58,7 +58,7 @@ def mount_point(path: str | Path) -> Path:
     return path
 
 
-def _not_written(path: Path, error: OSError | RuntimeError) -> NotWritten:
+def not_written(path: Path, error: OSError | RuntimeError) -> NotWritten:
     """What a failed write is told as: a full disk (ENOSPC, or almost nothing left, as HDF5's errors do not
     say), or the system's (or netCDF's) reason."""
     code = getattr(error, "errno", None)
@@ -82,7 +82,7 @@ def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = Fals
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        raise _not_written(path, error) from None
+        raise not_written(path, error) from None
     temporary = temporary or temporary_name(path)
     try:
         write(temporary)
@@ -94,7 +94,7 @@ def atomic(path: str | Path, write: Callable[[Path], object], fsync: bool = Fals
         else:
             os.replace(temporary, path)
     except (OSError, RuntimeError) as error:  # RuntimeError: netCDF4's, e.g. "HDF error" on a full disk
-        raise _not_written(path, error) from None
+        raise not_written(path, error) from None
     finally:
         temporary.unlink(missing_ok=True)
     if fsync:

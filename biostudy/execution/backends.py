@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections import deque
 from typing import Callable, Iterator, Protocol
 
+from . import interrupts
 from .worker import Outcome, Task, perform
 
 Compile = Callable[[str], Task]
@@ -64,7 +65,10 @@ class Here:
 
 def windowed(ids: list[str], compile_: Compile, backend: Backend) -> Iterator[tuple[str, Outcome]]:
     """Every case of `ids` through `backend`; yields (case id, Outcome) as cases finish.  Leaving the loop
-    early (an interruption, an error while recording) closes the backend, which ends what is in flight."""
+    early (an interruption, an error while recording) closes the backend, which ends what is in flight.
+    Ctrl-C and SIGTERM act at once where the backend waits for its cases (`interrupts.allowed`); elsewhere,
+    compiling the next case or recording a finished one (the caller, between two items), they wait for it: a
+    simulation that finished is never lost to them (`interrupts.deferred`)."""
     waiting = deque(ids)
     completed = False
 
@@ -74,11 +78,12 @@ def windowed(ids: list[str], compile_: Compile, backend: Backend) -> Iterator[tu
             backend.submit(case_id, compile_(case_id))
 
     try:
-        fill()
-        while backend.busy:
-            done = backend.finished()
+        with interrupts.deferred():
             fill()
-            yield from done
+            while backend.busy:
+                done = backend.finished()
+                fill()
+                yield from done
         completed = True
     finally:
         backend.close(completed)

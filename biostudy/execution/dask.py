@@ -32,6 +32,7 @@ from typing import Callable
 
 from ..errors import BadInput, Failed, first_line
 from ..inputs.files import read_text
+from . import interrupts
 from .worker import Outcome, Task, perform
 
 CONNECT_TIMEOUT = 10.0  # seconds to reach a Dask scheduler and hear it answer
@@ -92,8 +93,8 @@ def check_choice(workers: int | None, scheduler: str | None, scheduler_file: str
             raise BadInput(f"Dask's TLS configuration cannot be used: {error}", "--scheduler") from None
         if context is None:
             raise BadInput(f"{scheduler} needs a TLS configuration: Dask's distributed.comm.tls.ca-file, "
-                           ".client.cert and .client.key (a YAML file in DASK_CONFIG; README, 'Sweeps on a "
-                           "Dask cluster')", "--scheduler")
+                           ".client.cert and .client.key (a YAML file in DASK_CONFIG; docs/clusters.md, 'Local "
+                           "workers and a Dask cluster')", "--scheduler")
 
 
 def _refused(address: str, timeout: float) -> bool:
@@ -224,7 +225,8 @@ class DaskCluster:
 
         while True:
             try:
-                done = wait(list(self.running), timeout=NOTICE_EVERY, return_when="FIRST_COMPLETED").done
+                with interrupts.allowed():  # waiting: an interruption ends it (`backends.windowed`)
+                    done = wait(list(self.running), timeout=NOTICE_EVERY, return_when="FIRST_COMPLETED").done
             except TimeoutError:
                 self._waiting()
                 continue

@@ -1,12 +1,15 @@
 """A finished case's identity: the fingerprint of the compiled problem that made it.
 
 `fingerprint` is canonical and recursive: every field of `solver.Problem` and
-of the dataclasses inside it (`Grid`, `Parameters`, `Numerics`,
+of the dataclasses inside it (`Grid`, `Parameters`, `Laws`, `Numerics`,
 `MechanicsSetup`) that equals its default is left out, at any depth, and the
 rest is hashed by name, in sorted order, by value (arrays by dtype, shape and
 bytes).  A new option with a default, anywhere in the problem, therefore
 leaves every finished case's identity as it was: sweeps and calibrations
-finished before it are reused, not recomputed.
+finished before it are reused, not recomputed.  The laws (`Problem.laws`) are
+hashed as fields of the problem itself (`INLINED`): `consumption` was one
+before the laws were gathered in `solver.Laws`, so a zero-order case keeps
+its identity.
 
 Case files written by biostudy 0.3.0 and earlier carry the fingerprint of the
 scheme before (nested options hashed by their `repr`); `legacy_fingerprint`
@@ -21,32 +24,36 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from solver.laws import Laws
 from solver.problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
 
 if TYPE_CHECKING:
     import solver
 
 NOT_PART = ("name",)  # fields of `Problem` that do not change a result
+INLINED = ("laws",)  # fields of `Problem` whose own fields are hashed as the problem's (they were its fields)
 
 
 def fingerprint(problem: "solver.Problem") -> str:
     """sha256 of everything that determines a run's result (not its name), each field at its default left out.
     The software's versions are not in it: a new version does not discard finished work by itself
     (`SweepReport.outdated` tells about it)."""
-    return hashlib.sha256(repr(canonical(problem, NOT_PART)).encode()).hexdigest()
+    return hashlib.sha256(repr(canonical(problem, NOT_PART, INLINED)).encode()).hexdigest()
 
 
-def canonical(value: Any, skip: tuple[str, ...] = ()) -> Any:
+def canonical(value: Any, skip: tuple[str, ...] = (), inline: tuple[str, ...] = ()) -> Any:
     """`value` as plain, comparable Python: a dataclass as a sorted tuple of (name, canonical value) of its fields
-    other than their default (and than `skip`), an array as (dtype, shape, sha256 of its bytes), a numpy scalar
-    as its Python number, a sequence as a tuple."""
+    other than their default (and than `skip`; a field in `inline`, a dataclass, by its own such fields), an array
+    as (dtype, shape, sha256 of its bytes), a numpy scalar as its Python number, a sequence as a tuple."""
     if is_dataclass(value) and not isinstance(value, type):
         kept = []
         for part in fields(value):
             if part.name in skip:
                 continue
             mine = canonical(getattr(value, part.name))
-            if not _is_default(part, mine):
+            if part.name in inline:
+                kept.extend(mine[1])
+            elif not _is_default(part, mine):
                 kept.append((part.name, mine))
         return ("dataclass", tuple(sorted(kept)))
     if isinstance(value, np.ndarray):
@@ -80,6 +87,7 @@ KNOWN_IN_0_3_0: dict[type, tuple[str, ...]] = {
                "time_tolerance", "growth_velocity", "front_band"),
     MechanicsSetup: ("clamp", "slide", "residual_stiffness", "every", "newton_tolerance", "max_newton_iterations",
                      "linear_solver", "pressure"),
+    Laws: ("consumption",),  # 0.3.0's Problem.consumption: the laws are read as fields of the problem (INLINED)
 }
 # Fields `solver.Problem` gained after sweeps had been recorded, with their defaults: at those 0.3.0 left them
 # out of its fingerprint, so that the cases older sweeps finished stayed finished.
@@ -97,7 +105,7 @@ def legacy_fingerprint(problem: "solver.Problem") -> str | None:
         _known(problem, Problem)
         digest = hashlib.sha256()
         for name in KNOWN_IN_0_3_0[Problem]:
-            value = getattr(problem, name)
+            value = getattr(problem.laws if name in KNOWN_IN_0_3_0[Laws] else problem, name)
             if name in ADDED_LATER and not isinstance(value, np.ndarray) and value == ADDED_LATER[name]:
                 continue
             digest.update(name.encode())
@@ -120,7 +128,9 @@ def _legacy_repr(value: Any) -> str:
 def _known(value: Any, kind: type) -> None:
     """Raise `_Unknown` if `value` sets a field 0.3.0's `kind` did not have away from its default."""
     for part in fields(value):
-        if part.name not in KNOWN_IN_0_3_0[kind] and part.name not in NOT_PART \
+        if part.name in INLINED:
+            _known(getattr(value, part.name), Laws)
+        elif part.name not in KNOWN_IN_0_3_0[kind] and part.name not in NOT_PART \
                 and not _is_default(part, canonical(getattr(value, part.name))):
             raise _Unknown(part.name)
 

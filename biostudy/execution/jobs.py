@@ -256,11 +256,15 @@ def _check_room(scenes: dict[str, Scene], processes: int, out_dir: Path) -> None
 
 
 def _backend(execution: Execution, work: bool, note: Callable[[str], None]) -> Backend:
-    """Where the cases run: on the Dask scheduler, on `workers` local processes, else here (nothing to run: here)."""
-    if not work:
-        return Here()
+    """Where the cases run (`backend`; nothing to run: here)."""
+    return backend(execution, note) if work else Here()
+
+
+def backend(execution: Execution, note: Callable[[str], None] | None = None) -> Backend:
+    """Where the cases run: on the Dask scheduler (its address, or its scheduler file), on `workers` local
+    processes, else here; `note` hears what a wait is for (workers that have not come)."""
     if execution.scheduler or execution.scheduler_file:
-        return DaskCluster(execution.scheduler, note, execution.scheduler_file)
+        return DaskCluster(execution.scheduler, note or (lambda message: None), execution.scheduler_file)
     return LocalPool(execution.workers) if execution.workers else Here()
 
 

@@ -29,11 +29,10 @@ import multiprocessing
 import multiprocessing.connection
 import os
 import signal
-import threading
 import time
 from dataclasses import dataclass
 
-from . import worker
+from . import interrupts, worker
 from .worker import Outcome, Task
 
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", **worker.SOLVER_ENV}
@@ -53,29 +52,6 @@ def _environment(values: dict[str, str]):
                 os.environ.pop(name, None)
             else:
                 os.environ[name] = value
-
-
-@contextlib.contextmanager
-def _interruptions_deferred():
-    """Ctrl-C and SIGTERM wait until the block is done, then act as they would have.
-
-    Around the start of a worker process: a process the fork server is still starting when its parent
-    goes away dies with a traceback (it cannot read its start-up data), and one that started but is not
-    yet registered with the pool would never be ended.  Signal handlers exist in the main thread only.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received: list[int] = []
-    previous = {number: signal.signal(number, lambda signum, frame: received.append(signum))
-                for number in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-        if received:
-            signal.raise_signal(received[0])
 
 
 def _context():
@@ -156,7 +132,9 @@ class LocalPool:
         process = self.context.Process(target=worker.serve, args=(theirs, self.lifeline), daemon=True,
                                        name=f"biostudy-worker-{len(self.workers)}")
         try:
-            with _environment(WORKER_ENV), _interruptions_deferred():
+            # Ctrl-C and SIGTERM wait for the start: a process the fork server is still starting when its parent
+            # goes away dies with a traceback (it cannot read its start-up data)
+            with _environment(WORKER_ENV), interrupts.deferred():
                 process.start()
         except BaseException:
             ours.close()
@@ -192,8 +170,9 @@ class LocalPool:
         """(case id, Outcome) of the busy workers that have answered or died once one of them is heard from:
         none if that was only the news that a worker's fork server is gone."""
         busy = [w for w in self.workers if w.case_id is not None]
-        ready = set(multiprocessing.connection.wait([w.tasks for w in busy] +
-                                                    [w.process.sentinel for w in busy if not w.orphaned]))
+        with interrupts.allowed():  # waiting: an interruption ends it; reading an answer, it waits (`windowed`)
+            ready = set(multiprocessing.connection.wait([w.tasks for w in busy] +
+                                                        [w.process.sentinel for w in busy if not w.orphaned]))
         done = []
         for w in busy:
             if w.tasks not in ready and (w.orphaned or w.process.sentinel not in ready):

@@ -56,19 +56,21 @@ def claim_run(target: Path) -> claims.Claim:
 
 
 def check_run(scene: Scene, scene_file: Path | None, target: Path, force: bool = False,
-              inputs: list[Path] = ()) -> str:
+              inputs: list[Path] = (), history: int | None = None) -> str:
     """Before one run computes anything: `BadInput` unless its dataset can be written to `target` and the
     run fits in memory; returns what the final message adds when `target` is replaced.
 
     `target` is never an input (the scene file, a mask or image it reads, `inputs` such as the run it
     continues) nor a file biostudy did not write; an earlier result of the same scene is replaced, anything
-    else biostudy wrote (another scene's result, a sweep's file) only with `force`.
+    else biostudy wrote (another scene's result, a sweep's file) only with `force`.  `history`: the outputs
+    of the run it continues, if it continues one (its memory: `resources.estimate`).
     """
     writable(target)
     masks = [r.path for kind in ("biofilm", "nutrient", "obstacle") for r in getattr(scene, kind)
              if getattr(r, "shape", None) in ("mask", "image")]
     previous = replaceable(target, [p for p in (scene_file, *masks, *inputs) if p])
-    too_big = resources.run_problem({scene.name: resources.estimate(scene, streamed=True)}, 1, target)
+    too_big = resources.run_problem({scene.name: resources.estimate(scene, streamed=True, history=history)}, 1,
+                                    target)
     if too_big:
         raise BadInput(too_big, scene_file)
     if previous is None:

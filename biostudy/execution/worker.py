@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import first_line
+from . import interrupts
 
 if TYPE_CHECKING:
     import numpy as np
@@ -198,7 +199,9 @@ def perform(task: Task) -> Outcome:
     from ..data import writing
     from ..quantities import alerts, observables
 
-    simulated, ds = finished(task, solve(task.problem))
+    with interrupts.allowed():  # the simulation (run here): an interruption ends it at once; once it has finished,
+        simulated = solve(task.problem)  # one waits until its file is written (`backends.windowed`)
+    simulated, ds = finished(task, simulated)
     outcome = Outcome(simulated.status, simulated.message, simulated.seconds, simulated.error,
                       {name: str(ds.attrs[name]) for name in alerts.ATTRIBUTES if ds.attrs.get(name)})
     if simulated.status == "done" and task.measure:

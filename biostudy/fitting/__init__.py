@@ -6,7 +6,7 @@ yield the points they need; one loop evaluates every fit's request at once), `le
 `uncertainty` (covariance, standard errors, correlations, the fitted model's band), `profiles`
 (profile likelihoods, 95 % intervals, identifiability), `estimate` (multi-start, then profiles),
 `surrogate` (Gaussian processes of the residuals), `sampling` (emcee and its diagnostics), `posterior`
-(the posterior on the surrogate, its error measured on held-out runs), `methods` (least squares and posterior
-sampling behind one interface, one `Result`).
-Nothing here knows what a scene or a simulation is: `execution.evaluator` hands it the residuals.
+(the posterior on the surrogate, its error measured on held-out runs).
+Nothing here knows what a scene or a simulation is: `calibration.evaluator` hands it the residuals, and the
+methods a calibration offers are declared in `calibration.methods`.
 """

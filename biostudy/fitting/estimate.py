@@ -7,7 +7,8 @@ another's (in every coordinate of the unit cube) with a higher chi² is stopped:
 minimum, and its runs would only repeat the other's.  Then the profiles' 2k branches run side by side.  A
 start can stop on a flat stretch of chi² (where a parameter hardly matters, the Gauss-Newton step promises
 nothing); when a profile finds a point more than `REFIT` below it, the fit is repeated from that point, the
-estimate and its Jacobian are taken from there, and the intervals are measured against the lowest chi² found.
+estimate and its Jacobian are taken from there, and every profile is stepped again from the new optimum (up to
+`REFITS` times; the intervals are measured against the lowest chi² found).
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from .uncertainty import Local, local
 
 MERGE = 0.05  # starts this close (unit cube, every coordinate) are heading for the same minimum
 REFIT = 0.1  # a profile point this much below the best start's chi²: the fit is repeated from it
+REFITS = 3  # fits repeated from a profile's lower point, each followed by profiles from the new optimum
 DESIGN_MARGIN = 0.05  # the starts' Latin hypercube fills [0.05, 0.95] of every range
 
 
@@ -90,30 +92,40 @@ def _from_starts(design: np.ndarray, objective: Objective) -> list[Fit | None]:
             for name in problems]  # type: ignore[misc]
 
 
-def _profiles(estimate: Estimate, objective: Objective) -> None:
-    """The 2k profile branches from the best fit side by side; the fit repeated from a profile point more than
-    `REFIT` below it; the profiles' intervals against the lowest chi² found."""
-    best = estimate.best
+def _branches(best: Fit, standard_error: np.ndarray, objective: Objective) -> dict[str, Branch]:
+    """The 2k profile branches from `best`, side by side in rounds, by name ("profile0-", "profile0+", ...)."""
     names = {f"profile{j}{'-+'[d > 0]}": (j, d) for j in range(objective.k) for d in (-1, 1)}
-    outcome = rounds.run({name: branch(best, j, d, objective.noise, float(estimate.local.standard_error[j]),
-                                       objective.likelihood)
+    outcome = rounds.run({name: branch(best, j, d, objective.noise, float(standard_error[j]), objective.likelihood)
                           for name, (j, d) in names.items()}, objective.evaluate, workers=objective.workers)
-    estimate.branches = [outcome[name] for name in names]  # type: ignore[misc]
-    for b in estimate.branches:
-        for _, value, point in b.points:
-            if value < estimate.minimum:
-                estimate.minimum, estimate.lowest = value, point
-    if estimate.minimum < best.chi2 - REFIT:
+    return {name: outcome[name] for name in names}  # type: ignore[misc]
+
+
+def _profiles(estimate: Estimate, objective: Objective) -> None:
+    """The 2k profile branches from the best fit side by side.  When they find a point more than `REFIT` below
+    it, the fit is repeated from that point and every branch stepped again from the new optimum (at most
+    `REFITS` times): a profile and its interval are read from branches centred on the estimate they are
+    reported with, never on an optimum left behind.  The intervals are against the lowest chi² found."""
+    for refits in range(REFITS + 1):
+        best = estimate.best
+        outcome = _branches(best, estimate.local.standard_error, objective)
+        estimate.branches = list(outcome.values())
+        estimate.minimum, estimate.lowest = best.chi2, best.x
+        for b in estimate.branches:
+            for _, value, point in b.points:
+                if value < estimate.minimum:
+                    estimate.minimum, estimate.lowest = value, point
+        if estimate.minimum >= best.chi2 - REFIT or refits == REFITS:
+            break
         again = rounds.run({"refit": fit(estimate.lowest, Problem(objective.n, objective.noise, best.steps,
                                                                   objective.likelihood))},
                            objective.evaluate, workers=objective.workers)["refit"]
-        assert isinstance(again, Fit)
-        if again.chi2 < best.chi2:
-            estimate.starts_chi2, estimate.best, estimate.local = best.chi2, again, local(again.jacobian)
-        if again.chi2 < estimate.minimum:
-            estimate.minimum, estimate.lowest = again.chi2, again.x
-    estimate.profiles = [profile(best, outcome[f"profile{j}-"], outcome[f"profile{j}+"], estimate.minimum)
-                         for j in range(objective.k)]  # type: ignore[arg-type]  # from `best`, the starts' best
+        if not isinstance(again, Fit) or again.chi2 >= best.chi2:  # it starts below and only descends: never
+            break
+        if estimate.starts_chi2 is None:
+            estimate.starts_chi2 = best.chi2
+        estimate.best, estimate.local = again, local(again.jacobian)
+    estimate.profiles = [profile(estimate.best, outcome[f"profile{j}-"], outcome[f"profile{j}+"], estimate.minimum)
+                         for j in range(objective.k)]
 
 
 def least_squares(design: np.ndarray, objective: Objective, with_profiles: bool = True) -> Estimate:

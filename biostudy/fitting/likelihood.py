@@ -28,6 +28,7 @@ the truth less often than 95 % (`coverage`: 87 % and 82 % for σ with 6 rows and
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,8 +37,10 @@ from scipy.optimize import brentq
 
 PENALTY = 1e3  # each residual of a failed simulation
 THRESHOLD = 3.841458820694124  # chi²(1) at 95 %
-TINY = 1e-200  # SS_g / n_g is floored here: a model through every point of a group makes σ̂ = 0, log L unbounded
+TINY = 1e-200  # SS_g / n_g (in units of the scale) is floored here: a model through every point of a group
+# makes σ̂ = 0 and log L unbounded (`Likelihood.exact`; said in words, `calibration.report_noise`)
 ITERATIONS = 100  # of the linearised re-optimisation in a σ profile (it converges monotonically: a majorisation)
+NORMAL = sys.float_info.min  # below, a variance has lost digits or underflowed to 0
 EXPANSIONS = 11  # brackets of a σ interval's end: log σ̂ ± 0.5, 1, 2, ..., 512
 
 
@@ -60,22 +63,35 @@ class Likelihood:
             return chi2(residuals)
         given = np.ones(len(residuals), dtype=bool)
         total = 0.0
-        for rows, variance in zip(self.groups, self.variances(residuals)):
-            given[rows] = False
-            total += len(rows) * (1.0 + math.log(variance))
+        for rows, scale, variance in zip(self.groups, self.scales, self.variances(residuals)):
+            given[rows] = False  # σ̂ at the floor of a σ̂-sized scale (`in_units_of`) underflows: log in two terms
+            log_variance = math.log(variance) if variance >= NORMAL else \
+                2.0 * math.log(scale) + math.log(self._mean_square(residuals, rows))
+            total += len(rows) * (1.0 + log_variance)
         return chi2(residuals[given]) + total
+
+    @staticmethod
+    def _mean_square(residuals: np.ndarray, rows: np.ndarray) -> float:
+        """SS_g / n_g, floored at `TINY`: σ̂_g² in units of the group's scale squared."""
+        return max(chi2(residuals[rows]) / len(rows), TINY)
 
     def variances(self, residuals: np.ndarray) -> np.ndarray:
         """σ̂_g² per group, in the measurements' units: scale_g² SS_g / n_g."""
-        return np.array([scale**2 * max(chi2(residuals[rows]) / len(rows), TINY)
+        return np.array([scale**2 * self._mean_square(residuals, rows)
                          for rows, scale in zip(self.groups, self.scales)])
 
     def weights(self, residuals: np.ndarray) -> np.ndarray:
         """Per residual the factor that puts it in units of σ: 1 where σ is given, scale_g / σ̂_g in a group."""
         weights = np.ones(len(residuals))
         for rows, variance, scale in zip(self.groups, self.variances(residuals), self.scales):
-            weights[rows] = scale / math.sqrt(variance)
+            weights[rows] = scale / math.sqrt(variance) if variance >= NORMAL else \
+                1.0 / math.sqrt(self._mean_square(residuals, rows))
         return weights
+
+    def exact(self, residuals: np.ndarray) -> list[bool]:
+        """Per group: whether the model goes through every one of its rows (SS_g = 0, σ̂_g = 0: -2 log L is
+        unbounded there, and σ_g cannot be estimated; the `TINY` floor keeps the fit's numbers finite)."""
+        return [not np.any(residuals[rows]) for rows in self.groups]
 
     def weighted(self, residuals: np.ndarray, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The residuals and their Jacobian in units of σ (σ̂_g at these residuals for a group's rows); as given,
@@ -96,12 +112,17 @@ class Likelihood:
 
 @dataclass(frozen=True)
 class Sigma:
-    """An estimated σ (measurement units): maximum likelihood, its 95 % profile interval, its rows' count."""
+    """An estimated σ (measurement units): maximum likelihood, its 95 % profile interval, its rows' count; an
+    estimate 0 (NaN ends) where the model fits its rows exactly (`Likelihood.exact`)."""
 
     estimate: float
     lower: float
     upper: float
     rows: int
+
+    @property
+    def exact(self) -> bool:
+        return self.estimate == 0.0
 
 
 def coverage(rows: int, parameters: int) -> tuple[float, float]:
@@ -122,8 +143,11 @@ def sigma_intervals(likelihood: Likelihood, residuals: np.ndarray, jacobian: np.
                     free: np.ndarray) -> list[Sigma]:
     """Every group's σ̂ and 95 % profile interval at the optimum: `residuals` there as the likelihood reads them,
     `jacobian` theirs (d r / d u), `free` the coordinates the parameters may move along (the others held: at a
-    bound)."""
-    return [_interval(likelihood, g, residuals, jacobian[:, free]) for g in range(len(likelihood.groups))]
+    bound).  A group the model fits exactly (`Likelihood.exact`) has σ̂ = 0 and no interval (NaN ends): its
+    likelihood has no maximum to measure 3.84 from."""
+    exact = likelihood.exact(residuals)
+    return [Sigma(0.0, math.nan, math.nan, len(likelihood.groups[g])) if exact[g] else
+            _interval(likelihood, g, residuals, jacobian[:, free]) for g in range(len(likelihood.groups))]
 
 
 def _interval(likelihood: Likelihood, g: int, residuals: np.ndarray, jacobian: np.ndarray) -> Sigma:

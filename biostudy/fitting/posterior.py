@@ -49,10 +49,6 @@ WIDENINGS = 3  # times the box may be widened where the first pass finds the pos
 FIRST_STEPS = 200  # the first pass only picks the held-out points: a quarter of the steps, at least these
 
 
-class Untrainable(Exception):
-    """The surrogate could not be trained (too few successful simulations in the box)."""
-
-
 @dataclass(frozen=True)
 class Options:
     design: int = 30

@@ -15,7 +15,7 @@ length in (0, `VOXEL_MAX`] µm); a bad one is told, naming the file and the
 metadata field, only when the scene does not give `voxel` (which wins).
 
 Memory: a file is refused when reading and averaging it would not fit in the
-memory a run may use (`resources.available_memory`: the machine's, a batch
+memory a run may use (`resources.memory_limits`: the machine's, a batch
 job's cgroup limit, or BIOSTUDY_MEMORY), judged by the size its header
 declares before any pixel is read.
 """
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
 import logging
 import math
 import struct
@@ -44,12 +45,22 @@ STACK_AXES = {"Z", "I", "Q"}  # tifffile's names for the axis of a page stack (Z
 # Pillow's greyscale modes and the bytes a pixel takes in them (a grey palette, "P", is converted to "L")
 GREY_BYTES = {"1": 1, "L": 1, "P": 1, "I": 4, "I;16": 2, "I;16B": 2, "F": 4}
 VOXEL_MAX = 1e6  # µm: a voxel up to a metre; 1e300 would make the image's extent overflow
-# Peak bytes per voxel of reading and averaging a stack beyond its values (their item size, read once and held
-# by the cache): the region's booleans (1) and the averaging's float copies (up to 13: above 2^24 voxels the
-# float32 copy is cast to float64 inside tensordot).  Measured on 64 x 512 x 512 stacks, region by threshold, in
-# all: uint8 15.07 bytes a voxel (tracemalloc; VmHWM 15.38), uint16 16.07 (16.38), float32 18.07 (18.38); below
-# 2^24 voxels less (uint8 32 x 512 x 512: 11.15).  `python benchmarks/image_memory.py [--dtype uint16]`.
+# Peak bytes per voxel of averaging a slab of a stack beyond its values (their item size, read once and held by
+# the cache): the region's booleans (1) and the averaging's float copies (up to 13: above 2^24 voxels the float32
+# copy is cast to float64 inside tensordot).  Measured on 64 x 512 x 512 stacks averaged whole, region by
+# threshold, in all: uint8 15.07 bytes a voxel (tracemalloc; VmHWM 15.38), uint16 16.07 (16.38), float32 18.07
+# (18.38); below 2^24 voxels less (uint8 32 x 512 x 512: 11.15).  A stack is averaged `SLAB_VOXELS` at a time
+# (`images.cell_average`): these bytes are paid for a slab, not for the stack.
+# `python benchmarks/image_memory.py [--dtype uint16]`.
 AVERAGING_BYTES = 14
+SLAB_VOXELS = 1 << 22  # voxels averaged at once (whole slices along the first axis, one at least)
+
+
+def averaging_bytes(shape: tuple[int, ...], itemsize: int) -> tuple[float, float]:
+    """(bytes an image of `shape` holds once read, bytes its averaging onto a grid holds besides, at most)."""
+    voxels = math.prod(shape)
+    rows = max(1, SLAB_VOXELS // max(1, math.prod(shape[1:])))
+    return float(voxels * itemsize), float(min(voxels, rows * math.prod(shape[1:])) * AVERAGING_BYTES)
 
 
 @dataclass(frozen=True)
@@ -60,6 +71,7 @@ class Stack:
     values: np.ndarray
     voxel: tuple[float, ...] | None
     voxel_problem: str = ""
+    sha256: str = ""  # of the file's bytes, for the provenance of what is made from it
 
 
 class BadMetadata(ValueError):
@@ -135,9 +147,27 @@ def _states_z(tif, series) -> bool:
     return tif.is_shaped and "Z" in series.get_axes(False)
 
 
-def _fits(shape: tuple[int, ...], itemsize: int, path: str) -> None:
+@dataclass(frozen=True)
+class Use:
+    """What is done with an image once read, for the memory it is judged against: a region's averaging onto the
+    grid (`AVERAGING`), or ``biostudy measure`` (`inputs.stacks.MEASURING`: frames along a time axis allowed)."""
+
+    doing: str  # "averaging": the memory problem says "reading and averaging it needs ..."
+    per_voxel: int  # bytes a voxel of one frame takes beyond the values, while it is worked on
+    frames: bool = False  # a leading time axis (T) is allowed: values [t, [z,] y, x]
+    taker: str = "a region"  # what takes the image, in messages: "a region takes a greyscale or segmented one"
+    slabs: bool = False  # worked on `SLAB_VOXELS` at a time: `per_voxel` paid for a slab, not for the stack
+
+
+AVERAGING = Use("averaging", AVERAGING_BYTES, slabs=True)
+
+
+def _fits(shape: tuple[int, ...], itemsize: int, path: str, use: Use = AVERAGING) -> None:
+    frame = shape[1:] if use.frames else shape
     try:
-        problem = too_big(math.prod(shape) * (itemsize + AVERAGING_BYTES), "reading and averaging it needs")
+        need = (sum(averaging_bytes(shape, itemsize)) if use.slabs
+                else math.prod(shape) * itemsize + math.prod(frame) * use.per_voxel)
+        problem = too_big(need, f"reading and {use.doing} it needs")
     except BadInput as error:  # BIOSTUDY_MEMORY is not a size
         raise InvalidAt("path", str(error)) from None
     if problem:
@@ -164,52 +194,58 @@ def _truncated(tif, series, path: str) -> None:
                                 "stack again")
 
 
-def _palette(page, values: np.ndarray, path: str) -> np.ndarray:
+def _palette(page, values: np.ndarray, path: str, use: Use) -> np.ndarray:
     """A palette TIFF's values through its palette when it is grey (r = g = b), refused when it is colour."""
     red, green, blue = page.colormap
     if not (np.array_equal(red, green) and np.array_equal(red, blue)):
-        raise InvalidAt("path", f"{path} is a colour picture (a colour palette); a region takes a greyscale or "
+        raise InvalidAt("path", f"{path} is a colour picture (a colour palette); {use.taker} takes a greyscale or "
                                 "segmented one")
     return (red >> 8).astype(np.uint8)[values] if page.bitspersample == 8 else red[values]
 
 
-def _shape(tif, series, path: str) -> tuple[int, ...]:
-    """The image's [z,] y, x sizes as the file's axes say (module docstring); `InvalidAt` for other axes."""
+def _shape(tif, series, path: str, use: Use) -> tuple[int, ...]:
+    """The image's [z,] y, x sizes as the file's axes say (module docstring), after the number of frames when `use`
+    takes a time axis (T, the first of the file's axes); `InvalidAt` for other axes."""
     kept = [(a, n) for a, n in zip(series.get_axes(False), series.get_shape(False)) if n > 1 or a in "YX"]
+    frames = [n for a, n in kept if a == "T"] if use.frames and kept[0][0] == "T" else []
+    kept = kept[len(frames):]
     if _states_z(tif, series) and not any(a in STACK_AXES for a, _ in kept):
         kept.insert(0, ("Z", 1))
     axes = "".join(a for a, _ in kept)
     extra = [a for a in axes if a not in ("Y", "X", *STACK_AXES)]
     if extra or axes.count("Y") != 1 or axes.count("X") != 1 or len(axes) > 3:
-        raise InvalidAt("path", f"{path} has axes {series.axes} (shape {value_text(list(series.shape))}): a region "
-                                "takes one greyscale or segmented z-y-x stack or y-x picture (one channel, one time; "
-                                "save it so from Fiji)")
-    return tuple(n for _, n in kept)
+        times = ", a time series as frames (T first)" if use.frames else ", one time"
+        raise InvalidAt("path", f"{path} has axes {series.axes} (shape {value_text(list(series.shape))}): "
+                                f"{use.taker} takes one greyscale or segmented z-y-x stack or y-x picture (one "
+                                f"channel{times}; save it so from Fiji)")
+    space = tuple(n for _, n in kept)
+    return (*(frames or [1]), *space) if use.frames else space
 
 
-def _read_tiff(path: str) -> Stack:
+def _read_tiff(path: str, use: Use) -> Stack:
     import tifffile
 
     with tifffile.TiffFile(path) as tif:
         series = tif.series[0]
         _truncated(tif, series, path)
-        shape = _shape(tif, series, path)
-        _fits(shape, series.dtype.itemsize, path)
+        shape = _shape(tif, series, path, use)
+        _fits(shape, series.dtype.itemsize, path, use)
         values = series.asarray().reshape(shape)
         if series.pages[0].photometric == tifffile.PHOTOMETRIC.PALETTE:
-            values = _palette(series.pages[0], values, path)
+            values = _palette(series.pages[0], values, path, use)
         voxel, problem = None, ""
+        ndim = values.ndim - use.frames
         try:
             if tif.is_imagej:
-                voxel = _imagej_voxel(tif, values.ndim)
+                voxel = _imagej_voxel(tif, ndim)
             elif tif.is_ome:
-                voxel = _ome_voxel(tif, values.ndim)
+                voxel = _ome_voxel(tif, ndim)
         except BadMetadata as error:
             problem = f"{path}: its metadata's {error}"
     return Stack(values, voxel, problem)
 
 
-def _read_picture(path: str) -> Stack:
+def _read_picture(path: str, use: Use) -> Stack:
     from PIL import Image as Pictures
 
     with warnings.catch_warnings():  # above 89 M pixels: biostudy's memory check decides, in one line
@@ -219,16 +255,23 @@ def _read_picture(path: str) -> Stack:
         grey = picture.mode == "P" and _grey_palette(picture)
         if picture.mode not in GREY_BYTES or picture.mode == "P" and not grey:
             raise InvalidAt("path", f"{path} is a colour picture (mode {picture.mode}"
-                                    f"{', a colour palette' if picture.mode == 'P' else ''}); a region takes a "
+                                    f"{', a colour palette' if picture.mode == 'P' else ''}); {use.taker} takes a "
                                     "greyscale or segmented one")
-        _fits((picture.height, picture.width), 2 * GREY_BYTES[picture.mode], path)  # Pillow's pixels, numpy's
-        return Stack(np.asarray(picture.convert("L") if grey else picture), None)
+        shape = (1,) * use.frames + (picture.height, picture.width)
+        _fits(shape, 2 * GREY_BYTES[picture.mode], path, use)  # Pillow's pixels, numpy's
+        return Stack(np.asarray(picture.convert("L") if grey else picture).reshape(shape), None)
 
 
 def _grey_palette(picture) -> bool:
     """Whether a palette picture's palette is grey: every entry r = g = b."""
     entries = np.asarray(picture.getpalette("RGB") or [], dtype=np.uint8).reshape(-1, 3)
     return bool((entries == entries[:, :1]).all())
+
+
+def grey_voxels(values: np.ndarray) -> tuple[int, float]:
+    """How many voxels are neither 0 nor the largest value (0 for a segmented image), and that value."""
+    top = values.max(initial=0)
+    return int(np.count_nonzero((values != 0) & (values != top))), top
 
 
 @contextlib.contextmanager
@@ -244,22 +287,31 @@ def _tifffile_quiet():
 
 
 @functools.lru_cache(maxsize=4)
-def read(path: str, mtime_ns: int, size: int) -> Stack:
+def read(path: str, mtime_ns: int, size: int, use: Use = AVERAGING) -> Stack:
     """An image file (TIFF stack or picture, PNG picture) with the voxel size its metadata states; read once
     however many cases of a study use it (the file's time and size are the key).  `InvalidAt` (key path) for a
-    file that is not such an image."""
+    file that is not such an image.  `use`: what is done with it (`Use`; with frames, values [t, [z,] y, x])."""
     try:
         with _tifffile_quiet():
-            image = _read_tiff(path) if Path(path).suffix.lower() in TIFF else _read_picture(path)
+            image = _read_tiff(path, use) if Path(path).suffix.lower() in TIFF else _read_picture(path, use)
     except InvalidAt:
         raise
     except Exception as error:  # whatever a damaged or foreign file makes the readers raise
         raise InvalidAt("path", f"cannot read {path} as an image ({first_line(error)})") from None
     values = np.asarray(image.values)
-    if values.ndim not in (2, 3) or values.dtype.kind not in "biuf":
-        raise InvalidAt("path", f"{path} holds {values.dtype} values of shape {value_text(list(values.shape))}; a "
-                                "region takes a z-y-x stack or a y-x picture of numbers")
+    if values.ndim - use.frames not in (2, 3) or values.dtype.kind not in "biuf":
+        raise InvalidAt("path", f"{path} holds {values.dtype} values of shape {value_text(list(values.shape))}; "
+                                f"{use.taker} takes a z-y-x stack or a y-x picture of numbers")
     if values.dtype.kind == "f" and not np.isfinite(values).all():
         raise InvalidAt("path", f"{path} holds NaN or infinite values")
     values.flags.writeable = False
-    return Stack(values, image.voxel, image.voxel_problem)
+    return Stack(values, image.voxel, image.voxel_problem, file_sha256(path))
+
+
+def file_sha256(path: str) -> str:
+    """The sha256 of a file's bytes, read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()

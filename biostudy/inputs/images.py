@@ -25,24 +25,62 @@ Gaussian anti-aliasing) would blur the foreground over cells it does not
 cover.  A segmented image then covers the cells whose foreground fraction is
 at least 1/2; a greyscale one does after a `threshold`, or gives phi itself
 (`scale` times the cell average of the grey values).
+
+An image larger than the grid is cropped to it (`Spill`): the share of the
+image, and of its region, that lies outside is measured exactly (each
+voxel by the part of it beyond the grid).  The scene refuses a biofilm image
+whose biofilm would be cut, and a run says how much of any other image was
+left out (`Scene.image_attrs`).  The region: voxels >= threshold, the
+nonzero voxels of a segmented image, or (with `scale`) the voxels whose
+phi = scale × value is biofilm (>= 0.5, as a run's biofilm_volume counts).
 """
 from __future__ import annotations
 
 import functools
+import math
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Callable, Literal
 
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from solver import Grid
+from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import InvalidAt
 from ..formatting import value_text
 from .geometry import Point, Shape, input_path, um
-from .image_files import TIFF, VOXEL_MAX, Stack, read
+from .image_files import SLAB_VOXELS, TIFF, VOXEL_MAX, Stack, averaging_bytes, grey_voxels, read
 
 PICTURES = (".png", *TIFF)
+SPILL_TOLERANCE = 1e-9  # of an image's volume: a voxel edge rounded past the grid's by floating point is inside
+
+
+@dataclass(frozen=True)
+class Spill:
+    """How much of an image lies outside the grid: `image` its volume's share, `region` its region's share (by
+    voxel volume) and `voxels` the region's voxels reaching outside; `spans` and `grid` the extents, said."""
+
+    image: float
+    region: float
+    voxels: int
+    spans: str
+    grid: str
+
+
+def inside_share(edges: np.ndarray, top: float) -> np.ndarray:
+    """Per voxel along one axis (voxel edges `edges`), the share of its length inside [0, top]."""
+    inside = np.clip(np.minimum(edges[1:], top) - np.maximum(edges[:-1], 0.0), 0.0, None)
+    return inside / np.diff(edges)
+
+
+def weighted_count(mask: np.ndarray, weights: list[np.ndarray]) -> float:
+    """sum of mask[k, j, i] w_z[k] w_y[j] w_x[i] (2-D: without z), one plane at a time (no float copy of a
+    stack)."""
+    if mask.ndim == 2:
+        return float(weights[0] @ mask.astype(float) @ weights[1])
+    return float(sum(w * weighted_count(plane, weights[1:]) for w, plane in zip(weights[0], mask) if w))
 
 
 def overlap(edges: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -53,14 +91,23 @@ def overlap(edges: np.ndarray, cells: np.ndarray) -> np.ndarray:
 
 
 def cell_average(values: np.ndarray, voxel: tuple[float, ...], origin: tuple[float, ...], spacing: float,
-                 cells_shape: tuple[int, ...]) -> np.ndarray:
+                 cells_shape: tuple[int, ...], of: Callable[[np.ndarray], np.ndarray] = np.asarray) -> np.ndarray:
     """The image's average over every cell of a grid (cells_shape: (nz, ny, nx) / (ny, nx), cells of `spacing`
-    from 0), voxels [z,] y, x of `voxel` sizes from `origin` ([z,] y, x), outside the image 0."""
-    result = np.asarray(values, dtype=np.float64 if values.size < 1 << 24 else np.float32)
-    for axis in reversed(range(values.ndim)):  # x first: the largest reduction for a fine stack
-        n = values.shape[axis]
-        weights = overlap(origin[axis] + voxel[axis] * np.arange(n + 1), spacing * np.arange(cells_shape[axis] + 1))
-        result = np.moveaxis(np.tensordot(weights, result, axes=([1], [axis])), 0, axis)
+    from 0), voxels [z,] y, x of `voxel` sizes from `origin` ([z,] y, x), outside the image 0; of `of(values)`
+    (a region: values >= threshold), taken a slab of `SLAB_VOXELS` at a time along the first axis: the other
+    axes are reduced slab by slab (x first: the largest reduction for a fine stack), then the first, so that
+    the float copies of the whole stack are never made (1.9 GB for a 128 MB stack)."""
+    dtype = np.float64 if values.size < 1 << 24 else np.float32
+    weights = [overlap(origin[axis] + voxel[axis] * np.arange(n + 1), spacing * np.arange(cells_shape[axis] + 1))
+               for axis, n in enumerate(values.shape)]
+    rows = max(1, SLAB_VOXELS // max(1, math.prod(values.shape[1:])))
+    reduced = []
+    for start in range(0, values.shape[0], rows):
+        block = np.asarray(of(values[start:start + rows]), dtype=dtype)
+        for axis in reversed(range(1, values.ndim)):
+            block = np.moveaxis(np.tensordot(weights[axis], block, axes=([1], [axis])), 0, axis)
+        reduced.append(block)
+    result = np.tensordot(weights[0], np.concatenate(reduced, axis=0), axes=([1], [0]))
     return np.asarray(result, dtype=float)
 
 
@@ -104,8 +151,7 @@ class Image(Shape):
         if self.scale is not None and getattr(self, "edge", 0.0):
             raise InvalidAt("edge", "with scale, the image gives phi itself; leave out edge")
         if self.threshold is None and self.scale is None:
-            top = values.max(initial=0)
-            grey = np.count_nonzero((values != 0) & (values != top))
+            grey, top = grey_voxels(values)
             if grey:
                 raise InvalidAt("threshold", f"{self.path} is greyscale ({grey} voxels neither 0 nor {top}): give "
                                              "threshold (the region: values >= it) or, for a biofilm, scale (phi = "
@@ -126,6 +172,12 @@ class Image(Shape):
             raise InvalidAt("voxel", f"has {len(voxel)} entries; {self.path} is {values.ndim}-D (give "
                                      f"{wanted})")
         return self
+
+    def memory(self) -> tuple[str, float, float]:
+        """(the file, bytes its values hold once read: for the run, cached per file; bytes averaging them onto
+        a grid holds besides, at most) for `resources.estimate`."""
+        values = self._image.values
+        return (self.path, *averaging_bytes(values.shape, values.dtype.itemsize))
 
     @property
     def voxel_size(self) -> tuple[float, ...]:
@@ -148,10 +200,33 @@ class Image(Shape):
                                 f"region (the image spans {self._extent_text()})")
 
     def _extent_text(self) -> str:
-        origin = list(reversed(self.origin)) if self.origin else [0.0] * self._image.values.ndim
         spans = [f"{axis} {o:g}..{o + n * d:g} µm" for axis, o, n, d in
-                 zip("zyx"[3 - self._image.values.ndim:], origin, self._image.values.shape, self.voxel_size)]
+                 zip("zyx"[3 - self._image.values.ndim:], self._origin(), self._image.values.shape, self.voxel_size)]
         return ", ".join(reversed(spans))
+
+    def _origin(self) -> tuple[float, ...]:
+        """The image's first corner, [z,] y, x (µm)."""
+        return tuple(reversed(self.origin)) if self.origin else (0.0,) * self._image.values.ndim
+
+    @property
+    def sha256(self) -> str:
+        return self._image.sha256
+
+    @property
+    def image_shape(self) -> tuple[int, ...]:
+        """[nz,] ny, nx voxels."""
+        return tuple(self._image.values.shape)
+
+    def spill(self, grid: Grid) -> Spill | None:
+        """How much of the image (and of its region) the grid leaves out (`Spill`); None when it lies inside."""
+        stat = Path(self.path).stat()
+        found = _spill(self.path, stat.st_mtime_ns, stat.st_size, self.threshold, self.scale, self.voxel_size,
+                       self._origin(), tuple(reversed(grid.extent)))
+        if found is None:
+            return None
+        image, region, voxels = found
+        tops = ", ".join(f"{a} 0..{top:g} µm" for a, top in zip(grid.axes, grid.extent))
+        return Spill(image, region, voxels, self._extent_text(), tops)
 
     def _average(self, grid: Grid, of: str) -> np.ndarray:
         stat = Path(self.path).stat()
@@ -175,8 +250,32 @@ def _averaged(path: str, mtime_ns: int, size: int, of: str, threshold: float | N
     """An image's cell averages on one grid (read-only), computed once however many study cases use them: of
     its grey values ("values") or of its region ("region": 1 where value >= threshold, or where nonzero)."""
     values = read(path, mtime_ns, size).values
-    if of == "region":
-        values = values >= threshold if threshold is not None else values != 0
-    average = cell_average(values, voxel, origin, spacing, cells_shape)
+    region = (lambda block: block >= threshold) if threshold is not None else (lambda block: block != 0)
+    average = cell_average(values, voxel, origin, spacing, cells_shape, region if of == "region" else np.asarray)
     average.flags.writeable = False
     return average
+
+
+@functools.lru_cache(maxsize=8)
+def _spill(path: str, mtime_ns: int, size: int, threshold: float | None, scale: float | None,
+           voxel: tuple[float, ...], origin: tuple[float, ...], tops: tuple[float, ...]):
+    """(image share, region share, region voxels) outside [0, tops] ([z,] y, x), or None if the image lies inside
+    (to `SPILL_TOLERANCE`); computed once per image and grid."""
+    values = read(path, mtime_ns, size).values
+    shares = [inside_share(o + d * np.arange(n + 1), top) for o, d, n, top in zip(origin, voxel, values.shape, tops)]
+    image = 1.0 - float(np.prod([s.mean() for s in shares]))
+    if image <= SPILL_TOLERANCE:
+        return None
+    if scale is not None:
+        region = scale * values >= BIOFILM_THRESHOLD
+    else:
+        region = values >= threshold if threshold is not None else values != 0
+    count = int(np.count_nonzero(region))
+    outside = count - weighted_count(region, shares) if count else 0.0
+    if outside <= SPILL_TOLERANCE * max(count, 1):
+        return image, 0.0, 0
+    reaching = np.zeros(region.shape, bool)  # voxels not wholly inside
+    for axis, share in enumerate(shares):
+        reaching |= (share < 1.0 - SPILL_TOLERANCE).reshape([-1 if a == axis else 1 for a in range(region.ndim)])
+    voxels = int(np.count_nonzero(region & reaching))
+    return image, outside / count, voxels

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -27,9 +28,19 @@ T_REF = "t_ref"  # the attribute a dataset records its scene's t_ref in
 TIME_TEXT = 100  # characters of a time_unit or t_ref ("48 h")
 
 
-@functools.lru_cache(maxsize=1)
+_MAKING = threading.Lock()
+
+
 def registry():
-    """pint's registry, made once and only when a real time is read (a second of start-up)."""
+    """pint's registry, made once and only when a real time is read (a second of start-up); under a lock, so that
+    threads reading their first times at once share one (quantities of two registries do not compute together:
+    "Cannot operate with Quantity and Quantity of different registries")."""
+    with _MAKING:
+        return _registry()
+
+
+@functools.lru_cache(maxsize=1)
+def _registry():
     import pint
 
     return pint.UnitRegistry()

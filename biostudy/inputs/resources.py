@@ -21,7 +21,8 @@ solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
   Newton vectors; a direct factorisation's fill is larger;
 - outputs: a run that writes its file streams its fields to disk as they
   are made, once they exceed `STREAM_ABOVE` (`streams`, `data.spool`): a few outputs' fields at a time (the one being
-  made, the one being written) and a little bookkeeping per output, and
+  made, the one being written; small outputs read back in blocks of `SPOOL_CHUNK_BYTES`) and a little
+  bookkeeping per output (`STREAMED_PER_OUTPUT`), and
   measures its observables from the spool in blocks of at most
   `BLOCK_BYTES` once `solver.simulate` has returned, when the solver's
   arrays are freed (`commands.run`): the larger of the two counts; a sweep's
@@ -29,8 +30,13 @@ solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
   every snapshot's fields (phi, c, alpha; p and u with mechanics) about
   three times over (the run's snapshots, the dataset, its encoding or
   transfer);
+- a run continued (`run --continue`): open for the whole run, its history
+  read an output at a time as it is written again (`CONTINUATION`);
 - a process: ~0.32 GB for an interpreter that runs and writes a scene (each
-  local worker is one), 0.06 GB more with the mechanics' imports.
+  local worker is one), 0.06 GB more with the mechanics' imports;
+- image regions: the file's values, read once and held for the run, and,
+  before the solver's arrays are made, averaging them onto the grid a slab
+  at a time (`image_files.averaging_bytes`).
 
 The sum stays above the measured peaks and within 1.5 times them from 32³ to
 128³ with the mechanics, to 200³ without.  What it does not cover: a
@@ -38,8 +44,11 @@ mechanics solve whose conjugate gradients fail and fall back to restarted
 GMRES holds its basis too, ~50 vectors of the unknowns (~1.2 kB per node in
 3-D; a rescue on the way to a refusal, docs/mechanics.md).  A run is refused
 when its estimate exceeds the memory available (`memory_limits`).  Disk: a
-run's dataset is about its outputs once over (checked against the free space
-of the target's file system).
+run's dataset is about its outputs once over, and a run that streams its
+outputs holds them on disk twice while it writes its file (the spool, and the
+dataset's temporary made from it; compression is not counted on): checked
+together against the free space of the target's file system, before anything
+is computed.
 """
 from __future__ import annotations
 
@@ -71,6 +80,13 @@ STREAM_ABOVE = 64e6  # bytes of output fields beyond which a run that writes its
 BLOCK_BYTES = 4e6  # fields read at once to measure a run's observables (`quantities.observables.variables`)
 BLOCK_COPIES = 6  # the block, and what measuring it makes of it (NaN filled, thresholded): measured 5.5 at 32³
 PER_OUTPUT = 2e3  # bytes of bookkeeping per snapshot and copy (objects, scalars), whatever the grid
+STREAMED_PER_OUTPUT = 4e3  # the same of a streamed run, over all it does per output: 3.6 kB measured (VmHWM of 3001
+# and 6001 outputs of 32², issue 39.7; 17 kB when its spool was read back one dask chunk an output)
+SPOOL_CHUNK_BYTES = 256e3  # a streamed field read back at most this much at a time, one output at least (`data.spool`)
+# `run --continue`: the run continued, open and read lazily (`data.continuation`): its file's handles and caches and
+# the lazy history joined to the continuation's, above a fresh run of the same outputs: measured +21 MB from a
+# history of 101 outputs of 32³, +25 MB from 201 (VmHWM, issue 39.6; read whole into memory it was +168 MB)
+CONTINUATION, CONTINUATION_PER_OUTPUT = 20e6, 50e3
 VALIDATION_PER_CELL = 64  # the masks and initial fields validating a scene builds (bytes per cell)
 DEFAULT_OUTPUTS = 11  # snapshots of a scene that names neither outputs nor output_times
 
@@ -86,17 +102,23 @@ class Estimate:
     snapshots: float
     disk: float
     measuring: float = 0.0  # a streamed run's observables, measured from its spool once the solver is freed
+    spool: float = 0.0  # a streamed run's spool on disk, beside the dataset until the dataset is written
+    images: float = 0.0  # the image files its regions read, held for the run (`images.Image.memory`)
+    averaging: float = 0.0  # averaging one onto the grid, before the solver's arrays are made
+    continuing: float = 0.0  # the run it continues (`run --continue`), open for the whole run
 
     @property
     def memory(self) -> float:
-        return PROCESS + self.snapshots + max(self.transport + self.mechanics, self.measuring)
+        return PROCESS + self.snapshots + self.images + self.continuing + max(
+            self.transport + self.mechanics, self.measuring, self.averaging)
 
     @property
     def validation(self) -> float:
         return VALIDATION_PER_CELL * self.cells
 
     def parts(self) -> str:
-        parts = [("transport", self.transport), ("mechanics", self.mechanics), ("outputs", self.snapshots)]
+        parts = [("transport", self.transport), ("mechanics", self.mechanics), ("outputs", self.snapshots),
+                 ("images", self.images), ("averaging them", self.averaging), ("the run continued", self.continuing)]
         text = ", ".join(f"{name} {size(value)}" for name, value in parts if value)
         return text + (f"; then {size(self.measuring)} to measure the outputs, the solver's memory freed"
                        if self.measuring else "")
@@ -110,9 +132,10 @@ def size(value: float) -> str:
     return f"~{value / 1e3:.3g} kB"
 
 
-def estimate(scene, streamed: bool = False) -> Estimate:
+def estimate(scene, streamed: bool = False, history: int | None = None) -> Estimate:
     """What running `scene` (a validated `Scene`, or one being validated) needs; `streamed`: as a run that writes
-    its file (`biostudy run`), whose memory does not grow with its outputs once they are worth streaming."""
+    its file (`biostudy run`), whose memory does not grow with its outputs once they are worth streaming;
+    `history`: the outputs of the run it continues (`run --continue`)."""
     shape = list(scene.grid.shape)
     ndim = len(shape)
     cells = math.prod(shape)
@@ -125,10 +148,28 @@ def estimate(scene, streamed: bool = False) -> Estimate:
         per_output += cells + ndim * nodes  # p, u
     written = 8.0 * per_output * outputs
     held, measuring = COPIES * (written + PER_OUTPUT * outputs), 0.0
+    continuing = 0.0 if history is None else CONTINUATION + CONTINUATION_PER_OUTPUT * history
     if streamed and written > STREAM_ABOVE:  # the observables are measured after `solver.simulate` returned
         block = max(min(BLOCK_BYTES, written), 2 * 8.0 * per_output)  # at least one output and the first
-        held, measuring = STREAMED * 8.0 * per_output + PER_OUTPUT * outputs, BLOCK_COPIES * block
-    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring)
+        fields_at_once = max(8.0 * per_output, 5 * SPOOL_CHUNK_BYTES)  # an output, or a block of small ones
+        held, measuring = STREAMED * fields_at_once + STREAMED_PER_OUTPUT * outputs, BLOCK_COPIES * block
+        return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring,
+                        written, *_images(scene), continuing)
+    return Estimate(cells, outputs, TRANSPORT_PER_CELL[ndim] * cells, mechanics, held, written, measuring, 0.0,
+                    *_images(scene), continuing)
+
+
+def _images(scene) -> tuple[float, float]:
+    """(bytes of the image files the scene's regions read, held for the run: once per file; the most that
+    averaging one onto the grid holds besides), from the regions that read one (`images.Image.memory`)."""
+    held: dict[str, float] = {}
+    averaging = 0.0
+    for kind in ("biofilm", "nutrient", "obstacle"):
+        for region in getattr(scene, kind, None) or ():
+            if hasattr(region, "memory"):
+                path, values, peak = region.memory()
+                held[path], averaging = values, max(averaging, peak)
+    return sum(held.values()), averaging
 
 
 def tangent_bytes(ndim: int) -> float:
@@ -201,12 +242,14 @@ def free_disk(path: str | Path) -> float:
     return float(shutil.disk_usage(existing if existing.is_dir() else existing.parent).free)
 
 
-def too_big(need: float, what: str = "needs") -> str:
-    """'' if `need` bytes of memory are available, else the one-line reason."""
-    available = available_memory()
-    if need <= available:
+def too_big(need: float, what: str = "needs", parts: str = "") -> str:
+    """'' if `need` bytes of memory are available, else the one-line reason: what needs how much (of which
+    `parts`), and what is available by which account (BIOSTUDY_MEMORY, a cgroup, the machine: `memory_limits`)."""
+    binding = memory_limits()[0]
+    if need <= binding.bytes:
         return ""
-    return f"{what} {size(need)} of memory, {size(available).lstrip('~')} available"
+    return (f"{what} {size(need)} of memory{f' ({parts})' if parts else ''}, {size(binding.bytes).lstrip('~')} "
+            f"available ({binding.source})")
 
 
 def validation_problem(scene) -> str:
@@ -253,15 +296,20 @@ def run_problem(estimates: dict[str, Estimate], at_once: int, target: str | Path
     name, one = ranked[0]
     if at_once:
         together = ranked[:at_once]
-        problem = too_big(sum(e.memory for _, e in together),
-                          f"{len(together)} runs at once need" if len(together) > 1 else "needs")
-        if problem and len(together) > 1:
-            return f"{problem} (the largest, {name}: {size(one.memory)}, {one.parts()}); use fewer workers"
+        if len(together) > 1:
+            problem = too_big(sum(e.memory for _, e in together), f"{len(together)} runs at once need",
+                              f"the largest, {name}: {size(one.memory)}, {one.parts()}")
+            if problem:
+                return f"{problem}; use fewer workers"
+        problem = too_big(one.memory, "needs", f"{name}: {one.parts()}") if len(together) == 1 else ""
         if problem:
-            return f"{problem} ({name}: {one.parts()})"
+            return problem
     if target is not None:
-        written = sum(e.disk for e in estimates.values()) if disk is None else disk
+        spool = sum(e.spool for e in estimates.values())
+        written = sum(e.disk for e in estimates.values()) + spool if disk is None else disk
         free = free_disk(target)
         if written > free:
-            return f"needs {size(written)} of disk for its datasets, {size(free).lstrip('~')} free"
+            what = (f"its dataset ({size(written - spool)}) and the spool its outputs stream to until the dataset is "
+                    f"written ({size(spool)}), together" if spool else "its datasets")
+            return f"needs {size(written)} of disk for {what}, {size(free).lstrip('~')} free"
     return ""

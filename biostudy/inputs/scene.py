@@ -7,12 +7,13 @@ times within [0, t_end], ...).  `load_scene` reads a TOML file, applies
 ``--set KEY=VALUE`` overrides (dotted keys, values parsed as TOML) and
 validates; `Scene.problem()` builds the solver's plain description.
 
-Besides the model's own keys, the ``[numerics]`` and ``[mechanics]`` tables and
+Besides the model's own keys, the ``[model]``, ``[numerics]`` and ``[mechanics]`` tables and
 ``[time] output_times`` map onto the solver's settings (`NumericsSpec`,
 `MechanicsSpec`, `Time`: each field says what it does; the README lists them
-all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[numerics]``
-and ``[mechanics]`` are derived from the solver's declarations (`declared`), so an
-option added to `solver.Numerics` or `solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
+all, and `tests/test_docs.py` checks that it does).  ``[params]``, ``[model]``,
+``[numerics]`` and ``[mechanics]`` are derived from the solver's declarations
+(`declared`), so an option added to `solver.Laws`, `solver.Numerics` or
+`solver.MechanicsSetup` is a scene key at once.  ``[substratum]`` (face,
 threshold) says where and how the COMSTAT observables are measured
 (`biostudy.quantities.substratum`); it changes nothing in the simulation, and
 the datasets record it (`Scene.substratum_attrs`).
@@ -27,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, ValidationInfo, create_model, model_validator
 
 import solver
-from solver.problem import Consumption, Face, blocked_problem, face_problem, held_faces_problem, inside_problem
+from solver.problem import Face, blocked_problem, face_problem, held_faces_problem, inside_problem
 from solver.series import BIOFILM_THRESHOLD
 
 from ..errors import BadInput, InvalidAt, from_validation_error
@@ -59,15 +60,8 @@ class GridSpec(BaseModel):
 Params = parameters_model()
 
 
-class Model(BaseModel):
-    """Which form of the model's laws."""
-
-    model_config = CONFIG
-    consumption: Consumption = Field(
-        "first-order", description="first-order: g phi c (keeps 0 <= c <= 1); zero-order: g phi, the paper's "
-                                   "Eq. 35, with c held >= 0")
-
-
+Model = settings_model(solver.Laws, "Model", "Which form of the model's laws (solver.Laws; docs/model.md): the "
+                       "defaults are Eqs. 34-36 with first-order consumption and a quasi-steady nutrient.")
 NumericsSpec = settings_model(solver.Numerics, "NumericsSpec", "How the equations are discretised "
                               "(solver.Numerics); the defaults are the robust choice.")
 MechanicsSpec = settings_model(
@@ -170,6 +164,13 @@ class Scene(BaseModel):
                     region.check(grid)
                 except InvalidAt as error:
                     raise InvalidAt(".".join(filter(None, (f"{kind}[{i}]", error.key))), error.problem) from None
+        for i, region in enumerate(self.biofilm):
+            spill = region.spill(grid) if isinstance(region, Image) else None
+            if spill is not None and spill.voxels:
+                raise InvalidAt(f"biofilm[{i}].path", f"{region.path} spans {spill.spans}, beyond the grid "
+                                f"({spill.grid}): {spill.voxels} voxels of its biofilm ({spill.region:.1%} of it) lie "
+                                "outside, so the biofilm would be cut; enlarge grid.shape, move origin, or crop the "
+                                "stack")
         for kind in ("nutrient", "obstacle"):
             for i, region in enumerate(getattr(self, kind)):
                 if getattr(region, "scale", None) is not None:
@@ -226,7 +227,7 @@ class Scene(BaseModel):
         return solver.Problem(
             grid=grid, phi0=phi0, nutrient_held=held, nutrient_value=value, nutrient_faces=faces, obstacle=blocked,
             t_end=self.time.t_end, steps=self.time.steps, output_times=self.time.times(),
-            params=solver.Parameters(**self.params.model_dump()), consumption=self.model.consumption,
+            params=solver.Parameters(**self.params.model_dump()), laws=self.model.solver_settings(),
             numerics=self.numerics.solver_settings(), mechanics=mechanics, name=self.name)
 
     def substratum_face(self) -> str:
@@ -245,6 +246,30 @@ class Scene(BaseModel):
         return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold,
                 "substratum_connected": int(self.substratum.connected),
                 "substratum_estimator": self.substratum.estimator}
+
+    def image_attrs(self) -> dict:
+        """The provenance of every image region (``image_biofilm_0_path``, ``_sha256``, ``_shape`` [z,] y, x voxels,
+        ``_voxel`` [dz,] dy, dx µm, ``_origin`` [z,] y, x µm) and, where an image reaches beyond the grid,
+        ``image_left_out``: how much of it was left out (`quantities.alerts` says it after a run)."""
+        found: dict = {}
+        left_out = []
+        grid = self.grid.solver_grid()
+        for kind in ("biofilm", "nutrient", "obstacle"):
+            for i, region in enumerate(getattr(self, kind)):
+                if not isinstance(region, Image):
+                    continue
+                name = f"image_{kind}_{i}"
+                found.update({f"{name}_path": region.path, f"{name}_sha256": region.sha256,
+                              f"{name}_shape": list(region.image_shape), f"{name}_voxel": list(region.voxel_size),
+                              f"{name}_origin": list(reversed(region.origin or [0.0] * grid.ndim))})
+                spill = region.spill(grid)
+                if spill is not None:
+                    cut = f", {spill.region:.1%} of its region" if spill.voxels else ", none of its region"
+                    left_out.append(f"{kind}[{i}]: {region.path} spans {spill.spans}, beyond the grid ({spill.grid}): "
+                                    f"{spill.image:.1%} of the image is left out{cut}")
+        if left_out:
+            found["image_left_out"] = "an image larger than the grid was cropped to it: " + "; ".join(left_out)
+        return found
 
     def real_time_attrs(self) -> dict:
         """{"t_ref": ...} when the scene says what T* = 1 is in real time (`data.real_time` adds time_real)."""

@@ -126,6 +126,25 @@ class CircularMaze:
         assert route[-1] == start
         return route[::-1]
 
+    def side_branches(self) -> list[tuple[tuple[int, int], list[tuple[int, int]]]]:
+        """The dead ends the way in passes, from the tree: for every sector of `path()` and every sector it opens
+        into off the way, (that sector of the way, the sectors of the branch behind the opening).  The way's
+        last sector's branches are the rest of the maze around the core."""
+        way, tree = self.path(), self.tree
+        on_way, found = set(way), []
+        for here in way:
+            for first in (n for n in tree[here] if n not in on_way):
+                branch, seen, stack = [], {here, first}, [first]
+                while stack:
+                    sector = stack.pop()
+                    branch.append(sector)
+                    for n in tree[sector]:
+                        if n not in seen:
+                            seen.add(n)
+                            stack.append(n)
+                found.append((here, sorted(branch)))
+        return found
+
     def _polar(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         dx, dy = x - self.center[0], y - self.center[1]
         return np.hypot(dx, dy), np.mod(np.arctan2(dy, dx) - self.rotation, 2 * np.pi)

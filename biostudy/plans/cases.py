@@ -17,6 +17,7 @@ from typing import Any, Callable, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ..errors import BadInput, from_validation_error
+from ..inputs.bundled import studies_dir
 from ..inputs.files import read_toml
 from ..inputs.keys import Origins, apply_overrides, flatten, given_by, key_parts, parse_override, set_key
 from ..inputs.resources import Preflight
@@ -57,7 +58,7 @@ class OnScene(FlatSet):
     model_config = ConfigDict(extra="forbid")
     name: str = Field("", description="short name (default: the file's name without .toml)")
     description: str = Field("", description="one line shown by `biostudy scenes`")
-    scene: str = Field(description="base scene file, relative to this file")
+    scene: str = Field(description="base scene file, relative to this file, or a bundled scene's name (agar2d)")
     set: dict[str, Any] = Field({}, description="overrides applied to every case (dotted keys, like --set)")
 
 
@@ -110,9 +111,7 @@ class Plan:
 def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) -> tuple[Path, dict, dict]:
     """The raw data of the base scene a study or catalogue file names, with its [set] and the --set
     overrides applied; returns (scene file, data, the overrides applied to every case)."""
-    scene_file = path.parent / scene
-    if not scene_file.is_file():
-        raise BadInput(f"scene file {scene!r} not found (looked for {scene_file})", path, "scene")
+    scene_file = scene_path(path, scene)
     data = read_scene_data(scene_file)
     for key, value in given_set.items():
         try:
@@ -120,6 +119,21 @@ def base_scene(path: Path, scene: str, given_set: dict[str, Any], overrides=()) 
         except BadInput as error:
             raise BadInput(error.problem, path, f"set.{key}") from None
     return scene_file, data, {**given_set, **dict(apply_overrides(data, overrides))}
+
+
+def scene_path(path: Path, scene: str) -> Path:
+    """The scene a study, catalogue or calibration file names: a file relative to it, or (a bare name, as the
+    command line takes it: scene = "agar2d") a bundled scene; `BadInput` at its `scene` key otherwise."""
+    scene_file = path.parent / scene
+    if scene_file.is_file():
+        return scene_file
+    bare = len(Path(scene).parts) == 1 and Path(scene).suffix in ("", ".toml")
+    if bare:
+        for candidate in (studies_dir() / scene, studies_dir() / f"{scene}.toml"):
+            if candidate.is_file():
+                return candidate
+    also = " nor a bundled scene of that name (`biostudy scenes` lists them)" if bare else ""
+    raise BadInput(f"scene file {scene!r} not found (looked for {scene_file}){also}", path, "scene")
 
 
 def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: Path, case_name: str,
@@ -140,10 +154,12 @@ def case_scene(base_data: dict, values: dict[str, Any], scene_file: Path, path: 
 M = TypeVar("M", bound=OnScene)
 
 
-def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "") -> M:
-    """A study, catalogue or calibration file validated as `model`; wrong_kind(data) says why the file is not of
-    this kind ("" if it is), before it is validated."""
-    data = read_toml(path)
+def read_spec(path: Path, model: type[M], wrong_kind: Callable[[dict], str] = lambda data: "",
+              read: Callable[[Path], dict] = read_toml) -> M:
+    """A study, catalogue or calibration file validated as `model`; `read` turns the file into its data (TOML; a
+    calibration also reads a PEtab problem.yaml); wrong_kind(data) says why the file is not of this kind ("" if it
+    is), before it is validated."""
+    data = read(path)
     problem = wrong_kind(data)
     if problem:
         raise BadInput(problem, path)
@@ -174,6 +190,33 @@ def compile_cases(cases: list[Case], base_data: dict, scene_file: Path, path: Pa
     return scenes
 
 
+@dataclass(frozen=True)
+class Based:
+    """A file of many cases of one scene, read and checked: its spec, its base scene (the file, its raw data with
+    [set] and --set applied, validated), the overrides every case has and where each came from."""
+
+    spec: Any
+    scene_file: Path
+    data: dict
+    scene: Scene
+    common: dict
+    origins: Origins
+
+
+def read_based(path: Path, model: type[M], overrides, wrong_kind: Callable[[dict], str], preflight: Preflight | None,
+               varies: Callable[[Any], tuple[list[str], str]], read: Callable[[Path], dict] = read_toml) -> Based:
+    """A study's, catalogue's or calibration's file and its base scene (`Based`), the spec's own checks against
+    the base data done, and no override of a key its cases vary (varies(spec): those keys, and who varies them
+    as `not_varied` says it; `read`: as for `read_spec`)."""
+    spec = read_spec(path, model, wrong_kind, read)
+    scene_file, data, common = base_scene(path, spec.scene, spec.set, overrides)
+    origins = origins_of(spec.set, path, overrides)
+    scene = scene_from_data(data, scene_file, origins, preflight)
+    spec.check(data, scene_file, path)
+    not_varied(*varies(spec), spec.set, path, overrides)
+    return Based(spec, scene_file, data, scene, common, origins)
+
+
 def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | tuple[str, ...] = (),
               wrong_kind: Callable[[dict], str] = lambda data: "", preflight: Preflight | None = None) -> Plan:
     """Read a study or catalogue file, its base scene and every case; any bad input is a `BadInput`.
@@ -183,13 +226,11 @@ def load_plan(path: str | Path, model: type[ManyCases], overrides: list[str] | t
     cases run here, not on a Dask cluster), made before a case's masks are.
     """
     path = Path(path)
-    spec = read_spec(path, model, wrong_kind)
-    scene_file, base_data, common = base_scene(path, spec.scene, spec.set, overrides)
-    origins = origins_of(spec.set, path, overrides)
-    base = scene_from_data(base_data, scene_file, origins, preflight)
-    spec.check(base_data, scene_file, path)
-    not_varied(spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace "
-               "it; change the study's values instead", spec.set, path, overrides)
+    based = read_based(path, model, overrides, wrong_kind, preflight, lambda spec: (
+        spec.varied_keys(), f"varied by this study ({spec.case_noun()} {{key}}), so every case would replace it; "
+                            "change the study's values instead"))
+    spec, scene_file, base_data, base, common, origins = (based.spec, based.scene_file, based.data, based.scene,
+                                                           based.common, based.origins)
     cases = spec.cases()
     ids = [case.id for case in cases]
     repeated = next((i for i in ids if ids.count(i) > 1), None)

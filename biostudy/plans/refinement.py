@@ -6,19 +6,21 @@ Four refinement series from the scene as given (level 0):
   both      grid and step refined together;
   adaptive  error-controlled steps (step doubling) with the tolerance divided
             by 4 per level (local error ~ dt^2: halves the step), the grid kept.
-The adaptive series is measured against the finest fixed-step level of `time`
-on the same grid, which the plan adds when `time` is not asked for.
+Every series is measured against one reference, the Richardson extrapolation
+of the two finest levels of `both` (`reports.convergence`), which the plan adds
+when `both` is not asked for.
 """
 from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import BadInput
-from ..inputs.keys import set_key
-from ..inputs.resources import Preflight
-from ..inputs.scene import Scene, scene_from_data
+
+if TYPE_CHECKING:
+    from ..inputs.scene import Scene
 
 SERIES = ("space", "time", "both", "adaptive")
 FIRST_TOLERANCE = 1e-2  # adaptive level 0: local error in phi per step
@@ -40,19 +42,9 @@ class Refinement:
         return text + (f"_tol={self.tolerance:.3g}" if self.tolerance is not None else "")
 
 
-def chosen_series(text: str) -> tuple[str, ...]:
-    """'space,time' -> ('space', 'time'); an unknown or empty choice is `BadInput`."""
-    chosen = tuple(s.strip() for s in text.split(",") if s.strip())
-    unknown = [s for s in chosen if s not in SERIES]
-    if unknown or not chosen:
-        raise BadInput(f"unknown series {', '.join(unknown) or '(none)'}; choose from {', '.join(SERIES)}",
-                       None, "--series")
-    return chosen
-
-
 def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES,
-         tolerance: float = FIRST_TOLERANCE) -> list[Refinement]:
-    """The levels of every requested series (plus the fixed-step reference the adaptive series needs)."""
+         tolerance: float = FIRST_TOLERANCE, reference: bool = True) -> list[Refinement]:
+    """The levels of every requested series (plus those of `both`, the `reference`, when not asked for)."""
     steps = base.time.steps
     out = []
     for name in series:
@@ -65,13 +57,23 @@ def plan(base: Scene, levels: int, series: tuple[str, ...] = SERIES,
                 out.append(Refinement(name, i, 2**i, steps * 2**i, None))
             else:
                 out.append(Refinement(name, i, 1, steps, tolerance / 4**i))
-    if "adaptive" in series and "time" not in series:
-        out.append(Refinement("time", levels - 1, 1, steps * 2 ** (levels - 1), None))
+    if reference and "both" not in series:
+        out += [Refinement("both", i, 2**i, steps * 2**i, None) for i in range(levels)]
     return out
+
+
+def with_reference(series: tuple[str, ...]) -> tuple[str, ...]:
+    """The series a convergence study reports: those asked for, and `both`, whose finest levels are the
+    reference of all."""
+    return series if "both" in series else (*series, "both")
 
 
 def refined(data: dict, scene_file: Path, level: Refinement) -> Scene:
     """The base scene's data with the level's grid, steps and tolerance."""
+    from ..inputs.keys import set_key  # here: `biostudy convergence -h` reads SERIES from this module, not the solver
+    from ..inputs.resources import Preflight
+    from ..inputs.scene import scene_from_data
+
     data = copy.deepcopy(data)
     grid = data["grid"]
     set_key(data, "grid.shape", [n * level.refine for n in grid["shape"]])

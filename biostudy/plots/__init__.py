@@ -8,6 +8,8 @@
   (Tables 3 and 5; `cut` picks another plane)                   -> OUT_cut.png
   and the phi >= 0.8 region in 3-D at four times (Figs. 3, 10)  -> OUT_isosurface.png
 - a 2-D run: maps of phi, c (and p) at four times               -> OUT_maps.png
+  and, where its route passes dead ends, the biofilm in each
+  over time (paper 4.4)                                          -> OUT_dead_ends.png
 - a sweep (`study.nc`): final outputs (observables) against the swept
   parameters                                                    -> OUT_sweep.png
   and the time series of every case                             -> OUT_series.png
@@ -32,8 +34,9 @@ import xarray as xr
 from solver.output import on_output_times
 
 from ..data.claims import foreign
+from ..quantities import dead_ends as dead_end_geometry
 from ..quantities import observables
-from . import analysis, fields, isosurface, series, sweep, warped
+from . import analysis, dead_ends, fields, isosurface, series, sweep, warped
 from .cuts import plane_for
 from .style import SERIES_NAMES, field_names, output_paths, save, snapshot_indices
 
@@ -45,7 +48,7 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
     """Draw the default figures of `ds` (a run or a sweep) and return the files written.
 
     out: the picture's path; with several figures, `stem_<tag>.png` beside it
-        (tags: series, cut, isosurface, maps, sweep).
+        (tags: series, cut, isosurface, maps, dead_ends, sweep).
     variable: one of the dataset's fields (phi, c, alpha, p) or, for a sweep,
         one of phi_mean, c_mean, biofilm_volume.
     time: draw the output nearest to this T* instead of four spread over the run
@@ -73,6 +76,8 @@ def plot(ds: xr.Dataset, out: Path, variable: str | None = None, time: float | N
             raise ValueError(f"cut {cut!r} needs a 3-D run; this run is 2-D (its maps are the whole domain)")
         figures = [("series", lambda: series.figure(ds, _marks(ds, indices, time))),
                    ("maps", lambda: fields.map_figure(ds, names, indices))]
+        if variable is None and dead_end_geometry.applies(ds):
+            figures.append(("dead_ends", lambda: dead_ends.figure(ds, indices)))
     if warp is not None:
         shown = warped.solved_indices(ds, indices)  # refuses before anything is drawn
         figures.append(("warped", lambda: warped.figure(ds, shown, warp)))

@@ -1,9 +1,10 @@
 """What a finished run must say besides its numbers: the checks that warn in words.
 
 Each check reads a run's dataset and returns '' or a sentence: `dense` (the dense biofilm vanished while the
-biofilm grew, a grid artefact) and `retreat` (the biofilm shrank or vanished, the model's own retreat from
-where the nutrient is not).  Commands store each sentence as the dataset attribute named by its check, print
-it after a run, and list the runs that raised it in sweeps and calibrations.
+biofilm grew, a grid artefact), `retreat` (the biofilm shrank or vanished, the model's own retreat from
+where the nutrient is not) and `image_left_out` (an image region larger than the grid, cropped to it: the scene
+records how much, `inputs.scene.Scene.image_attrs`).  Commands store each sentence as the dataset attribute named
+by its check, print it after a run, and list the runs that raised it in sweeps and calibrations.
 """
 from __future__ import annotations
 
@@ -22,11 +23,19 @@ class Alert:
     runs: str  # what the runs that raised it did, for a list of them
 
 
+IMAGE_LEFT_OUT = "image_left_out"  # the scene's sentence (`inputs.scene.Scene.image_attrs`), recorded before this
+
+
+def _image_left_out(ds: xr.Dataset) -> str:
+    return str(ds.attrs.get(IMAGE_LEFT_OUT, ""))
+
+
 ALERTS = (
     Alert(dense.ATTRIBUTE, dense.vanished,
           "lost their dense biofilm (phi >= 0.8) while the biofilm grew, likely a grid artefact"),
     Alert(retreat.ATTRIBUTE, retreat.lost,
           "lost a quarter or more of their biofilm (the model retreats from where the nutrient is not)"),
+    Alert(IMAGE_LEFT_OUT, _image_left_out, "were given an image larger than the grid, cropped to it"),
 )
 ATTRIBUTES = tuple(alert.attribute for alert in ALERTS)
 

@@ -18,6 +18,9 @@ hemisphere's ratio 3/r becomes ~4.5/r), so a fit of sub-cell values to a COMSTAT
 voxels sharing a face is background (a floating piece does not count).  It applies to either estimator: the
 filtered field keeps phi where the biofilm stays and is 0 where a floating piece was.  Off by default: a
 piece that detaches then leaves every observable at once, a jump a finite-difference Jacobian cannot take.
+
+`counted` is the one count, on boolean voxels of any edges: a run's cubic cells (`voxel_observables`) and a
+confocal stack's anisotropic voxels ([dz,] dy, dx: `stack_measures`, ``biostudy measure``) alike.
 """
 from __future__ import annotations
 
@@ -25,18 +28,41 @@ import numpy as np
 from scipy import ndimage
 
 from ..inputs.substratum_face import normal_axis
-from .substratum import THRESHOLD, on_substratum, substratum_area
+from .substratum import THRESHOLD, on_substratum
+
+
+def oriented(cells: np.ndarray, face: str) -> np.ndarray:
+    """A (z, y, x) / (y, x) array with the substratum's normal first, index 0 next to the substratum (a view)."""
+    moved = np.moveaxis(cells, normal_axis(face, cells.ndim), 0)
+    return moved[::-1] if face[1] == "+" else moved
+
+
+def attached(voxels: np.ndarray) -> np.ndarray:
+    """Boolean biofilm voxels (oriented: the substratum's layer first) connected to that layer through voxels
+    sharing a face (6 neighbours in 3-D, 4 in 2-D): COMSTAT's connected-volume filtering."""
+    labels, count = ndimage.label(voxels)
+    kept = np.zeros(count + 1, bool)  # per label: reaches the substratum's layer (a table, not np.isin's sort)
+    kept[labels[0]] = True
+    kept[0] = False
+    return kept[labels]
 
 
 def connected(phi: np.ndarray, face: str, threshold: float = THRESHOLD) -> np.ndarray:
     """phi (solver order, obstacles NaN) with the biofilm not connected to the substratum face set to 0."""
     field = on_substratum(phi, face)
-    labels, _ = ndimage.label(field >= threshold)  # face neighbours (6 in 3-D, 4 in 2-D)
-    floating = (labels > 0) & ~np.isin(labels, labels[0][labels[0] > 0])
+    floating = (field >= threshold) & ~attached(field >= threshold)
     kept = np.where(floating, 0.0, field)
     if face[1] == "+":
         kept = kept[::-1]
     return np.where(np.isnan(phi), np.nan, np.moveaxis(kept, 0, normal_axis(face, phi.ndim)))
+
+
+def spacings(h: float | tuple[float, ...], face: str, ndim: int) -> tuple[float, ...]:
+    """Voxel edges in the oriented order (`oriented`): the normal's first, then the others in array order; `h` one
+    edge (a run's cubic cells) or one per axis in array order ([dz,] dy, dx: a confocal stack's voxels)."""
+    edges = (float(h),) * ndim if np.ndim(h) == 0 else tuple(float(e) for e in h)  # type: ignore[union-attr]
+    axis = normal_axis(face, ndim)
+    return (edges[axis], *(e for a, e in enumerate(edges) if a != axis))
 
 
 def _columns(voxels: np.ndarray, h: float) -> np.ndarray:
@@ -46,17 +72,21 @@ def _columns(voxels: np.ndarray, h: float) -> np.ndarray:
     return np.where(voxels.any(axis=0), topmost * h, 0.0)
 
 
-def _surface(voxels: np.ndarray) -> int:
-    """Faces between biofilm and background voxels, inside the domain."""
-    return sum(int(np.count_nonzero(np.diff(voxels.astype(np.int8), axis=axis))) for axis in range(voxels.ndim))
+def _surface(voxels: np.ndarray, edges: tuple[float, ...]) -> float:
+    """Area of the faces between biofilm and background voxels inside the domain: those normal to an axis have
+    the other axes' edges as their sides."""
+    cell = float(np.prod(edges))
+    return sum(int(np.count_nonzero(np.diff(voxels.view(np.int8), axis=axis))) * cell / edges[axis]
+               for axis in range(voxels.ndim))
 
 
-def voxel_observables(phi: np.ndarray, h: float, face: str, threshold: float = THRESHOLD) -> dict[str, float]:
-    """COMSTAT's six observables counted on the cells (module docstring), units as `substratum.QUANTITIES`."""
-    voxels = on_substratum(phi, face) >= threshold
-    area = substratum_area(phi, h, face)
-    volume = float(np.count_nonzero(voxels)) * h**voxels.ndim
-    thickness = _columns(voxels, h)
+def counted(voxels: np.ndarray, edges: tuple[float, ...]) -> dict[str, float]:
+    """COMSTAT's six observables of boolean biofilm voxels, oriented (`oriented`: the substratum's layer first),
+    of `edges` µm (`spacings`); units as `substratum.QUANTITIES`.  One code for a run's cells and a lab's stack."""
+    voxels = np.asarray(voxels, dtype=bool)
+    area = float(np.prod([n * e for n, e in zip(voxels.shape[1:], edges[1:])]))
+    volume = float(np.count_nonzero(voxels)) * float(np.prod(edges))
+    thickness = _columns(voxels, edges[0])
     mean = float(thickness.mean())
     return {
         "biomass": volume / area,
@@ -64,5 +94,10 @@ def voxel_observables(phi: np.ndarray, h: float, face: str, threshold: float = T
         "max_thickness": float(thickness.max()),
         "roughness": float(np.mean(np.abs(thickness - mean)) / mean) if mean > 0 else float("nan"),
         "coverage": float(voxels[0].mean()),
-        "surface_to_biovolume": _surface(voxels) * h ** (voxels.ndim - 1) / volume if volume > 0 else float("nan"),
+        "surface_to_biovolume": _surface(voxels, edges) / volume if volume > 0 else float("nan"),
     }
+
+
+def voxel_observables(phi: np.ndarray, h: float, face: str, threshold: float = THRESHOLD) -> dict[str, float]:
+    """COMSTAT's six observables counted on a run's cells (module docstring), each cell a voxel of edge h."""
+    return counted(on_substratum(phi, face) >= threshold, spacings(h, face, phi.ndim))

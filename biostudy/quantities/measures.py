@@ -44,8 +44,12 @@ def restrict(field: np.ndarray, factor: int) -> np.ndarray:
         shape += [n // factor, factor]
     blocks = field.reshape(shape)
     axes = tuple(range(1, 2 * field.ndim, 2))
-    with np.errstate(invalid="ignore"):
-        return np.nanmean(blocks, axis=axes) if np.isnan(field).any() else blocks.mean(axis=axes)
+    if not np.isnan(field).any():
+        return blocks.mean(axis=axes)
+    finite = np.isfinite(blocks)  # a coarse cell of obstacle cells only stays NaN (no warning: it is meant)
+    count = finite.sum(axis=axes)
+    total = np.where(finite, blocks, 0.0).sum(axis=axes)
+    return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
 def field_errors(field: np.ndarray, reference: np.ndarray) -> tuple[float, float]:

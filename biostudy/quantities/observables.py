@@ -28,6 +28,8 @@ max_thickness         µm     largest biofilm thickness above the substratum (CO
 roughness             1      roughness coefficient Ra* of the thickness (COMSTAT)
 coverage              1      fraction of the substratum's first cell layer that is biofilm
 surface_to_biovolume  µm⁻¹   biofilm-liquid interface per biovolume (COMSTAT)
+dead_end_biofilm      µm³    phi >= 0.5 in dead ends off the route from colony to nutrient (2-D)
+dead_end_reach        µm     how deep phi >= 0.5 reaches into a dead end beyond the route's corridor
 ====================  =====  ======================================================
 
 The last six are measured on the substratum the run's dataset records (attributes
@@ -36,7 +38,10 @@ the scene's ``[substratum]``) by `biostudy.quantities.substratum`; they change
 continuously with the parameters (sub-cell level sets), so they are the ones to
 fit; with ``estimator = "voxel"`` they are COMSTAT's voxel counts instead
 (`biostudy.quantities.comstat`).  A dataset written before they existed lacks
-those attributes and has none of them.
+those attributes and has none of them.  The two dead-end observables
+(`biostudy.quantities.dead_ends`: paper 4.4's invasion of dead ends and
+retraction from them) apply to 2-D runs whose route from the colony to a held
+nutrient region passes dead ends; other runs leave them out.
 """
 from __future__ import annotations
 
@@ -48,10 +53,10 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 
-from solver.series import PER_THICKNESS, SERIES, Series, cell_volume
+from solver.series import PER_THICKNESS, SERIES, VOLUME, Series, cell_volume
 
 from ..inputs.resources import BLOCK_BYTES
-from . import comstat, measures, substratum
+from . import comstat, dead_ends, measures, substratum
 from .saturation import SATURATION
 
 CELL_DIMS = ("z", "y", "x")
@@ -68,10 +73,15 @@ class Observable:
     needs: tuple[str, ...] = ("phi",)
     needs_attrs: tuple[str, ...] = ()  # attributes of the dataset it is computed from (the substratum)
     granularity: Callable[[float, int], float] | None = None  # (h, ndim) -> its step: it counts cells; None: sub-cell
+    applies: Callable[[xr.Dataset], bool] | None = None  # whether the run has what it measures (None: every run)
+    described: Callable[[xr.Dataset], dict] | None = None  # what it says of itself on a dataset (a height's top)
 
     def attrs(self, ds: xr.Dataset | None = None) -> dict:
-        volume = self.units == "um3" and ds is not None and "z" not in ds.dims
-        return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if volume else "")}
+        """Its units and long name (a volume of a 2-D run is per µm of thickness), and on a dataset what it says
+        there (`described`; ValueError where it cannot be measured)."""
+        volume = self.units == VOLUME and ds is not None and "z" not in ds.dims
+        said = self.described(ds) if self.described is not None and ds is not None else {}
+        return {"units": self.units, "long_name": self.long_name + (PER_THICKNESS if volume else ""), **said}
 
 
 def _vertical(ds: xr.Dataset) -> str:
@@ -79,9 +89,19 @@ def _vertical(ds: xr.Dataset) -> str:
 
 
 def _height(axis: str | None) -> Observable:
+    """The height along `axis` (None: the vertical one), with the domain's top: a height there is saturated."""
     where = f"along {axis}" if axis else "along the vertical axis (z in 3-D, y in 2-D)"
-    return Observable(f"height_{axis}" if axis else "height", "um", f"top of phi >= 0.5 {where}",
-                      lambda ds: measures.height(ds, axis or _vertical(ds)))
+    name = f"height_{axis}" if axis else "height"
+
+    def top(ds: xr.Dataset) -> dict:
+        along = axis or _vertical(ds)
+        if along not in ds.dims:
+            raise ValueError(f"{name}: the dataset has no axis {along}")
+        return {SATURATION: measures.top(ds, along), "comment": f"{SATURATION}: the domain's top along {along}; a "
+                "height equal to it is saturated (the biofilm reaches the top: a lower bound)"}
+
+    return Observable(name, "um", f"top of phi >= 0.5 {where}", lambda ds: measures.height(ds, axis or _vertical(ds)),
+                      described=top)
 
 
 SUBSTRATUM_ATTRS = ("substratum_face", "substratum_threshold")
@@ -95,7 +115,7 @@ def _recorded(series: Series) -> Observable:
         volume = cell_volume(measures.spacing(ds), fields.ndim - 1)
         return np.array([series.measure(field, np.isfinite(field), volume) for field in fields])
 
-    counts = series.units == "um3"  # a volume of cells: it moves by one cell's volume
+    counts = series.units == VOLUME  # a volume of cells: it moves by one cell's volume
     return Observable(series.name, series.units, series.long_name, compute, (series.field,),
                       granularity=cell_volume if counts else None)
 
@@ -132,7 +152,7 @@ def _on_substratum(quantity: substratum.Quantity) -> Observable:
 RECORDED = {series.name: _recorded(series) for series in SERIES}  # phi_mean, c_mean, biofilm_volume
 REGISTRY: dict[str, Observable] = {o.name: o for o in (
     RECORDED["biofilm_volume"],
-    Observable("dense_volume", "um3", "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=cell_volume),
+    Observable("dense_volume", VOLUME, "volume of dense biofilm, phi >= 0.8", measures.volume, granularity=cell_volume),
     RECORDED["phi_mean"],
     Observable("phi_max", "1", "largest biofilm density", measures.phi_max),
     RECORDED["c_mean"],
@@ -146,6 +166,12 @@ REGISTRY: dict[str, Observable] = {o.name: o for o in (
     Observable("tension_max", "Pa", "largest tension of the biofilm: max p (hydrostatic stress)",
                lambda ds: measures.stress_extremes(ds)[1], ("p",)),
     *(_on_substratum(q) for q in substratum.QUANTITIES.values()),
+    Observable("dead_end_biofilm", VOLUME, "biofilm (phi >= 0.5) in dead ends off the route from the colony to the "
+               "nutrient", dead_ends.biofilm, ("phi", "obstacle", "nutrient_source"), granularity=cell_volume,
+               applies=dead_ends.applies),
+    Observable("dead_end_reach", "um", "how deep phi >= 0.5 reaches into a dead end beyond the route's corridor",
+               dead_ends.reach, ("phi", "obstacle", "nutrient_source"), granularity=lambda h, ndim: h,
+               applies=dead_ends.applies),
 )}
 
 # The columns `show` gives each case of a study, and the outputs a sweep's picture draws by default.
@@ -167,16 +193,11 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     """The observable over time (and over a study's case dimensions) from the dataset's fields."""
     observable = get(name)
     attrs = observable.attrs(ds)
-    if name == "height" or name.startswith("height_"):
-        axis = name.removeprefix("height_") if name != "height" else _vertical(ds)
-        if axis not in ds.dims:
-            raise ValueError(f"{name}: the dataset has no axis {axis}")
-        attrs = {**attrs, SATURATION: measures.top(ds, axis),
-                 "comment": f"{SATURATION}: the domain's top along {axis}; a height equal to it is saturated (the "
-                            "biofilm reaches the top: a lower bound)"}
     missing = [v for v in observable.needs if v not in ds]
     if missing:
         raise ValueError(f"{name} needs {', '.join(missing)}, which the dataset does not have")
+    if observable.applies is not None and not observable.applies(ds):
+        raise ValueError(f"{name}: the run has none to measure (see biostudy/quantities/observables.py)")
     unrecorded = [a for a in observable.needs_attrs if a not in ds.attrs]
     if unrecorded:
         raise ValueError(f"{name} needs the attribute {', '.join(unrecorded)} (the scene's [substratum]), which "
@@ -197,7 +218,11 @@ def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES,
     """Every observable this run's fields give (or those of `names`), as time series with units and long_name.
     The fields are read once, at most `block_bytes` of them at a time (`_blocks`): a run whose fields stay
     on disk (`data.spool`) is measured without holding every output."""
-    names = [n for n, o in REGISTRY.items() if available(ds, o)] if names is None else names
+    if names is None:
+        import dask  # lazily: dask only where fields are measured
+
+        with dask.config.set(scheduler="synchronous"):  # what `applies` reads of the fields is read in this thread
+            names = [n for n, o in REGISTRY.items() if available(ds, o)]
     if not names:
         return {}
     token = _TOGETHER.set([None, {}])  # the substratum quantities of each dataset measured below: together
@@ -235,8 +260,9 @@ def _blocks(fields: xr.Dataset, block_bytes: float) -> list[list[int]]:
 
 
 def available(ds: xr.Dataset, observable: Observable) -> bool:
-    """Whether the dataset has what the observable is computed from."""
-    return all(v in ds for v in observable.needs) and all(a in ds.attrs for a in observable.needs_attrs)
+    """Whether the dataset has what the observable is computed from (and the run what it measures)."""
+    return all(v in ds for v in observable.needs) and all(a in ds.attrs for a in observable.needs_attrs) and \
+        (observable.applies is None or observable.applies(ds))
 
 
 def value(ds: xr.Dataset, name: str, index: int = -1) -> float:

@@ -368,7 +368,7 @@ class Quantity:
     compute: Callable[..., float]
 
 
-# units reduced: µm³/µm² (2-D µm²/µm) is "um", µm²/µm³ (2-D µm/µm²) is "um-1"; both parse in udunits
+# units reduced: µm³/µm² (2-D µm²/µm) is "um", µm²/µm³ (2-D µm/µm²) is "um^-1" (udunits and plain pint read it)
 QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
     Quantity("biomass", "um", "biovolume per substratum area (COMSTAT biomass; 2-D: biofilm area per substratum "
              "width)", biomass),
@@ -378,6 +378,6 @@ QUANTITIES: dict[str, Quantity] = {q.name: q for q in (
     Quantity("roughness", "1", "roughness coefficient Ra* of the biofilm thickness (COMSTAT)", roughness),
     Quantity("coverage", "1", "fraction of the substratum's first cell layer covered by biofilm (COMSTAT "
              "substratum coverage)", coverage),
-    Quantity("surface_to_biovolume", "um-1", "biofilm surface exposed to the liquid per biovolume (COMSTAT; "
+    Quantity("surface_to_biovolume", "um^-1", "biofilm surface exposed to the liquid per biovolume (COMSTAT; "
              "2-D: perimeter per area)", surface_to_biovolume),
 )}

@@ -1,266 +1,273 @@
 """How accurate is a scene's result, and what does accuracy cost: the measurements of `biostudy convergence`.
 
-The levels are planned by `biostudy.plans.refinement`.  The reference of each
-series is its own finest level (the adaptive series is measured against the
-finest fixed-step level of `time`, same grid), or a given dataset
-(`reference`): a refined run of the same scene, perhaps with another scheme,
-e.g. the pointwise growth velocity on 1/16 µm cells as the yardstick of the
-front velocity on 1 µm cells.  Errors at the final output time (or the output
-nearest `time`): phi in L1 and L2 on the series' coarsest grid (finer fields
-restricted by cell averaging), p in L2 when the mechanics is on, the
-observables biofilm_volume and dense_volume (relative), phi_max, height,
-c_mean, and the substratum's biomass and mean_thickness
-(`biostudy.quantities.observables`, with their units), and the front position
-(`measures.front_position`; the observable front_advance is its gain
-since T* = 0, which starts elsewhere on every grid).  The observed order p is
-fitted to the differences between successive levels, |q_l - q_(l+1)| ~ size^p
-(unbiased, unlike errors against a finite reference); the error of the
-reference itself is then estimated by Richardson, |q_L - q_(L-1)| / (2^p - 1).
-Quantities a series reproduces to round-off (below EXACT) get no order: they
-are reported as exact.
+The levels are planned by `biostudy.plans.refinement`.  Every series is
+measured against one reference (docs/accuracy.md, "How biostudy convergence
+measures"): the Richardson extrapolation of the two finest levels of the
+series refined in both h and dt,
+
+    Q_ref = Q_L + (Q_L - Q_(L-1)) / (2^r - 1),
+
+r the order of that series (first: backward Euler's; a smaller one if three
+levels observe it, `richardson.believed`), with its own error beside it: with three levels the
+change of the extrapolation from one level to the next, |Q_ref - Q_ref(L-1)|,
+or its root mean square over the outputs where that is larger (at one output
+the change can vanish by chance, as a front crosses cells); with two levels the
+correction itself.  Or a given run
+(`reference`): a refined run of the same scene, perhaps with another scheme.
+Errors at every output time (dimension ``time``), fields restricted to the
+series' common coarsest grid (`convergence_levels`); observed orders at every
+output time from the differences of successive levels (unbiased by the
+reference), |Q_l - Q_(l+1)| ~ size^p.  A level whose grid does not hold the
+scene's regions as the study's finest grid does (`resolution.differences`: a
+region that covers another volume on its cells, or a colony one cell thick)
+solves a different model: flagged in the ``resolved`` variable, said in
+``different_model_<series>_<level>``, and left out of the reference and, where
+it differs from its own series' finest level, of the series' orders (a time
+series on such a grid is one model throughout).  Quantities a series
+reproduces to round-off get no order: they are reported as exact.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 import xarray as xr
 
 from solver.counters import MEANINGS
-from solver.output import FIELDS, on_output_times
 
-from ..data import case_files, provenance, reading
-from ..errors import BadInput
-from ..formatting import number
+from ..data import case_files, provenance
 from ..inputs.scene import Scene
+from ..plans import resolution
 from ..plans.refinement import Refinement
-from ..quantities import measures, observables
+from ..quantities import richardson
+from .convergence_levels import COMPARED, COSTS, QUANTITIES, RELATIVE, SCALARS, UNITS, Level, finished
 
-EXACT = 1e-9  # differences below this are round-off: no order to fit
-# observables compared (biomass and mean_thickness: the COMSTAT ones a calibration fits, on the recorded substratum)
-OBSERVED = ("biofilm_volume", "dense_volume", "phi_max", "height", "c_mean", "biomass", "mean_thickness")
-RELATIVE = ("biofilm_volume", "dense_volume")  # compared relative to the reference's value
-
-
-@dataclass(frozen=True)
-class Compared:
-    """One quantity whose error a convergence run reports, with the units and long name of its error."""
-
-    name: str
-    units: str
-    long_name: str
+REFERENCE = "both"  # the series whose two finest levels make the reference
+EXACT = 1e-9  # differences below this (relative to the quantity, absolute for field norms) are round-off
 
 
-def _compared() -> tuple[Compared, ...]:
-    """The compared quantities, their units and long names from where each quantity is declared: the fields'
-    in `solver.output.FIELDS`, the observables' in their registry."""
-    fields = [Compared(f"{name}_{norm}", FIELDS[name][0], f"{what} of {name} - {name}_ref over open cells "
-                       "(common grid)") for name, norm, what in (("phi", "L1", "mean |.|"),
-                                                               ("phi", "L2", "root mean square"))]
-    scalars = []
-    for name in OBSERVED:
-        observable = observables.get(name)
-        relative = name in RELATIVE
-        scalars.append(Compared(name, "1" if relative else observable.units,
-                                f"{'relative ' if relative else ''}error of the {observable.long_name}"))
-    scalars.append(Compared("front_position", "um", "error of the front position toward the nutrient"))
-    return (*fields, *scalars, Compared("p_L2", FIELDS["p"][0], "root mean square of p - p_ref over open cells "
-                                                                "(common grid)"))
+def _field_norms(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(L1, L2) of a - b per output time over the cells where both are finite (NaN where there are none)."""
+    diff = a - b
+    axes = tuple(range(1, diff.ndim))
+    ok = np.isfinite(diff)
+    count = ok.sum(axis=axes)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l1 = np.where(ok, np.abs(diff), 0.0).sum(axis=axes) / count
+        l2 = np.sqrt(np.where(ok, diff**2, 0.0).sum(axis=axes) / count)
+    return np.where(count > 0, l1, np.nan), np.where(count > 0, l2, np.nan)
 
 
-COMPARED = _compared()
-COSTS = ("cpu_time_loop", "cpu_time_first")  # a level's own cost, and its one-off start (`solver.timeloop.CpuTime`)
-QUANTITIES = tuple(c.name for c in COMPARED)
+def _norms(level: Level, reference: Mapping) -> dict[str, np.ndarray]:
+    """phi L1, L2 and p L2 of level - reference per output time (NaN where either has no field)."""
+    out = {name: np.full(level.times.size, np.nan) for name in ("phi_L1", "phi_L2", "p_L2")}
+    if level.phi is not None and reference.get("phi") is not None:
+        out["phi_L1"], out["phi_L2"] = _field_norms(level.phi, reference["phi"])
+    if level.p is not None and reference.get("p") is not None:
+        out["p_L2"] = _field_norms(level.p, reference["p"])[1]
+    return out
 
 
-def _final(path: Path, time: float | None = None) -> dict | None:
-    """What a level contributes: fields and scalars at the last output (or the one nearest `time`), or None if
-    it did not finish."""
-    record = case_files.recorded(path)
-    if not record or record.get("status") != "done":
-        return None
-    return final_state(reading.open_dataset(path), time)
-
-
-def final_state(ds: xr.Dataset, time: float | None = None) -> dict:
-    """A run's fields and measured quantities at its last output, or the output nearest `time`."""
-    index = -1 if time is None else int(np.argmin(np.abs(ds["time"].values - time)))
-    last = on_output_times(ds).isel(time=index)
-    return {
-        "phi": last["phi"].values, "p": last["p"].values if "p" in ds else None,
-        **{q: observables.value(ds, q, index) if observables.available(ds, observables.get(q)) else float("nan")
-           for q in OBSERVED},
-        "front_position": measures.front_position(ds, index), "wall_time": float(ds.attrs["wall_time"]),
-        **{name: float(ds.attrs.get(name, np.nan)) for name in COSTS},
-        "steps_taken": int(ds.attrs["steps_taken"]), "t_end": float(ds["time"].values[-1]),
-        "time": float(ds["time"].values[index]),
-        "extent": tuple(float(ds[a].values[-1]) + 0.5 * measures.spacing(ds) for a in ("x", "y", "z") if a in ds.dims),
-    }
-
-
-def _errors(result: dict, reference: dict, factor_result: int, factor_reference: int) -> dict:
-    """Errors of one level against a reference; factors: refinement of each against the common (coarsest) grid,
-    None where the reference's grid is not a refinement of it (then no field errors)."""
-    errors = {q: float("nan") for q in QUANTITIES}
-    if factor_reference is not None:
-        phi = measures.field_errors(measures.restrict(result["phi"], factor_result),
-                                    measures.restrict(reference["phi"], factor_reference))
-        errors.update(phi_L1=phi[0], phi_L2=phi[1])
-        if result["p"] is not None and reference["p"] is not None:
-            errors["p_L2"] = measures.field_errors(measures.restrict(result["p"], factor_result),
-                                                   measures.restrict(reference["p"], factor_reference))[1]
-    for q in (*OBSERVED, "front_position"):
-        difference = abs(result[q] - reference[q])
+def _errors(level: Level, reference: dict) -> dict[str, np.ndarray]:
+    """Every compared quantity's error of `level` against `reference` at each output time."""
+    out = _norms(level, reference)
+    for q in SCALARS:
+        difference = np.abs(level.scalars[q] - reference[q])
         if q in RELATIVE:  # a volume the reference does not have at all: infinitely wrong, unless absent too
-            difference = difference / abs(reference[q]) if reference[q] else (np.inf if difference else 0.0)
-        errors[q] = difference
-    return errors
+            with np.errstate(invalid="ignore", divide="ignore"):
+                scale = np.abs(reference[q])
+                difference = np.where(scale > 0, difference / np.where(scale > 0, scale, 1.0),
+                                      np.where(difference > 0, np.inf, 0.0))
+        out[q] = difference
+    return out
 
 
-def _factor(reference: dict, coarse_h: float) -> int | None:
-    """How many reference cells span a cell of the coarsest level along each axis, if a whole number."""
-    h = reference["extent"][0] / reference["phi"].shape[-1]
-    ratio = coarse_h / h
-    return int(round(ratio)) if abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1 else None
+def _order_of(values: list[np.ndarray]) -> float:
+    """The order observed over three levels (coarse to fine) of one series refined by 2, pooled over time."""
+    if len(values) < 3:
+        return float("nan")
+    return richardson.space_order(values[-1] - values[-2], values[-3], values[-2])
 
 
-def load_reference(path: Path, base: Scene, time: float | None) -> dict:
-    """A reference run for `measure`: the same domain as the scene, and an output at the compared time."""
-    ds = reading.open_dataset(path)
-    if "phi" not in ds:
-        raise BadInput("is not a run's dataset (no phi)", path, "--reference")
-    dimensions = sum(axis in ds["phi"].dims for axis in ("x", "y", "z"))
-    if dimensions != len(base.grid.shape):
-        raise BadInput(f"is a {dimensions}-D run; the scene is {len(base.grid.shape)}-D", path, "--reference")
-    found = final_state(ds, time)
-    extent = tuple(float(e) for e in base.grid.solver_grid().extent)
-    if not np.allclose(found["extent"], extent, rtol=1e-9):
-        raise BadInput(f"covers {found['extent']} µm; the scene covers {extent} µm", path, "--reference")
-    wanted = base.time.t_end if time is None else time
-    if abs(found["time"] - wanted) > 1e-9 * max(1.0, wanted):
-        raise BadInput(f"has no output at T* = {wanted:g} (nearest {found['time']:g})", path, "--reference")
-    return found
+def extrapolated(chain: list[Level]) -> tuple[dict, dict, dict]:
+    """(reference, its estimated error, the order used) per quantity from the finished, resolved levels of the
+    reference series, coarse to fine (at least two)."""
+    formal = richardson.TIME_ORDER  # refined in h and dt together: backward Euler's first order bounds it
+    reference, error, orders = {}, {}, {}
+    for q in SCALARS:
+        values = [level.scalars[q] for level in chain]
+        r, _ = richardson.believed(_order_of(values), formal)
+        value, correction = richardson.richardson(values[-1], values[-2], 2.0, r)
+        if len(values) >= 3:  # the extrapolation's change; at one output it can vanish as a front crosses cells
+            before, _ = richardson.richardson(values[-2], values[-3], 2.0, r)
+            change = np.abs(value - before)
+            finite = change[np.isfinite(change)]
+            correction = np.fmax(change, np.sqrt(np.mean(finite**2))) if finite.size else change
+        reference[q], error[q], orders[q] = value, correction, r
+    for field in ("phi", "p"):
+        fields = [getattr(level, field) for level in chain]
+        if any(f is None for f in fields):
+            continue
+        norms = [_field_norms(coarse, fine)[0] for coarse, fine in zip(fields, fields[1:])]
+        sums = [float(np.nansum(n)) for n in norms[-2:]]
+        observed = float(np.log2(sums[0] / sums[1])) if len(sums) == 2 and min(sums) > 0 else np.nan
+        r, _ = richardson.believed(observed, formal)
+        reference[field] = richardson.richardson(fields[-1], fields[-2], 2.0, r)[0]
+        orders[field] = r
+    return reference, error, orders
 
 
-def _successive(mine: list[Refinement], results: dict) -> list[dict]:
-    """Errors of each level against the next finer one (on the series' coarsest grid)."""
-    coarse = mine[0].refine
-    out = []
-    for level, finer in zip(mine, mine[1:]):
-        a, b = results[level.job_id], results[finer.job_id]
-        if a is None or b is None:
-            out.append({q: float("nan") for q in QUANTITIES})
-        else:
-            out.append(_errors(a, b, level.refine // coarse, finer.refine // coarse))
+def _successive(chain: list[Level]) -> dict[str, np.ndarray]:
+    """|Q_l - Q_(l+1)| per quantity, (level - 1, time), over the levels of one series (coarse to fine)."""
+    out = {q: np.abs(np.diff(np.stack([level.scalars[q] for level in chain]), axis=0)) for q in SCALARS}
+    for a, b in ((a, b) for a, b in zip(chain, chain[1:])):
+        found = _norms(a, {"phi": b.phi, "p": b.p})
+        for name, value in found.items():
+            out.setdefault(name, []).append(value)  # type: ignore[union-attr]
+    for name in ("phi_L1", "phi_L2", "p_L2"):
+        out[name] = np.stack(out[name]) if len(chain) > 1 else np.zeros((0, chain[0].times.size))
     return out
 
 
 def measure(wanted: list[Refinement], out_dir: Path, levels: int, series: tuple[str, ...], base: Scene,
-            given: dict | None = None, time: float | None = None) -> xr.Dataset:
-    """convergence.nc from the finished levels: dimensions (series, level).  `given`: a reference run's
-    `final_state` that every level is measured against instead of its series' finest level."""
-    results = {level.job_id: _final(case_files.case_file(out_dir, level.job_id), time) for level in wanted}
-    shape = (len(series), levels)
+            given: Level | None = None, time: float | None = None,
+            scenes: Mapping[str, Scene] | None = None) -> xr.Dataset:
+    """convergence.nc from the finished levels: dimensions (series, level, time).  `given`: a reference run every
+    level is measured against instead of the extrapolation; `time`: the output the attributes and the table speak
+    of (default the last); `scenes`: each level's scene (job id -> Scene), to flag a level solving another model."""
+    coarse_h = base.grid.spacing  # level 0 of every series is the scene as given: the common grid
+    results = {lv.job_id: finished(case_files.case_file(out_dir, lv.job_id), lv.refine) for lv in wanted}
+    times = next((r.times for r in results.values() if r is not None), np.asarray(base.time.times(), float))
+    shape, full = (len(series), levels), (len(series), levels, times.size)
     table = {name: np.full(shape, np.nan) for name in ("cells", "h", "dt", "tolerance", "wall_time", "steps_taken",
-                                                      *COSTS)}
-    errors = {q: np.full(shape, np.nan) for q in QUANTITIES}
-    attrs = {}
-    h0, cells0 = float(base.grid.spacing), int(np.prod(base.grid.shape))
+                                                      "resolved", *COSTS)}
+    errors = {q: np.full(full, np.nan) for q in QUANTITIES}
+    values = {q: np.full(full, np.nan) for q in SCALARS}
+    orders = {q: np.full((len(series), times.size), np.nan) for q in QUANTITIES}
+    attrs: dict = {}
+    ndim = len(base.grid.shape)
+    flags, within = _flags(wanted, scenes, within=False), _flags(wanted, scenes, within=True)
+    chain = [results[lv.job_id] for lv in wanted if lv.series == REFERENCE and not flags[(lv.series, lv.index)]]
+    chain = [level for level in chain if level is not None]
+    if given is not None:
+        reference, reference_error, used = ({**given.scalars, "phi": given.phi, "p": given.p},
+                                            {q: np.full(times.size, np.nan) for q in SCALARS}, {})
+    elif len(chain) >= 2:
+        reference, reference_error, used = extrapolated(chain)
+    else:
+        reference, reference_error, used = {}, {}, {}
+    compared = int(np.argmin(np.abs(times - time))) if time is not None else times.size - 1
     for s, name in enumerate(series):
         mine = [lv for lv in wanted if lv.series == name]
-        if name == "adaptive":
-            reference_level = next(lv for lv in wanted if lv.series == "time" and lv.index == levels - 1)
-        else:
-            reference_level = mine[-1]
-        reference = results[reference_level.job_id] if given is None else given
+        kept_sizes, kept = [], []
         for level in mine:
-            result = results[level.job_id]
-            i = level.index
-            table["cells"][s, i] = cells0 * level.refine ** base.grid.solver_grid().ndim
-            table["h"][s, i] = h0 / level.refine
+            i, result = level.index, results[level.job_id]
+            table["cells"][s, i] = int(np.prod(base.grid.shape)) * level.refine**ndim
+            table["h"][s, i] = coarse_h / level.refine
             table["tolerance"][s, i] = level.tolerance if level.tolerance is not None else np.nan
+            different = flags[(name, i)]
+            table["resolved"][s, i] = 0 if different else 1
+            if different:
+                attrs[f"different_model_{name}_{i}"] = "; ".join(different)
             if result is None:
                 continue
-            table["wall_time"][s, i] = result["wall_time"]
-            table["steps_taken"][s, i] = result["steps_taken"]
-            for cost in COSTS:
-                table[cost][s, i] = result[cost]
-            table["dt"][s, i] = result["t_end"] / result["steps_taken"]
-            if reference is not None and (given is not None or level.job_id != reference_level.job_id):
-                coarse = mine[0].refine
-                factor = reference_level.refine // coarse if given is None else _factor(given, h0 / coarse)
-                for q, value in _errors(result, reference, level.refine // coarse, factor).items():
+            table["steps_taken"][s, i] = result.costs["steps_taken"]
+            for cost in ("wall_time", *COSTS):
+                table[cost][s, i] = result.costs[cost]
+            table["dt"][s, i] = times[-1] / result.costs["steps_taken"]
+            for q in SCALARS:
+                values[q][s, i] = result.scalars[q]
+            if reference:
+                for q, value in _errors(result, reference).items():
                     errors[q][s, i] = value
-        sizes = table["tolerance"][s] if name == "adaptive" else (table["dt"][s] if name == "time" else table["h"][s])
-        steps = _successive(mine, results)
+            if not within[(name, i)]:
+                size = {"adaptive": level.tolerance, "time": table["dt"][s, i]}.get(name, table["h"][s, i])
+                kept_sizes.append(size)
+                kept.append(result)
+        if len(kept) < 2:
+            continue
+        differences = _successive(kept)
         for q in QUANTITIES:
-            differences = np.array([d[q] for d in steps])
-            if differences.size == 0 or np.all(np.isnan(differences)):
-                continue  # not measured (p without mechanics)
-            if np.nanmax(differences, initial=0.0) < EXACT:
+            found = differences[q]
+            exact = np.array([np.isfinite(found[:, t]).all() and bool(np.all(found[:, t] <= EXACT * _scale(kept, q, t)))
+                              for t in range(times.size)])
+            orders[q][s] = np.where(exact, np.nan,
+                                    richardson.order_of_differences(np.array(kept_sizes, float)[:-1], found))
+            if exact[compared]:
                 attrs[f"order_{name}_{q}"] = "exact"
-                continue
-            order = measures.observed_order(sizes[: differences.size], differences)
-            attrs[f"order_{name}_{q}"] = order
-            if name != "adaptive" and differences.size and math.isfinite(order) and order > 0:
-                attrs[f"reference_error_{name}_{q}"] = float(differences[-1] / (2**order - 1))
+            elif np.isfinite(orders[q][s, compared]):
+                attrs[f"order_{name}_{q}"] = float(orders[q][s, compared])
+    return _dataset(series, levels, times, table, errors, values, orders, reference, reference_error, used,
+                    attrs, base, given is not None, compared)
+
+
+def _flags(wanted: list[Refinement], scenes: Mapping[str, Scene] | None, within: bool) -> dict:
+    """(series, level) -> the regions a level's grid does not hold as the finest grid does ([] if none): the finest
+    of the study, or (`within`) of the level's own series."""
+    if not scenes:
+        return {(lv.series, lv.index): [] for lv in wanted}
+    out = {}
+    finest_of_all = scenes[max(wanted, key=lambda lv: lv.refine).job_id]
+    for level in wanted:
+        mine = [lv for lv in wanted if lv.series == level.series]
+        finest = scenes[max(mine, key=lambda lv: lv.refine).job_id] if within else finest_of_all
+        out[(level.series, level.index)] = resolution.differences(scenes[level.job_id], finest)
+    return out
+
+
+def _scale(kept: list[Level], q: str, index: int) -> float:
+    """The size of a scalar quantity at an output (1 for field norms): what round-off is measured against."""
+    if q not in SCALARS:
+        return 1.0
+    return max(1.0, float(np.nanmax(np.abs([level.scalars[q][index] for level in kept]), initial=0.0)))
+
+
+def _dataset(series, levels, times, table, errors, values, orders, reference, reference_error, used, attrs, base,
+             given: bool, compared: int) -> xr.Dataset:
+    """convergence.nc: the levels' sizes and costs, errors and values over time, orders over time, the reference."""
+    sl, slt, st = ("series", "level"), ("series", "level", "time"), ("series", "time")
     data = {
-        "cells": (("series", "level"), table["cells"], {"units": "1", "long_name": "number of grid cells"}),
-        "h": (("series", "level"), table["h"], {"units": "um", "long_name": "cell size"}),
-        "dt": (("series", "level"), table["dt"], {"units": "1", "long_name": "mean time step (T*)"}),
-        "tolerance": (("series", "level"), table["tolerance"],
+        "cells": (sl, table["cells"], {"units": "1", "long_name": "number of grid cells"}),
+        "h": (sl, table["h"], {"units": "um", "long_name": "cell size"}),
+        "dt": (sl, table["dt"], {"units": "1", "long_name": "mean time step (T*)"}),
+        "tolerance": (sl, table["tolerance"],
                       {"units": "1", "long_name": "time_tolerance of the error-controlled steps"}),
-        "wall_time": (("series", "level"), table["wall_time"], {"units": "s", "long_name": "wall time of the run"}),
-        "steps_taken": (("series", "level"), table["steps_taken"],
-                        {"units": "1", "long_name": MEANINGS["steps_taken"]}),
-        "cell_steps": (("series", "level"), table["cells"] * table["steps_taken"],
+        "wall_time": (sl, table["wall_time"], {"units": "s", "long_name": "wall time of the run"}),
+        "steps_taken": (sl, table["steps_taken"], {"units": "1", "long_name": MEANINGS["steps_taken"]}),
+        "cell_steps": (sl, table["cells"] * table["steps_taken"],
                        {"units": "1", "long_name": "cells times accepted steps: the work, whatever the machine"}),
-        **{name: (("series", "level"), table[name], {"units": "s", "long_name": MEANINGS[name]}) for name in COSTS},
-        **{f"error_{c.name}": (("series", "level"), errors[c.name], {"units": c.units, "long_name": c.long_name})
-           for c in COMPARED},
+        **{name: (sl, table[name], {"units": "s", "long_name": MEANINGS[name]}) for name in COSTS},
+        "cost": (sl, table["cpu_time_setup"] + table["cpu_time_loop"],
+                 {"units": "s", "long_name": "CPU seconds of the level's set-up and time loop (its first step apart)"}),
+        "resolved": (sl, table["resolved"], {"units": "1", "long_name": "1: the level's grid resolves the scene's "
+                                             "regions as the study's finest does; 0: a different model (left out "
+                                             "of the reference)"}),
+        **{f"error_{c.name}": (slt, errors[c.name], {"units": c.units, "long_name": c.long_name}) for c in COMPARED},
+        **{f"value_{q}": (slt, values[q], {"units": UNITS[q], "long_name": f"{q} of the level's run"})
+           for q in SCALARS},
+        **{f"order_{q}": (st, orders[q], {"units": "1", "long_name": f"observed order of {q} (successive levels)"})
+           for q in QUANTITIES},
     }
+    for q in SCALARS:
+        if q in reference:
+            data[f"reference_{q}"] = ("time", np.asarray(reference[q], float),
+                                      {"units": UNITS[q], "long_name": f"reference value of {q}",
+                                       **({"order": used[q]} if q in used else {})})
+            data[f"reference_error_{q}"] = ("time", np.asarray(reference_error[q], float),
+                                            {"units": UNITS[q], "long_name": f"estimated error of the reference {q}"})
     coords = {"series": ("series", np.array(series, dtype=object), {"units": "1", "long_name": "refinement series"}),
-              "level": ("level", np.arange(levels), {"units": "1", "long_name": "refinement level (0 = as given)"})}
+              "level": ("level", np.arange(levels), {"units": "1", "long_name": "refinement level (0 = as given)"}),
+              "time": ("time", times, {"units": "1", "long_name": "normalised time T*"})}
+    how = ("a given run" if given else
+           f"Richardson extrapolation of the two finest levels of the series '{REFERENCE}' (h and dt refined "
+           "together), order per reference_<q> variable, its error reference_error_<q> (three levels: the "
+           "extrapolation's change from one level to the next, at least its root mean square over the outputs; two: "
+           "the correction itself)")
     attrs.update({
-        "Conventions": "CF-1.10", "title": f"convergence of {base.name}",
-        "reference": "finest level of each series (adaptive: finest fixed-step level of the time series, same "
-                     "grid); errors at the final output time; reference_error_* = Richardson estimate "
-                     "|q_L - q_(L-1)| / (2^p - 1) of the reference's own error",
-        "levels": levels, "series": ", ".join(series),
+        "Conventions": "CF-1.10", "title": f"convergence of {base.name}", "reference": how,
+        "levels": levels, "series": ", ".join(series), "compared_time": float(times[compared]),
+        "orders": "observed order per output time from the differences of successive resolved levels; "
+                  "order_<series>_<q> attributes at compared_time",
     })
     return xr.Dataset(data, coords=coords, attrs=provenance.legal_attrs(attrs))
-
-
-def table_text(ds: xr.Dataset) -> str:
-    """Markdown table of every level, then the observed orders."""
-    present = [q for q in QUANTITIES if np.isfinite(ds[f"error_{q}"].values).any()]
-    head = (["series", "level", "cells", "h µm", "dt", "tolerance", "steps", "loop CPU s", "first step s", "wall s"]
-            + [f"err {q}" for q in present])
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for name in ds.series.values:
-        for level in ds.level.values:
-            row = ds.sel(series=name, level=level)
-            if not np.isfinite(float(row.cells)):
-                continue
-            cells = [str(name), str(int(level)), number(row.cells, 12), number(row.h), number(row.dt, 3),
-                     number(row.tolerance, 1, exponent=True), number(row.steps_taken, 9),
-                     *(number(row[name], 3) if np.isfinite(float(row[name])) else "-" for name in COSTS),
-                     number(row.wall_time, 3) if np.isfinite(float(row.wall_time)) else "failed"]
-            cells += [number(row[f"error_{q}"], 3, exponent=True) if np.isfinite(float(row[f"error_{q}"])) else "ref"
-                      for q in present]
-            lines.append("| " + " | ".join(cells) + " |")
-    lines.append("")
-    lines.append("loop CPU s: the level's own time loop (its steps and mechanics solves), CPU time of the thread that "
-                 "ran it; first step s: its first step and mechanics solve, which load compiled kernels and build "
-                 "the first hierarchies (one-off, like the process start and imports in wall s).")
-    lines.append("")
-    lines.append("observed orders (slope of log |q_l - q_(l+1)| against log h, dt or tolerance):")
-    lines.append("")
-    lines.append("| series | " + " | ".join(present) + " |")
-    lines.append("|---|" + "---|" * len(present))
-    for name in ds.series.values:
-        values = [ds.attrs.get(f"order_{name}_{q}", float("nan")) for q in present]
-        lines.append(f"| {name} | " + " | ".join(v if isinstance(v, str) else number(v, 3) for v in values) + " |")
-    return "\n".join(lines) + "\n"

@@ -16,7 +16,7 @@ import numpy as np
 from rich.console import Group
 
 from ..data.netcdf import OBSERVABLES
-from .show import summary_of
+from .show import ERROR, summary_of
 
 Series = list[tuple[str, np.ndarray, dict]]  # observables: name, values over time, their attributes
 
@@ -53,7 +53,10 @@ def read(path: str | Path) -> tuple[dict, np.ndarray | None, Series] | None:
                 values = np.asarray(var[:], dtype=float).reshape(-1)
                 if values.shape != times.shape:
                     return None
-                series.append((name, values, {key: var.getncattr(key) for key in var.ncattrs()}))
+                shown = {key: var.getncattr(key) for key in var.ncattrs()}
+                if f"{name}_error" in nc.variables:  # error bars (`--error-estimate`)
+                    shown[ERROR] = np.asarray(nc[f"{name}_error"][:], dtype=float).reshape(-1)
+                series.append((name, values, shown))
     except (OSError, RuntimeError, ValueError, KeyError, AttributeError):
         return None
     return (attrs, times, series) if intact(path) else None

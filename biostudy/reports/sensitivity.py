@@ -31,6 +31,7 @@ from ..formatting import number
 from ..plans.designs import Sample
 from ..quantities import observables
 from .cases import Cases, cases_of
+from .sensitivity_notes import complete_blocks, left_out, sobol_warning, undefined
 
 CONFIDENCE = 0.95
 RESAMPLES = 1000
@@ -107,17 +108,6 @@ def rank_correlations(x: np.ndarray, y: np.ndarray, confidence: float = CONFIDEN
         low, high = result.confidence_interval(confidence)
         out["prcc"][j], out["prcc_low"][j], out["prcc_high"][j] = result.statistic, low, high
     return out
-
-
-def complete_blocks(design: Sample, ok: np.ndarray) -> tuple[np.ndarray, int, int]:
-    """Which cases belong to a base sample (sobol) or trajectory (morris) whose cases are all `ok`: the mask
-    over the cases, how many blocks are complete and how many there are."""
-    block = design.block()
-    count = ok.size // block
-    complete = np.zeros(ok.size, dtype=bool)
-    whole = ok[: count * block].reshape(count, block).all(axis=1)
-    complete[: count * block] = np.repeat(whole, block)
-    return complete, int(whole.sum()), count
 
 
 @contextlib.contextmanager
@@ -270,68 +260,20 @@ def _dataset(ds, flat: Cases, names, indices, params, data, used, blocks, confid
     if "time" in ds.dims:
         times = ds["time"].values[indices]
         coords["time"] = (("time",), times, ds["time"].attrs) if several else ((), times[0], ds["time"].attrs)
-    notes = _notes(flat, design) + _undefined_notes(flat, names, ds["time"].values[indices] if "time" in ds.dims
-                                                    else [None], used, blocks)
+    notes = left_out(flat, design) + undefined(flat, names, ds["time"].values[indices] if "time" in ds.dims
+                                               else [None], used, blocks)
+    warning = sobol_warning(data, names, params, blocks, design) if design is not None else ""
     attrs = with_provenance({
         "Conventions": "CF-1.10", "title": f"sensitivity analysis of {ds.attrs.get('title', 'a study')}",
         "method": design.method if design is not None else str(ds.attrs.get("sweep_mode", "sweep")),
         "confidence_level": confidence, "cases": len(flat.ids), "cases_done": int((flat.status == "done").sum()),
         "cases_failed": int((flat.status == "failed").sum()), "cases_missing": int((flat.status == "missing").sum()),
-        "notes": " ".join(notes), "study_file": str(ds.attrs.get("study_file", "")),
+        "notes": " ".join([warning, *notes] if warning else notes), "study_file": str(ds.attrs.get("study_file", "")),
+        **({"warning": warning} if warning else {}),
         **({k: v for k, v in design.attrs().items()} if design is not None else {}),
         "parameter_scales": ", ".join(f"{p}: {'log' if flat.log.get(p) else 'linear'}" for p in params),
     })
     return xr.Dataset(variables, coords=coords, attrs=attrs)
-
-
-def _notes(flat: Cases, design: Sample | None) -> list[str]:
-    """What was left out of the analysis and what that does to the indices."""
-    notes = [f"{name} is categorical ({', '.join(f'{i} = {label}' for i, label in enumerate(labels))}: coded in "
-             f"the order the study lists them); its rank correlations compare the outputs across that order."
-             for name, labels in flat.categories.items()]
-    status = flat.status
-    total = len(status)
-    missing = int((status == "missing").sum())
-    failed = np.flatnonzero(status == "failed")
-    if missing:
-        notes.append(f"Unfinished study: {missing} of {total} cases have not run yet; the analysis uses the "
-                     f"{int((status == 'done').sum())} that are done.")
-    if failed.size:
-        spread = "; ".join(f"{p} {number(v[failed].min())}..{number(v[failed].max())}"
-                           for p, v in flat.parameters.items())
-        listed = ", ".join(flat.ids[i] for i in failed[:5]) + (", ..." if failed.size > 5 else "")
-        notes.append(f"{failed.size} of {total} cases failed and are left out ({listed}; their values: {spread}). "
-                     f"If failures gather in one part "
-                     f"of the ranges, the indices describe the model where it ran, not over the whole ranges.")
-    if design is not None and design.method in ("sobol", "morris") and (missing or failed.size):
-        block = design.block()
-        _, kept, count = complete_blocks(design, status == "done")
-        unit = "base samples" if design.method == "sobol" else "trajectories"
-        notes.append(f"{design.method}: {count - kept} of {count} {unit} are incomplete and left out "
-                     f"whole (each needs all its {block} cases); the indices come from {kept}, so "
-                     f"their intervals are about {number(np.sqrt(count / max(kept, 1)), 3)} times "
-                     f"as wide as the full design's would be.")
-    if not notes:
-        notes.append(f"All {total} cases finished.")
-    return notes
-
-
-def _undefined_notes(flat: Cases, names, times, used, blocks) -> list[str]:
-    """Outputs without a value in some finished cases (a height where no biofilm is dense, say): left out too."""
-    done = int((flat.status == "done").sum())
-    design = flat.design
-    notes = []
-    for t, time in enumerate(times):
-        for o, name in enumerate(names):
-            if used[t, o] == done:
-                continue
-            when = f" at T* = {number(time)}" if time is not None else ""
-            text = (f"{name}{when} has no value in {done - used[t, o]} of {done} finished cases (it is undefined "
-                    f"there) and they are left out")
-            if design is not None and design.method in ("sobol", "morris"):
-                text += f"; its indices come from {blocks[t, o]} complete blocks"
-            notes.append(text + ".")
-    return notes
 
 
 def table_text(result: xr.Dataset) -> str:

@@ -1,7 +1,10 @@
 """`biostudy show`: a readable summary of a run's dataset, a failed case's record or a study.nc.
 
 Everything shown comes from the file itself (attributes and time series),
-so a result can be understood without the scene file that produced it.
+so a result can be understood without the scene file that produced it.  A run
+made with ``--error-estimate`` shows each observable as Q ± Q_error (its
+estimated discretisation error; "± ?" where the estimate could not be made,
+the row "error bars" says why).
 """
 from __future__ import annotations
 
@@ -51,7 +54,8 @@ def _from_scene(attrs: dict) -> dict:
         return {}
     grid = scene.get("grid", {})
     found = {"grid_shape": grid.get("shape"), "grid_spacing": grid.get("spacing"),
-             "consumption": scene.get("model", {}).get("consumption"),
+             **{key: scene.get("model", {}).get(name) for key, name in (("consumption", "consumption"),
+                ("expansion", "expansion"), ("nutrient_dynamics", "nutrient"))},
              "advection": scene.get("numerics", {}).get("advection"),
              "growth_velocity": scene.get("numerics", {}).get("growth_velocity"), **scene.get("params", {})}
     return {k: v for k, v in found.items() if v is not None}
@@ -67,7 +71,8 @@ def _header(attrs: dict) -> list[tuple[str, str]]:
     ]
     if grid:
         rows.append(("grid", f"{grid} cells of {number(attrs.get('grid_spacing'))} µm"))
-    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "advection", "growth_velocity", "mechanics")
+    model = [f"{k.replace('_', ' ')} {attrs[k]}" for k in ("consumption", "expansion", "nutrient_dynamics", "advection",
+                                                                "growth_velocity", "mechanics")
              if k in attrs]
     if "nutrient_faces" in attrs:
         model.append(f"nutrient held on {attrs['nutrient_faces']}")
@@ -90,8 +95,19 @@ def run_series(ds: xr.Dataset) -> tuple[dict, np.ndarray | None, list[tuple[str,
         return ds.attrs, None, []
     from ..quantities import observables  # lazily: a file that holds its observables needs none of this
 
-    series = [(name, values.values, values.attrs) for name, values in observables.variables(ds).items()]
+    series = [(name, values.values, with_error(values.attrs, ds, name))
+              for name, values in observables.variables(ds).items()]
     return ds.attrs, ds.time.values, series
+
+
+ERROR = "error"  # the key of an observable's shown attributes that holds its Q_error values, when the run has them
+
+
+def with_error(attrs: dict, ds: xr.Dataset, name: str) -> dict:
+    """An observable's attributes for `summary_of`, with its error bars' values (`ERROR`) when the run has them."""
+    if f"{name}_error" not in ds:
+        return dict(attrs)
+    return {**attrs, ERROR: np.asarray(ds[f"{name}_error"].values, dtype=float).reshape(-1)}
 
 
 def run_summary(ds: xr.Dataset) -> Group:
@@ -100,8 +116,12 @@ def run_summary(ds: xr.Dataset) -> Group:
 
 
 def _value(values: np.ndarray, index: int, attrs: dict) -> str:
-    """One value of an observable; a height at the top of the box marked saturated (a lower bound)."""
+    """One value of an observable, ± its estimated error where the run has error bars; a height at the top of the
+    box marked saturated (a lower bound)."""
     text = number(values[index])
+    if ERROR in attrs:
+        error = attrs[ERROR][index]
+        text += f" ± {number(error)}" if np.isfinite(error) else (" ± ?" if np.isfinite(values[index]) else "")
     return text + " (top: saturated)" if saturated(values[index], attrs.get(SATURATION)) else text
 
 
@@ -119,6 +139,10 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
         ("created", str(attrs.get("created", ""))),
         ("software", _software(attrs)),
     ]
+    if "error_estimate" in attrs:
+        cost = attrs.get("error_estimate_wall_time")
+        rows.append(("error bars", str(attrs["error_estimate"]) + (f" (companions: wall time {number(cost)} s)"
+                                                                   if cost is not None else "")))
     parts = [Text.from_markup(f"[bold]{name}[/bold]" + (f" — {description}" if description else "")), _rows(rows)]
     if times is not None:
         table = Table(title=None, show_edge=False)

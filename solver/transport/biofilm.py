@@ -177,7 +177,7 @@ class Biofilm:
         data = matrix.data
         np.add(self.diffusion, self.advection(w, phi), out=data)
         data[self.pattern.diagonal] += 1.0 / dt
-        rhs = phi / dt + source
+        rhs = np.maximum(phi / dt + source, 0.0)  # a sink (alpha < 0, Table 1's expansion) takes at most what is there
         new, its = jacobi_bicgstab(matrix, rhs, phi, self.tolerance, data[self.pattern.diagonal])
         self.iterations += its
         return self._checked(new, upper=float(np.max(phi + dt * source, initial=0.0)))

@@ -1,4 +1,4 @@
-"""Quasi-steady nutrient concentration c (paper Eq. 35 with time homogenisation).
+"""Nutrient concentration c: paper Eq. 35, quasi-steady (time homogenisation) or transient.
 
 The nutrient diffuses orders of magnitude faster than the biofilm grows
 (eta_c << eta_phi), so at every step c solves the steady problem
@@ -19,6 +19,12 @@ Divided by d, with K = -lap restricted to the free cells and gamma = g/d:
                   where the nutrient is exhausted (lambda is the unmet demand).
                   Solved by a primal-dual active-set iteration, which ends in
                   finitely many steps for an M-matrix; never by clipping.
+
+Transient (`[model] nutrient = "transient"`, Eq. 35 with dc/dt): backward
+Euler over phi's step dt adds the mass m = 1/(d dt) to the diagonal and
+m c^n to the right-hand side, (K + m + gamma diag(phi)) c = b + m c^n (and
+the same complementarity with K + m): still an SPD M-matrix, so 0 <= c <=
+max(held values) whatever the step.
 
 Cells in a region no source can reach (walled off by obstacles) have c = 0.
 Solver round-off within `ROUNDOFF` of a bound is projected onto it; anything
@@ -49,6 +55,7 @@ class Nutrient:
         self.fv = fv
         self.consumption = consumption
         self.gamma = params.g / params.d
+        self.d = params.d
         laplacian = fv.laplacian
         held_cells = fv.to_active(held).astype(bool)
         held_value = np.where(held_cells, fv.to_active(value), 0.0)
@@ -83,22 +90,28 @@ class Nutrient:
         fed[label[sources]] = True
         return ~fed[label]
 
-    def solve(self, phi: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+    def solve(self, phi: np.ndarray, guess: np.ndarray | None = None, before: np.ndarray | None = None,
+              dt: float = 0.0) -> np.ndarray:
         """c on the active cells for biofilm density `phi` (active cells); `guess` warm-starts CG (it changes
-        the iterations, not the answer beyond the tolerance)."""
+        the iterations, not the answer beyond the tolerance); `before`: c a step `dt` earlier, for the transient
+        Eq. 35 (None: quasi-steady)."""
         c = self.c_held.copy()
         if self.free.size:
             x0 = None if guess is None else guess[self.free]
             demand = self.gamma * phi[self.free]
+            mass = 0.0 if before is None else 1.0 / (self.d * dt)
+            rhs = self.rhs if before is None else self.rhs + mass * before[self.free]
             if self.consumption == "first-order":
-                c[self.free] = self.amg.solve(self.matrix(demand), self.rhs, x0)
+                c[self.free] = self.amg.solve(self.matrix(demand + mass), rhs, x0)
             else:
-                c[self.free] = self._complementarity(demand, x0)
+                c[self.free] = self._complementarity(demand, x0, mass, rhs)
         return self._checked(c)
 
-    def _complementarity(self, demand: np.ndarray, x0: np.ndarray | None) -> np.ndarray:
-        """Primal-dual active set for c >= 0, K c - b + demand >= 0, complementary."""
-        K, b = self.stiffness, self.rhs
+    def _complementarity(self, demand: np.ndarray, x0: np.ndarray | None, mass: float = 0.0,
+                         b: np.ndarray | None = None) -> np.ndarray:
+        """Primal-dual active set for c >= 0, (K + mass) c - b + demand >= 0, complementary."""
+        K = self.stiffness + mass * sp.identity(self.free.size, format="csr") if mass else self.stiffness
+        b = self.rhs if b is None else b
         scale = max(float(np.abs(b).max(initial=0.0)), float(demand.max(initial=0.0)), 1e-300)
         active = self.active_set.copy()
         for iteration in range(1, MAX_ACTIVE_SET_ITERATIONS + 1):

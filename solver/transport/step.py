@@ -1,10 +1,11 @@
 """phi, c and alpha together: the state of the transport and one step of it.
 
-A step of length dt (paper Eqs. 34-36, time homogenised):
+A step of length dt (paper Eqs. 34-36; the laws as `problem.laws` says):
   1. the growth velocity from c^n (the nutrient is quasi-steady in phi^n);
   2. phi^{n+1} by implicit Euler with alpha^n as source;
-  3. alpha^{n+1} from phi^{n+1};
-  4. c^{n+1} for phi^{n+1}, which the next step starts from; CG starts from the
+  3. alpha^{n+1} from phi^{n+1} (Eq. 36) or from phi^n and phi^{n+1} (Table 1);
+  4. c^{n+1} for phi^{n+1} (transient: and c^n, backward Euler over dt), which the
+     next step starts from; CG starts from the
      parabola through the last three c's (their times need not be equidistant)
      extrapolated to t + dt: a smaller initial residual, fewer iterations, the
      same answer within the tolerance (measured: docs/transport.md).
@@ -23,7 +24,7 @@ import numpy as np
 from ..counters import Counters
 from ..problem import Problem
 from .biofilm import Biofilm
-from .expansion import grow
+from .expansion import grow, table1
 from .finite_volume import FiniteVolumeGrid
 from .nutrient import Nutrient
 
@@ -66,26 +67,37 @@ class Transport:
     def __init__(self, problem: Problem):
         self.problem = problem
         self.fv = FiniteVolumeGrid(problem.grid, problem.obstacle)
-        self.nutrient = Nutrient(self.fv, problem.params, problem.consumption, problem.nutrient_held,
+        self.nutrient = Nutrient(self.fv, problem.params, problem.laws.consumption, problem.nutrient_held,
                                  problem.nutrient_value, problem.numerics.nutrient_tolerance, problem.nutrient_faces)
         self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces)
+        self.transient = problem.laws.nutrient == "transient"
         self.timings = defaultdict(float)
         self.largest_numerical_diffusion = 0.0
 
     def initial(self) -> State:
-        """The state at the problem's start: from rest (alpha = 0, c solved for phi0) or, continuing a run,
-        its last state as given."""
+        """The state at the problem's start: from rest (alpha = 0; c solved for phi0, or a transient nutrient
+        held at its sources and 0 elsewhere) or, continuing a run, its last state as given."""
         problem = self.problem
         phi = self.fv.to_active(problem.phi0)
         alpha = np.zeros_like(phi) if problem.alpha0 is None else self.fv.to_active(problem.alpha0)
-        c = self._nutrient(phi, None) if problem.c0 is None else self.fv.to_active(problem.c0)
+        if problem.c0 is not None:
+            c = self.fv.to_active(problem.c0)
+        else:
+            c = self.nutrient.c_held.copy() if self.transient else self._nutrient(phi, None, None, 0.0)
         return State(problem.start_time, phi, alpha, c)
 
-    def _nutrient(self, phi, guess):
+    def _nutrient(self, phi, guess, before, dt):
         start = time.perf_counter()
-        c = self.nutrient.solve(phi, guess)
+        c = self.nutrient.solve(phi, guess, before if self.transient else None, dt)
         self.timings["nutrient"] += time.perf_counter() - start
         return c
+
+    def _expansion(self, alpha, phi_before, phi, dt):
+        """alpha^{n+1}: Eq. 36, or Table 1's local equation (`transport.expansion`)."""
+        k_alpha = self.problem.params.k_alpha
+        if self.problem.laws.expansion == "table1":
+            return table1(alpha, phi_before, phi, k_alpha, self.fv.describe)
+        return grow(alpha, phi, k_alpha, dt)
 
     def step(self, state: State, dt: float, with_nutrient: bool = True) -> State:
         """State after dt; c at the end only if `with_nutrient` (step doubling skips it)."""
@@ -98,13 +110,13 @@ class Transport:
         after_velocity = clock()
         phi = self.biofilm.step(state.phi, state.alpha, w, dt)
         after_biofilm = clock()
-        alpha = grow(state.alpha, phi, self.problem.params.k_alpha, dt)
+        alpha = self._expansion(state.alpha, state.phi, phi, dt)
         self.timings["velocity"] += after_velocity - start
         self.timings["biofilm"] += after_biofilm - after_velocity
         self.timings["expansion"] += clock() - after_biofilm
         if not with_nutrient:
             return State(state.t + dt, phi, alpha, None)
-        c = self._nutrient(phi, state.c_guess(dt))
+        c = self._nutrient(phi, state.c_guess(dt), state.c, dt)
         return state.after(dt, phi, alpha, c)
 
     def counters(self) -> Counters:
