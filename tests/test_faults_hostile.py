@@ -468,8 +468,8 @@ def test_a_disk_full_during_a_case_or_study_nc_is_one_line_and_keeps_the_cases(f
     (disk / "filler").unlink()
     shutil.rmtree(disk / "a")
     monkeypatch.setattr(worker, "solve", solve)
-    stack = combine.combine
-    monkeypatch.setattr(combine, "combine", lambda *args: (stack(*args), fill())[0])
+    stack = combine._combined  # the study combined (its fields to come), then the disk fills
+    monkeypatch.setattr(combine, "_combined", lambda *args: (stack(*args), fill())[0])
     line = one_line(invoke("sweep", finished["study"], "-o", disk / "b", "-q"), 1)
     assert line == (f"error: cannot write {disk / 'b' / 'study.nc'}: {_full(disk)}; the case files in "
                     f"{disk / 'b' / 'cases'} are kept: run the same command again to write study.nc (nothing is "
