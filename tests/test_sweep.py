@@ -45,7 +45,7 @@ def same_results(a, b):
             xr.testing.assert_identical(x[variable].drop_attrs(), y[variable].drop_attrs())
 
 
-def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_study, tmp_path):
+def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_study, tmp_path, monkeypatch):
     out = tmp_path / "out"
     result = sweep_cli(tiny_study, "-o", out)
     assert result.exit_code == 0, result.output
@@ -71,6 +71,13 @@ def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_st
     assert ds.attrs["sweep_mode"] == "grid" and "scene = \"tiny.toml\"" in ds.attrs["study"]
     shown = cli.invoke(app, ["show", str(out)])  # the sweep's directory: its study.nc
     assert shown.exit_code == 0 and "4 done, 0 failed" in shown.stdout and "g=1e+09_r=50" in shown.stdout
+    # the cases stacked variable by variable are what xarray's combine_nested makes of them
+    plan = load_study(tiny_study)
+    stacked = combine.combine(plan, out).drop_attrs(deep=False)
+    monkeypatch.setattr(combine, "_stacked", lambda *args: None)
+    nested = combine.combine(plan, out).drop_attrs(deep=False)
+    xr.testing.assert_identical(stacked, nested)
+    assert [stacked[n].chunks for n in stacked.data_vars] == [nested[n].chunks for n in nested.data_vars]
 
 
 def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path):

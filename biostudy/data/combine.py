@@ -177,11 +177,10 @@ def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, st
     once = [n for n in shared if static(done[0][n]) and statics_shared]  # written once, as they are
     shared = [n for n in shared if n not in once]
     parts = _case_parts(plan, cases, shared)
-    if plan.mode == "grid":
-        sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys]
+    sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys] if plan.mode == "grid" else [len(parts)]
+    combined = _stacked(parts, dims, sizes)
+    if combined is None:
         combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
-    else:
-        combined = xr.concat(parts, dim="case", combine_attrs="override")
     combined = combined.assign_coords(coords).transpose(*dims, ...)
     if done:
         first = done[0]
@@ -191,6 +190,39 @@ def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, st
     omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
     combined.attrs = _study_attrs(plan, done, [cases[c.id].status for c in plan.cases], omitted)
     return combined, cases
+
+
+def _stacked(parts: list[xr.Dataset], dims: list[str], sizes: list[int]) -> xr.Dataset | None:
+    """The cases' datasets stacked along the study's dimensions (of `sizes`, the last fastest) variable by variable:
+    what `xr.combine_nested` makes of them where every case has the same variables and coordinates (None
+    elsewhere), without its alignment of every case (most of the time of combining many small cases)."""
+    first = parts[0]
+    names = list(first.data_vars)
+    if any(list(part.data_vars) != names or not _same_coordinates(part, first) for part in parts[1:]):
+        return None
+    variables = {}
+    for name in names:
+        var = first.variables[name]
+        data = _stack(_nest([part.variables[name].data for part in parts], sizes))
+        variables[name] = xr.Variable([*dims, *var.dims], data, dict(var.attrs), dict(var.encoding))
+    return xr.Dataset(variables, first.coords)
+
+
+def _same_coordinates(ds: xr.Dataset, other: xr.Dataset) -> bool:
+    return list(ds.coords) == list(other.coords) and all(
+        ds[n].dims == other[n].dims and np.array_equal(ds[n].values, other[n].values) for n in ds.coords)
+
+
+def _stack(nested: list):
+    """Nested lists of arrays (numpy or dask) as one array, a dimension per level."""
+    import dask
+
+    rows = [_stack(item) if isinstance(item, list) else item for item in nested]
+    if any(dask.is_dask_collection(row) for row in rows):
+        import dask.array as da
+
+        return da.stack(rows)
+    return np.stack(rows)
 
 
 def _case_parts(plan: Plan, cases: dict[str, study_cases.Case], shared: list[str]) -> list[xr.Dataset]:
