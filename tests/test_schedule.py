@@ -12,7 +12,6 @@ import xarray as xr
 
 from biostudy.commands.sweep import run_study
 from biostudy.data import case_files, netcdf_io, writing
-from biostudy.data import finish as finishing
 from biostudy.data.finish import Record, finish
 from biostudy.execution import jobs, worker
 from biostudy.execution.jobs import Execution
@@ -61,30 +60,6 @@ def test_a_failed_simulation_is_recorded_by_its_worker(write_toml, tiny_scene, t
     record = xr.load_dataset(tmp_path / "case.nc")
     assert record.attrs["status"] == "failed" and record.attrs["message"] == outcome.message
     assert not record.data_vars
-
-
-def test_the_sweeps_process_never_finishes_or_writes_a_case_run_on_workers(tiny_study, tmp_path, monkeypatch):
-    """On local workers the sweep's process neither finishes a case's dataset nor writes its file (workers are
-    forked from a fork server, which the changes below do not reach); the results are the serial sweep's."""
-    serial = run_study(load_study(tiny_study), tmp_path / "serial")
-    written = []
-    write_atomic = writing.write_atomic
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("the sweep's process finished a case")
-
-    def spied(ds, path, *args, **kwargs):
-        written.append(Path(path).name)
-        return write_atomic(ds, path, *args, **kwargs)
-
-    monkeypatch.setattr(finishing, "finish", refuse)
-    monkeypatch.setattr(worker, "finished", refuse)
-    monkeypatch.setattr(writing, "write_atomic", spied)
-    report = run_study(load_study(tiny_study), tmp_path / "local", Execution(workers=2))
-    assert report.ok and sorted(report.ran) == sorted(serial.ran) and written == ["study.nc"]
-    a, b = (xr.load_dataset(tmp_path / d / "study.nc") for d in ("serial", "local"))
-    for name in ("phi", "c", "alpha", "biomass", "height", "front_advance"):
-        np.testing.assert_array_equal(a[name].values, b[name].values)
 
 
 def dies_writing(tasks, lifeline):

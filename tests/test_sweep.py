@@ -4,6 +4,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,9 +13,9 @@ from typer.testing import CliRunner
 
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
-from biostudy.data import combine
+from biostudy.data import combine, writing
 from biostudy.data.case_files import CASE_VARIABLES, recorded
-from biostudy.execution import dask
+from biostudy.execution import dask, worker
 from biostudy.execution.jobs import Execution, fingerprint
 from biostudy.inputs import bundled
 from biostudy.inputs.scene import load_scene
@@ -164,11 +165,23 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
     assert sweep(plan, out, retry_failed=True).ran == ["k_alpha=1e+100"]
 
 
-def test_local_processes_give_the_serial_results(tiny_study, tmp_path):
+def test_local_processes_give_the_serial_results(tiny_study, tmp_path, monkeypatch):
+    """... and the sweep's process neither finishes a case's dataset nor writes its file (issue 35: it only
+    schedules; the workers are forked from a fork server, which the spies below do not reach)."""
     plan = load_study(tiny_study)
     serial = sweep(plan, tmp_path / "serial")
     environment = dict(os.environ)
+    written, write_atomic = [], writing.write_atomic
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the sweep's process finished a case")
+
+    monkeypatch.setattr(worker, "finished", refuse)
+    monkeypatch.setattr(writing, "write_atomic", lambda ds, path, *a, **k: (written.append(Path(path).name),
+                                                                              write_atomic(ds, path, *a, **k))[1])
     local = sweep(plan, tmp_path / "local", workers=2)
+    monkeypatch.undo()
+    assert written == ["study.nc"]
     assert dict(os.environ) == environment  # the workers' settings are theirs only
     assert sorted(local.ran) == sorted(serial.ran) and local.ok
     same_results(tmp_path / "serial", tmp_path / "local")  # bit for bit (array tasks: test_batch.py)
