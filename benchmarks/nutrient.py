@@ -78,7 +78,8 @@ def scipy_cg(matrix, rhs, x0, hierarchy):
 
 
 def variants(first):
-    from solver.transport.linear import COARSEST, STRENGTH, VCycle, pcg
+    from solver.transport.krylov import pcg
+    from solver.transport.linear import COARSEST, STRENGTH, VCycle
 
     forward, backward = ("gauss_seidel", {"sweep": "forward"}), ("gauss_seidel", {"sweep": "backward"})
 

@@ -6,8 +6,10 @@
 
 Each scene is run by `biostudy run` in a fresh process, once with this version and once with the
 baseline's `solver`/`biostudy` first on the path (mechanics off except where the list says, the maze
-shortened to T* = 2: the scenes of docs/transport.md, "The same answers"; then three scenes again with the
-mechanics on, as bundled, for its clamps, obstacles and plane strain).  The two datasets are then
+shortened to T* = 2: the scenes of docs/transport.md, "The same answers"; agar2d with the paper's other laws,
+Table 1's expansion and the transient nutrient, and the dead ends (a baseline without them fails there: leave
+them out with --scenes); then three scenes again with the mechanics on, as bundled, for its clamps, obstacles
+and plane strain).  The two datasets are then
 compared at every output: the largest |difference| of phi, c and alpha over cells and outputs (and of
 every other field, the mechanics' where they were computed), and of every observable (a variable over time alone).
 Printed as a markdown table with the CG iterations of both runs.  Asserts nothing: the sizes of the
@@ -37,6 +39,10 @@ SCENES = {  # name: (bundled scene, overrides)
     "agar2d-thin": ("agar2d-thin", MECHANICS_OFF),
     "directional2d": ("directional2d", MECHANICS_OFF),
     "grate": ("grate", MECHANICS_OFF),
+    # the paper's other laws (docs/model.md) and its dead ends
+    "agar2d-table1": ("agar2d", MECHANICS_OFF + ['model.expansion="table1"']),
+    "agar2d-transient": ("agar2d", MECHANICS_OFF + ['model.nutrient="transient"']),
+    "dead-end": ("dead-end", []),
     # the mechanics where it meets clamps, obstacles and plane strain (run with it on, as bundled)
     "agar-g1e8-mechanics": ("agar-g1e8", []),
     "obstacles-mechanics": ("obstacles", []),

@@ -5,6 +5,7 @@
     python benchmarks/scale.py --sizes 64 --outputs 5 81 --steps 80 --no-mechanics   # streamed outputs (29.1)
     python benchmarks/scale.py --sizes 32 --outputs 5 81 --steps 80 --no-mechanics --baseline /tmp/old
     python benchmarks/scale.py --sizes 48 96 --set params.k_alpha=5     # fast growth: a harder mechanics solve
+    python benchmarks/scale.py --2d --sizes 400 800 --no-mechanics      # studies/directional2d.toml at n^2
 
 The scene: `studies/directional.toml` (paper 4.1, a 20 µm cube) at n^3 cells of 20/n µm, the time step of the
 scene (dt = 1e-3), `--steps` steps, `--outputs` outputs, mechanics as the scene has it (every 4th output and the
@@ -58,8 +59,11 @@ print(json.dumps({"wall": time.perf_counter() - began, "run": loop,
 """
 
 
+NDIM = 3  # --2d: 2
+
+
 def overrides(n: int, steps: int, outputs: int, mechanics: bool, extra: tuple[str, ...] = ()) -> list[str]:
-    return [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20.0 / n!r}", f"time.steps={steps}",
+    return [f"grid.shape=[{','.join([str(n)] * NDIM)}]", f"grid.spacing={20.0 / n!r}", f"time.steps={steps}",
             f"time.t_end={steps * 1e-3!r}", f"time.outputs={outputs}", f"mechanics.enabled={str(mechanics).lower()}",
             *extra]
 
@@ -92,7 +96,7 @@ def largest_fitting(memory: float, mechanics: bool, outputs: int) -> int:
     from biostudy.inputs.scene import load_scene
 
     def need(n: int) -> float:
-        scene = load_scene(SCENE, [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20.0 / n!r}",
+        scene = load_scene(SCENE, [f"grid.shape=[{','.join([str(n)] * NDIM)}]", f"grid.spacing={20.0 / n!r}",
                                    f"time.outputs={outputs}", f"mechanics.enabled={str(mechanics).lower()}"])
         return resources.estimate(scene, streamed=True).memory
 
@@ -117,7 +121,11 @@ def main() -> None:
                         help="another override of the scene, e.g. params.k_alpha=5 (fast growth)")
     parser.add_argument("--baseline", default="", help="run another version's tree instead (e.g. before streaming: "
                                                        "git archive 55c9f28 | tar -x -C /tmp/old)")
+    parser.add_argument("--2d", dest="two", action="store_true", help="studies/directional2d.toml on n^2 cells")
     args = parser.parse_args()
+    if args.two:
+        global SCENE, NDIM
+        SCENE, NDIM = ROOT / "studies" / "directional2d.toml", 2
     import os
 
     global BASELINE

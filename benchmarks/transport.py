@@ -48,8 +48,10 @@ import numpy as np  # noqa: E402
 DT = 1e-3
 
 
-def directional(n: int, steps: int, advection: str = "tvd", velocity: str = "pointwise", ndim: int = 3):
-    """The benchmark's scene on n^ndim cells; outputs after the first step and at the end."""
+def directional(n: int, steps: int, advection: str = "tvd", velocity: str = "pointwise", ndim: int = 3,
+                threads: int | None = None):
+    """The benchmark's scene on n^ndim cells; outputs after the first step and at the end; `threads`: the run's
+    (a version before threads has none)."""
     from solver import Grid, Numerics, Problem
 
     grid = Grid((n,) * ndim, 20.0 / n)
@@ -58,14 +60,16 @@ def directional(n: int, steps: int, advection: str = "tvd", velocity: str = "poi
     held = np.logical_and.reduce([q > 17 for q in coordinates])
     return Problem(grid=grid, phi0=phi0, nutrient_held=held, t_end=(steps + 1) * DT, steps=steps + 1,
                    output_times=[0.0, DT, (steps + 1) * DT],
-                   numerics=Numerics(advection=advection, growth_velocity=velocity), name="directional")
+                   numerics=Numerics(advection=advection, growth_velocity=velocity,
+                                     **({"threads": threads} if threads else {})), name="directional")
 
 
-def measure_fast(n: int, steps: int, advection: str, velocity: str, ndim: int) -> dict:
+def measure_fast(n: int, steps: int, advection: str, velocity: str, ndim: int, threads: int | None) -> dict:
     from solver import Simulation
 
+    problem = directional(n, steps, advection, velocity, ndim, threads)
     began = time.perf_counter()
-    run = Simulation(directional(n, steps, advection, velocity, ndim))
+    run = Simulation(problem)
     snapshots = iter(run)
     next(snapshots)  # t = 0: operators built, first nutrient solve, first AMG hierarchy
     next(snapshots)  # one step: compiled kernels loaded
@@ -82,7 +86,7 @@ def measure_fast(n: int, steps: int, advection: str, velocity: str, ndim: int) -
     per_step["bookkeeping"] = 1e3 * loop / steps - sum(per_step.values())
     per_step["total"] = 1e3 * loop / steps
     per_step["cpu"] = 1e3 * cpu / steps
-    return {"setup_s": setup, "per_step_ms": per_step,
+    return {"setup_s": setup, "total_s": setup + loop, "per_step_ms": per_step, "threads": report.get("threads", 1),
             "cg_iterations": (report["nutrient_cg_iterations"] - counts["nutrient_cg_iterations"]) / steps,
             "bicgstab_iterations": (report["biofilm_iterations"] - counts["biofilm_iterations"]) / steps,
             "amg_rebuilds": report["nutrient_amg_rebuilds"]}
@@ -103,7 +107,7 @@ def measure_fipy(n: int, steps: int, solvers: str, ndim: int) -> dict:
 def one(args) -> None:
     """Child process: one measurement, printed as JSON with the peak memory."""
     if args.one == "fast":
-        result = measure_fast(args.n, args.steps, args.advection, args.velocity, args.ndim)
+        result = measure_fast(args.n, args.steps, args.advection, args.velocity, args.ndim, args.threads)
     else:
         result = measure_fipy(args.n, args.steps, args.one, args.ndim)
     result["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -111,10 +115,11 @@ def one(args) -> None:
 
 
 def child(kind: str, n: int, steps: int, ndim: int, advection: str = "tvd", velocity: str = "pointwise",
-          baseline: str | None = None) -> dict:
+          baseline: str | None = None, threads: int | None = None) -> dict:
     """One case in a fresh process; `baseline`: a directory put first on the path (another version's solver)."""
     command = [sys.executable, os.path.abspath(__file__), "--one", kind, "--n", str(n), "--steps", str(steps),
-               "--ndim", str(ndim), "--advection", advection, "--velocity", velocity]
+               "--ndim", str(ndim), "--advection", advection, "--velocity", velocity,
+               *(["--threads", str(threads)] if threads and not baseline else [])]
     path = [os.path.abspath(baseline)] if baseline else []
     load = os.getloadavg()[0]
     out = subprocess.run(command, check=True, capture_output=True, text=True,
@@ -150,6 +155,8 @@ def main() -> None:
     parser.add_argument("--advection", default="tvd", choices=["upwind", "tvd"])
     parser.add_argument("--growth-velocity", nargs="+", default=["front", "pointwise"], choices=["front", "pointwise"])
     parser.add_argument("--baseline", help="directory holding another version's solver/ (and biostudy/)")
+    parser.add_argument("--threads", type=int, help="this version's threads (default: the processors here; a "
+                                                    "baseline before threads runs on one)")
     parser.add_argument("--one", help=argparse.SUPPRESS)
     parser.add_argument("--velocity", default="pointwise", help=argparse.SUPPRESS)
     parser.add_argument("--n", type=int, help=argparse.SUPPRESS)
@@ -167,7 +174,7 @@ def main() -> None:
         if ndim == 3 and n in args.fipy_default_sizes:
             fipy["default"] = child("default", n, args.fipy_steps, ndim)
         for velocity in args.growth_velocity:
-            this = child("fast", n, steps, ndim, args.advection, velocity)
+            this = child("fast", n, steps, ndim, args.advection, velocity, threads=args.threads)
             old = child("fast", n, steps, ndim, args.advection, velocity, args.baseline) if args.baseline else None
             rows.append((n, ndim, velocity, steps, this, old, fipy))
             print(f"# {cells(n, ndim)} {velocity}: {this['per_step_ms']['total']:.1f} ms/step (load {this['load']:.1f})"
@@ -176,22 +183,26 @@ def main() -> None:
 
     print(f"directional scene, mechanics off, dt = {DT:g}, advection = {args.advection}, "
           f"FIPY_SOLVERS = {os.environ['FIPY_SOLVERS']}, OMP_NUM_THREADS = {os.environ['OMP_NUM_THREADS']}")
-    print("| cells | growth velocity | version | load | steps | nutrient | velocity | phi solve | bookkeeping "
-          "| **total ms/step** | CPU ms/step | CG its/solve | BiCGSTAB its | AMG builds | setup s | peak MB "
-          "| baseline / this (wall, CPU) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| cells | growth velocity | version | threads | load | steps | nutrient | velocity | phi solve "
+          "| bookkeeping | **total ms/step** | CPU ms/step | CG its/solve | BiCGSTAB its | AMG builds | setup s "
+          "| peak MB | baseline / this (wall, CPU) | set-up + steps s | **this / baseline, set-up included** |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for n, ndim, velocity, steps, this, old, _ in rows:
         versions = [("this", this)] + ([("baseline", old)] if old else [])
         for label, r in versions:
             s = r["per_step_ms"]
-            ratio = ""
+            ratio, whole = "", ""
             if old and label == "this":
                 wall, cpu = (old["per_step_ms"][k] / this["per_step_ms"][k] for k in ("total", "cpu"))
                 ratio = f"**{wall:.2f}×**, {cpu:.2f}×"
-            print(f"| {cells(n, ndim)} | {velocity} | {label} | {r['load']:.1f} | {steps} | {s['nutrient']:.1f} | "
-                  f"{s['velocity']:.1f} | {s['biofilm']:.1f} | {s['bookkeeping']:.1f} | **{s['total']:.1f}** | "
-                  f"{s['cpu']:.1f} | {r['cg_iterations']:.1f} | {r['bicgstab_iterations']:.1f} | "
-                  f"{r['amg_rebuilds']} | {r['setup_s']:.2f} | {r['peak_mb']:.0f} | {ratio} |")
+                if "total_s" in old:
+                    whole = f"**{this['total_s'] / old['total_s']:.2f}**"
+            print(f"| {cells(n, ndim)} | {velocity} | {label} | {r.get('threads', 1)} | {r['load']:.1f} | {steps} | "
+                  f"{s['nutrient']:.1f} | {s['velocity']:.1f} | {s['biofilm']:.1f} | {s['bookkeeping']:.1f} | "
+                  f"**{s['total']:.1f}** | {s['cpu']:.1f} | {r['cg_iterations']:.1f} | "
+                  f"{r['bicgstab_iterations']:.1f} | "
+                  f"{r['amg_rebuilds']} | {r['setup_s']:.2f} | {r['peak_mb']:.0f} | {ratio} | "
+                  f"{r.get('total_s', float('nan')):.2f} | {whole} |")
     fipy_rows = [(n, velocity, this, fipy) for n, ndim, velocity, _, this, _, fipy in rows if fipy]
     if fipy_rows:
         print("\n| cells | growth velocity | this ms/step | plain FiPy CG/GMRES ms/step | FiPy default (LU) ms/step "

@@ -30,9 +30,11 @@ MEASURED_OUT = ROOT / "docs" / "measured"
 
 TABLES = {
     "front-smooth-upwind": ("biostudy convergence front --levels 5 --series space --set biofilm.0.edge=2.0 "
-                            "--set 'numerics.advection=\"upwind\"'", ("phi_L1", "biofilm_volume", "front_position")),
+                            "--set 'numerics.advection=\"upwind\"' --set time.steps=200",
+                            ("phi_L1", "biofilm_volume", "front_position")),
     "front-smooth-tvd": ("biostudy convergence front --levels 5 --series space --set biofilm.0.edge=2.0 "
-                         "--set 'numerics.advection=\"tvd\"'", ("phi_L1", "biofilm_volume", "front_position")),
+                         "--set 'numerics.advection=\"tvd\"' --set time.steps=200",
+                         ("phi_L1", "biofilm_volume", "front_position")),
     "front-time": ("biostudy convergence front --levels 4 --series time,adaptive --set time.t_end=0.1 "
                    "--set time.steps=20", ("phi_L1", "front_position")),
     "directional-reduced": ("biostudy convergence directional --levels 3 --series space,time,adaptive "

@@ -17,9 +17,11 @@ section-4 statements measured on them with their verdicts, `scripts/findings.py`
 on agar is in tension), `docs/measured/model-laws.txt` (`benchmarks/model_laws.py`:
 the bundled scenes under each form of the model's laws),
 `docs/measured/suite.md` (`scripts/suite_time.py`: the test suite on this machine),
-and docs/accuracy.md's convergence summaries and benchmark tables
+docs/accuracy.md's convergence summaries and benchmark tables
 (`scripts/accuracy_tables.py`: each with the command that made it, which must be
-the one that script lists).
+the one that script lists), and `docs/accuracy/stability.md` (`biostudy stability
+stability`: the catalogue of stiff and extreme cases, its table as written, which
+must hold every case of studies/stability.toml).
 """
 from __future__ import annotations
 
@@ -39,6 +41,10 @@ FINDINGS = ROOT / "docs" / "gallery" / "findings.md"
 TENSION = ROOT / "docs" / "measured" / "agar-tension.txt"
 LAWS = ROOT / "docs" / "measured" / "model-laws.txt"
 SUITE = ROOT / "docs" / "measured" / "suite.md"
+STABILITY = ROOT / "docs" / "accuracy" / "stability.md"
+CATALOGUE = ROOT / "studies" / "stability.toml"
+TELLING = ("d=1 g=1e10", "g=1e10 zero-order", "r=1e4", "one step to T*=5", "k_alpha=1", "k_alpha=1e3", "large grid",
+           "mechanics k_alpha=1", "mechanics alpha=0.2 40^3")  # the rows docs/accuracy.md shows
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end: (?P=name) -->)", re.S)
 
 
@@ -79,6 +85,34 @@ def suite_time() -> str:
             f"{facts['load average']}: `docs/measured/suite.md`; `-m \"not slow\"` leaves out the longest checks):\n")
 
 
+def stability_summary() -> str:
+    """How many cases the catalogue has and what became of them, from its table (which must hold every case)."""
+    import tomllib
+
+    rows = table_rows(STABILITY)
+    cases = [case["name"] for case in tomllib.loads(CATALOGUE.read_text(encoding="utf-8"))["case"]]
+    if sorted(rows) != sorted(cases):
+        raise SystemExit(f"{STABILITY.relative_to(ROOT)} is not the table of {CATALOGUE.relative_to(ROOT)}: run "
+                         "biostudy stability stability again and copy its stability.md there")
+    verdicts = [row["verdict"] for row in rows.values()]
+    said = ", ".join(f"{verdicts.count(v)} {words}" for v, words in (
+        ("completed", "completed with their bounds held"), ("refused", "refused by the mechanics with its diagnosis"),
+        ("stopped", "stopped by a runaway with its diagnosis"), ("failed", "failed")) if verdicts.count(v))
+    return (f"`biostudy stability stability -o stab --workers 2`: {len(cases)} cases of `studies/stability.toml` on "
+            f"12³ cells of the directional scene, T* = 0.2 in 40 steps, upwind, no mechanics, unless the case says "
+            f"otherwise. Result on this machine: **{said}**. "
+            f"Full table: `accuracy/stability.md`; the most telling rows:\n")
+
+
+def stability_rows() -> str:
+    rows = table_rows(STABILITY)
+    head = ["case", "what it stresses", "verdict", "steps", "bisected", "substepped", "Courant max", "wall s",
+            "phi range", "c range"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(rows[name][column] for column in head) + " |" for name in TELLING if name in rows]
+    return "\n".join(lines) + "\n"
+
+
 def made_by(path: Path, command: str) -> str:
     """A table written with its command on the first line, as the command (a sh block) and the table; a table
     made by another command than the listed one is stale."""
@@ -91,6 +125,7 @@ def made_by(path: Path, command: str) -> str:
 
 BLOCKS = {"gallery-runs": gallery_runs, "paper-findings": paper_findings, "agar-tension": lambda: table_lines(TENSION),
           "model-laws": lambda: table_lines(LAWS), "setup-time": setup_time, "suite-time": suite_time,
+          "stability-summary": stability_summary, "stability-rows": stability_rows,
           **{f"accuracy-{name}": functools.partial(made_by, OUT / f"{name}.summary.md", command)
              for name, (command, _) in TABLES.items()},
           **{f"measured-{name}": functools.partial(made_by, MEASURED_OUT / f"{name}.txt", command)

@@ -38,14 +38,23 @@ class ParameterInfo:
     bounds: dict
 
 
-def option(default: Any, help: str, units: str | None = None, **bounds: float):
+def option(default: Any, help: str, units: str | None = None, result: bool = True, **bounds: float):
     """A field of `Numerics` or `MechanicsSetup` that a scene sets: default, what it does (the scene schema's
     description), units (numbers: "1" when dimensionless) and allowed range (bounds: gt, ge, lt, le).  Its type
     is the field's annotation (a Literal lists the choices; a tuple is a list in the scene).  The scene's
     ``[numerics]`` and ``[mechanics]`` tables are derived from these declarations (`option_infos`), as its
     ``[params]`` is from `parameter`: an option is declared here once.  A field declared without `option` is
-    the solver's own, set from Python only."""
-    return field(default=default, metadata={"help": help, "units": units, "bounds": _bounds(bounds)})
+    the solver's own, set from Python only.  `result=False` declares an option that changes how a run is
+    computed but not what it computes (the threads): a finished case is the same case whatever its value
+    (`changes_result`), and out of the settings' repr (which describes what is computed)."""
+    return field(default=default, repr=result, metadata={"help": help, "units": units, "bounds": _bounds(bounds),
+                                                         "result": result})
+
+
+def changes_result(part) -> bool:
+    """Whether a dataclass field (of the solver's settings) can change a run's result: every field but an
+    option declared with ``result=False``."""
+    return part.metadata.get("result", True)
 
 
 @dataclass(frozen=True)

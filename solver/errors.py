@@ -7,6 +7,8 @@ place (cell index in ``(z, y, x)`` order and its centre in µm).  A
 """
 from __future__ import annotations
 
+from typing import Any
+
 
 class StepFailure(Exception):
     """One time step could not be taken at this step size (NaN, bounds, no convergence)."""
@@ -18,14 +20,26 @@ class StepFailure(Exception):
 
 
 class SimulationError(RuntimeError):
-    """The run cannot continue: says when, what and where."""
+    """The run cannot continue: says when, what and where.
+
+    What was computed before is not lost: the time loop attaches the last state it accepted (`last`, a
+    `transport.State`), `Simulation` that state's fields (`stopped`, a `Snapshot` at the time it stopped) and
+    `simulate` the dataset of every output made and that state (`partial`), for the caller to keep."""
 
     def __init__(self, time: float, cause: str, where: str = ""):
         self.time = float(time)
         self.cause = cause
         self.where = where
+        self.last: Any = None  # transport.State
+        self.stopped: Any = None  # snapshot.Snapshot
+        self.partial: Any = None  # xarray.Dataset
         place = f" at {where}" if where else ""
         super().__init__(f"t = {self.time:.6g}: {cause}{place}")
+
+
+class Runaway(SimulationError):
+    """The fields outgrew what the solver can resolve (`transport.bounds.CEILING`): the expansion feedback of
+    Eqs. 34 and 36 runs away."""
 
 
 class MechanicsError(SimulationError):

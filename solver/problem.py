@@ -206,6 +206,9 @@ class Numerics:
                      "(docs/paper.md)")
     front_band: float = option(3.0, "growth_velocity = front: cells within this many cells of the front take the "
                                     "front's speed", "1", ge=1, le=10)
+    threads: int | None = option(None, "threads of the run's per-step kernels and linear solvers' products (absent: "
+                                       "the cores the machine or the batch job gives the run); the results are the "
+                                       "same bit for bit for every count", "1", result=False, ge=1)
 
 
 @dataclass(frozen=True)
@@ -272,10 +275,12 @@ class Problem:
     A continuation (`solver.restart`) starts from another run's last state
     instead of from rest: at ``start_time`` (> 0) with ``phi0``, ``alpha0``
     and ``c0`` (per cell), ``u0`` (the displacement the mechanics last
-    converged to, per node, components x, y[, z]) and the clock's step
-    ``first_step``; its outputs at or before ``start_time`` belong to the run
-    it continues and are not computed again.  None: alpha = 0, c solved from
-    phi0, the mechanics at rest, the nominal step.
+    converged to, per node, components x, y[, z]), the clock's step
+    ``first_step`` and the longest step the scheme's limit has allowed so far
+    ``step_limit`` (`timeloop.Clock`); its outputs at or before ``start_time``
+    belong to the run it continues and are not computed again.  None: alpha =
+    0, c solved from phi0, the mechanics at rest, the nominal step, no limit
+    seen yet.
     """
 
     grid: Grid
@@ -296,6 +301,7 @@ class Problem:
     c0: np.ndarray | None = None
     u0: np.ndarray | None = None
     first_step: float | None = None
+    step_limit: float | None = None
     name: str = "unnamed"
 
     def __post_init__(self):
@@ -346,8 +352,9 @@ class Problem:
                 raise ValueError(f"{name} must be finite")
         if self.alpha0 is not None and np.any(self.alpha0 <= -1):
             raise ValueError("alpha0 must be > -1")
-        if self.first_step is not None and not self.first_step > 0:
-            raise ValueError("first_step must be positive")
+        for name in ("first_step", "step_limit"):
+            if getattr(self, name) is not None and not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive")
         blocked = blocked_problem(self.obstacle)
         if blocked:
             raise OptionError("obstacle", blocked)

@@ -41,6 +41,8 @@ def start_state(ds: xr.Dataset) -> dict:
              "alpha0": _cells(last["alpha"]), "c0": _cells(last["c"])}
     if "next_step" in ds.attrs:
         state["first_step"] = float(ds.attrs["next_step"])
+    if float(ds.attrs.get("step_limit", 0.0)) > 0:
+        state["step_limit"] = float(ds.attrs["step_limit"])
     if "u" in ds and MECHANICS_TIME in ds.dims and ds[MECHANICS_TIME].size \
             and np.isclose(float(ds[MECHANICS_TIME].values[-1]), start):
         u = ds["u"].isel({MECHANICS_TIME: -1})

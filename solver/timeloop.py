@@ -2,7 +2,11 @@
 
 The model clock takes nominal steps dt = t_end / steps (or error-controlled
 steps, see `numerics.time_tolerance`); the output clock is the list of
-output times, which steps land on exactly.  A step that fails (linear solver
+output times, which steps land on exactly.  No step lets the growth front
+cross more than one cell (`transport.courant`): a longer one is split into
+equal substeps (`steps_substepped`), so that few steps and many give the
+same answer to within the scheme's time error; `courant_max` is the largest
+Courant number a run took.  A step that fails (linear solver
 not converged, NaN, bounds) is bisected, as in the paper, until the step
 would fall below t_end / max_substeps (paper: 1e6); then the run stops with a
 `SimulationError` naming time, cause and place.  After a bisection the step
@@ -15,7 +19,9 @@ and OpenBLAS's threads, when the cores are busy with anything else, turned a
 
 `evolve` is a generator of `Snapshot`s (one per output time) that tests can
 step with ``next()``; `simulate` runs it to the end and returns the dataset,
-each output's fields handed to an output sink as they are made (`sink`).
+each output's fields handed to an output sink as they are made (`sink`).  A
+run that stops (`SimulationError`) keeps what it computed: the error carries
+the dataset of the outputs made and the last state accepted (`partial`).
 Mechanics (if the problem asks for it) is solved only at output times:
 nothing feeds back from it into phi or c.
 """
@@ -30,11 +36,13 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .counters import Counters, declared
-from .errors import SimulationError, StepFailure
+from .errors import Runaway, SimulationError, StepFailure
+from .parallel import SERIAL, Team, cores
 from .problem import Problem
 from .sink import Held, OutputSink
 from .snapshot import Snapshot
 from .transport import State, Transport
+from .transport.courant import LIMIT
 
 
 @dataclass(frozen=True)
@@ -62,21 +70,26 @@ class _Rejected(Exception):
 
 
 class CpuTime:
-    """CPU seconds of this thread spent in a repeated piece of work, the first time apart: the first step (or
-    mechanics solve) of a run also loads the compiled kernels and builds the first hierarchies, a one-off cost
-    that would make a small run look dearer than a larger one run after it in the same process."""
+    """CPU seconds of this thread and its team's helpers spent in a repeated piece of work, the first time apart:
+    the first step (or mechanics solve) of a run also loads the compiled kernels and builds the first
+    hierarchies, a one-off cost that would make a small run look dearer than a larger one run after it in the
+    same process.  (Not the process's CPU time: other threads of the process may run other work.)"""
 
-    def __init__(self) -> None:
+    def __init__(self, team: Team) -> None:
+        self.team = team
         self.first: float | None = None
         self.rest = 0.0
 
+    def _now(self) -> float:
+        return time.thread_time() + self.team.helper_seconds()
+
     @contextlib.contextmanager
     def spent(self) -> Iterator[None]:
-        began = time.thread_time()
+        began = self._now()
         try:
             yield
         finally:
-            seconds = time.thread_time() - began
+            seconds = self._now() - began
             if self.first is None:
                 self.first = seconds
             else:
@@ -88,7 +101,8 @@ class Clock:
 
     GROW, SHRINK, SAFETY = 4.0, 0.2, 0.9
 
-    def __init__(self, transport: Transport, progress: Callable[[Progress], None] | None = None):
+    def __init__(self, transport: Transport, progress: Callable[[Progress], None] | None = None,
+                 team: Team = SERIAL):
         problem = transport.problem
         self.transport = transport
         self.progress = progress
@@ -97,18 +111,23 @@ class Clock:
         self.smallest = problem.t_end / problem.numerics.max_substeps
         self.tolerance = problem.numerics.time_tolerance
         self.dt = min(problem.first_step or self.nominal, self.nominal)  # a continuation goes on with its step
-        self.steps = self.bisections = self.rejected = 0
-        self.largest_error = 0.0
+        self.steps = self.bisections = self.rejected = self.substepped = 0
+        self.split: tuple[float, float] | None = None  # (end, substep) of a step split for the scheme's limit
+        self.longest = np.inf if problem.step_limit is None else problem.step_limit  # what that limit allows
+        self.largest_error = self.courant_max = 0.0
         self.mechanics_solves = self.mechanics_left = self.outputs = 0  # kept by `Simulation`, told in `Progress`
         self.output_seconds = 0.0
-        self.cpu = CpuTime()
+        self.cpu = CpuTime(team)  # the transport's threads
 
     def counters(self) -> Counters:
         return {"steps_taken": self.steps,
                 "steps_bisected": self.bisections,
                 "steps_rejected": self.rejected,
+                "steps_substepped": self.substepped,
+                "courant_max": self.courant_max,
                 "largest_step_error": self.largest_error,
-                "next_step": self.dt}
+                "next_step": self.dt,
+                "step_limit": self.longest if np.isfinite(self.longest) else 0.0}
 
     def advance(self, state: State, until: float) -> State:
         """Step from state.t to exactly `until`."""
@@ -118,7 +137,8 @@ class Clock:
             if until - (state.t + dt) < 1e-6 * dt:
                 dt = until - state.t
             try:
-                with self.cpu.spent():
+                with self.cpu.spent():  # (the limit reads the velocity, which the step then reuses)
+                    dt, split = self._within_limit(state, dt)
                     new = self._attempt(state, dt)
             except _Rejected as rejection:  # (only error-controlled steps reject: a tolerance is set)
                 assert self.tolerance is not None
@@ -134,16 +154,52 @@ class Clock:
                 continue
             state = new if abs(new.t - until) > eps else replace(new, t=until)
             self.steps += 1
+            self.substepped += split
+            self.courant_max = max(self.courant_max, state.courant)
+            runaway = self.transport.runaway(state)
+            if runaway is not None:
+                raise _stopped(Runaway(state.t, *runaway), state)
             if self.progress is not None:
                 self.progress(Progress(state.t, self.t_end, self.steps, self.bisections, self.rejected,
                                        self.transport.timings.get("mechanics", 0.0), self.mechanics_solves,
                                        self.mechanics_left, self.outputs, self.output_seconds))
         return state
 
+    def _within_limit(self, state: State, dt: float) -> tuple[float, bool]:
+        """The step to take from `state` instead of the clock's `dt`, and whether it is a substep.  The longest
+        step the scheme's limit allows (`courant`) only shrinks over a run (`self.longest`: once the front has needed
+        a step that short, the run keeps to it, as if it had asked for the steps it needs); a step longer than that
+        is split into the fewest equal substeps within it, which keep their length unless it shrinks further."""
+        rate = self.limit_rate(state)
+        if rate > 0:
+            self.longest = min(self.longest, LIMIT / rate)
+            if self.longest < self.smallest * (1 - 1e-9):
+                raise _stopped(SimulationError(state.t, f"the scheme's limit needs steps of {self.longest:.3g} (the "
+                                                        f"front crossing one cell, the expansion growing e-fold), "
+                                                        f"below t_end/max_substeps = {self.smallest:.3g}"), state)
+        if self.split is not None and state.t < self.split[0] - 1e-12 * self.t_end:
+            end, sub = self.split
+            left = end - state.t
+            if sub > self.longest:
+                sub = left / np.ceil(left / self.longest)
+                self.split = (end, sub)
+            return min(dt, left if left - sub < 1e-6 * sub else sub), True
+        self.split = None
+        if dt <= self.longest:
+            return dt, False
+        sub = dt / np.ceil(dt / self.longest)
+        self.split = (state.t + dt, sub)
+        return sub, True
+
+    def limit_rate(self, state: State) -> float:
+        """1/T*: the longest step the scheme allows from `state` is LIMIT over it (`transport.courant`): the front
+        crosses at most one cell, and the explicit expansion source (k_alpha alpha^n) grows at most e-fold."""
+        return max(self.transport.velocity(state)[1], self.transport.problem.params.k_alpha)
+
     def _check_smallest(self, state: State, dt: float, cause: str, where: str):
         if dt < self.smallest * (1 - 1e-9):
-            raise SimulationError(state.t, f"{cause} (step bisected below t_end/max_substeps = "
-                                           f"{self.smallest:.3g})", where)
+            raise _stopped(SimulationError(state.t, f"{cause} (step bisected below t_end/max_substeps = "
+                                                    f"{self.smallest:.3g})", where), state)
 
     def _attempt(self, state: State, dt: float) -> State:
         if self.tolerance is None:
@@ -154,6 +210,7 @@ class Clock:
         full = self.transport.step(state, dt, with_nutrient=False)
         half = self.transport.step(state, 0.5 * dt)
         two = self.transport.step(half, 0.5 * dt)
+        two = replace(two, courant=max(half.courant, two.courant))  # the largest of the two half steps
         error = float(np.max(np.abs(two.phi - full.phi), initial=0.0))
         if error > self.tolerance:
             raise _Rejected(error)
@@ -164,12 +221,18 @@ class Clock:
         return two
 
 
-def _mechanics(problem: Problem):
+def _stopped(error: SimulationError, state: State) -> SimulationError:
+    """`error` with the last state the clock accepted, for the caller to keep (errors.SimulationError)."""
+    error.last = state
+    return error
+
+
+def _mechanics(problem: Problem, team: Team):
     if problem.mechanics is None:
         return None
     from .mechanics import GrowthMechanics  # lazily: a scene without mechanics never imports scikit-fem
 
-    return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle)
+    return GrowthMechanics(problem.grid, problem.params, problem.mechanics, problem.obstacle, team=team)
 
 
 class Simulation:
@@ -178,13 +241,15 @@ class Simulation:
     def __init__(self, problem: Problem, progress: Callable[[Progress], None] | None = None):
         self.started = time.perf_counter()
         self.problem = problem
-        setup = time.thread_time()
-        with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
-            self.transport = Transport(problem)
-        self.clock = Clock(self.transport, progress)
-        self.mechanics = _mechanics(problem)
-        self.setup_cpu = time.thread_time() - setup  # the operators built for this grid: part of what a run costs
-        self.mechanics_cpu = CpuTime()
+        self.team = Team(problem.numerics.threads or cores())
+        setup = CpuTime(self.team)  # the operators built for this grid: part of what a run costs
+        with setup.spent():
+            with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
+                self.transport = Transport(problem, self.team)
+            self.clock = Clock(self.transport, progress, self.team)
+            self.mechanics = _mechanics(problem, self.team)
+        self.setup_cpu = setup.first or 0.0
+        self.mechanics_cpu = CpuTime(self.team)
         if self.mechanics is not None and problem.u0 is not None:
             alpha = np.zeros(problem.grid.cells_shape) if problem.alpha0 is None else problem.alpha0
             self.mechanics.start_from(problem.u0, problem.phi0, alpha)
@@ -206,21 +271,33 @@ class Simulation:
             if index < first:
                 continue
             clock.mechanics_left = sum(i >= index for i in solved_at)
-            with threadpool_limits(limits=1, user_api="blas"):
-                state = clock.advance(state, float(when))
-            assert state.c is not None  # an accepted step ends with its nutrient solved
-            snapshot = Snapshot(
-                time=float(when), phi=transport.full(state.phi), c=transport.full(state.c),
-                alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
-                rejected=clock.rejected, elapsed=0.0,
-            )
+            try:
+                with threadpool_limits(limits=1, user_api="blas"):
+                    state = clock.advance(state, float(when))
+            except SimulationError as error:  # the last state accepted is kept (errors.SimulationError)
+                if error.last is not None and error.last.t > state.t and error.last.c is not None:
+                    error.stopped = self._snapshot(error.last, error.last.t)
+                raise
+            snapshot = self._snapshot(state, float(when))
             if self._solves_mechanics(index, last):
-                self._solve_mechanics(snapshot)
+                try:
+                    self._solve_mechanics(snapshot)
+                except SimulationError as error:  # the output's transport fields are kept, without u and p
+                    error.stopped = snapshot
+                    raise
                 clock.mechanics_solves += 1
             snapshot.elapsed = time.perf_counter() - self.started
             handed = time.perf_counter()
             yield snapshot
             clock.output_seconds += time.perf_counter() - handed  # the caller's: its record, its sink
+
+    def _snapshot(self, state: State, when: float) -> Snapshot:
+        """The fields of `state` as grid arrays, with the clock's counters."""
+        transport, clock = self.transport, self.clock
+        assert state.c is not None  # an accepted step ends with its nutrient solved
+        return Snapshot(time=when, phi=transport.full(state.phi), c=transport.full(state.c),
+                        alpha=transport.full(state.alpha), steps=clock.steps, bisections=clock.bisections,
+                        rejected=clock.rejected, elapsed=time.perf_counter() - self.started)
 
     def _solves_mechanics(self, index: int, last: int) -> bool:
         """Whether u and p are solved at output `index` (every `mechanics.every`-th, and the last)."""
@@ -239,7 +316,8 @@ class Simulation:
         """What the run cost: wall time, counters, where the time went."""
         steps, solves = self.clock.cpu, self.mechanics_cpu
         cpu = {"cpu_time_loop": steps.rest + solves.rest,
-               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0), "cpu_time_setup": self.setup_cpu}
+               "cpu_time_first": (steps.first or 0.0) + (solves.first or 0.0), "cpu_time_setup": self.setup_cpu,
+               "threads": self.team.size}
         return {"wall_time": time.perf_counter() - self.started, "timings": dict(self.transport.timings),
                 **declared({**self.clock.counters(), **self.transport.counters(), **cpu})}
 
@@ -257,7 +335,15 @@ def simulate(problem: Problem, progress: Callable[[Progress], None] | None = Non
     sink = Held() if sink is None else sink
     simulation = Simulation(problem, progress)
     records = []
-    for snapshot in simulation:
-        records.append(record(problem, snapshot))
-        sink.add(snapshot)
+    try:
+        for snapshot in simulation:
+            records.append(record(problem, snapshot))
+            sink.add(snapshot)
+    except SimulationError as error:  # what was computed: every output made, and the state where it stopped
+        if error.stopped is not None:
+            records.append(record(problem, error.stopped))
+            sink.add(error.stopped)
+        if records:
+            error.partial = assemble(problem, records, sink.fields(), simulation.report())
+        raise
     return assemble(problem, records, sink.fields(), simulation.report())

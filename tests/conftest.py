@@ -10,6 +10,9 @@ os.environ["MPLBACKEND"] = "Agg"
 # The memory a run may use, fixed for every test and the processes it starts: refusals must not depend on what
 # else the machine is doing (a test of a refusal sets its own figure).
 os.environ["BIOSTUDY_MEMORY"] = "16 GB"
+# One thread per run started through biostudy, in every test process and the processes tests start: the suite's
+# two processes fill the two cores (pyproject's -n 2); the tests of threads give their own counts.
+os.environ["BIOSTUDY_THREADS"] = "1"
 
 import shutil
 import subprocess
@@ -27,7 +30,8 @@ from threadpoolctl import threadpool_limits
 # inherit: the tests of a sweep's workers check that the sweep sets it for them.
 ONE_BLAS_THREAD = threadpool_limits(limits=1, user_api="blas")
 
-# A 2-D 16 x 16 scene of 20 steps: ~0.1 s to simulate, yet every part of a scene is there.
+# A 2-D 16 x 16 scene of 20 steps: ~0.1 s to simulate, yet every part of a scene is there.  Its colony floats (it
+# touches no face), so it names the substratum COMSTAT's observables are measured from (calibrations fit them).
 TINY_SCENE = """\
 name = "tiny"
 description = "tiny test scene"
@@ -58,6 +62,9 @@ upper = [16.0, 16.0]
 shape = "box"
 lower = [0.0, 12.0]
 upper = [3.0, 16.0]
+
+[substratum]
+face = "y-"
 """
 
 # A 3-D 10 x 9 x 8 scene of 2 µm cells, 10 steps, with a cylindrical obstacle along z.

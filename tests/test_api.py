@@ -42,7 +42,7 @@ def test_run_takes_a_scene_as_data_and_raises_bad_input(tmp_path):
     scene = tomllib.loads(TINY_SCENE)
     scene.pop("obstacle")
     ds = biostudy.run(scene, set=["time.steps=10"])
-    assert ds.attrs["steps_taken"] == 10 and ds.attrs["scene_file"] == "" and "tiny" in ds.attrs["title"]
+    assert ds.attrs["steps_nominal"] == 10 and ds.attrs["scene_file"] == "" and "tiny" in ds.attrs["title"]
     with pytest.raises(biostudy.BadInput, match=r"params\.d: must be > 0"):
         biostudy.run(scene, set={"d": -1.0})
     with pytest.raises(biostudy.BadInput, match="did you mean 'directional'"):

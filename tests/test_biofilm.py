@@ -4,7 +4,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
-from solver import Grid, Numerics, Parameters, Problem, evolve, simulate
+from solver import Grid, Numerics, Parameters, Problem, evolve, simulate, timeloop
 from solver.errors import StepFailure
 from solver.timeloop import Clock
 from solver.transport import Transport
@@ -20,7 +20,7 @@ def problem_on(grid, phi0, held=None, value=None, obstacle=None, t_end=1.0, step
 
 def advection_matrix(transport, w, phi):
     b = transport.biofilm
-    return sp.csr_matrix((b.advection(w, phi), b.pattern.matrix.indices, b.pattern.matrix.indptr),
+    return sp.csr_matrix((b.advection(w, phi), b.matrix.indices, b.matrix.indptr),
                          shape=(transport.fv.n,) * 2)
 
 
@@ -206,7 +206,9 @@ def test_bounds_hold_on_stiff_cases_with_one_giant_step(advection, params, monke
     The written fields are projected onto their bounds, so they alone prove little: every step attempted
     (the giant one, and any bisection of it) must have kept its raw solutions within the bounds up to
     round-off (what the run projected; a bound broken beyond it would have failed the step), and the
-    step must have been taken in one go."""
+    step must have been taken in one go: the clock's limit on a step (its front crossing at most one cell,
+    docs/model.md) is lifted here, since what is tested is that the step itself stays bounded at any dt."""
+    monkeypatch.setattr(timeloop, "LIMIT", np.inf)
     failures = []
     attempt = Clock._attempt
 

@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+import typer
 import xarray as xr
 from typer.testing import CliRunner
 
@@ -36,6 +37,15 @@ def test_run_writes_the_dataset_with_overrides(tiny_scene, tmp_path):
     assert dict(reading.open_dataset(out).sizes) == {"time": 3, "y": 16, "x": 18, "bounds": 2}
     assert '"params.g" = 1e+09' in ds.attrs["overrides"] and "shape = [18, 16]" in ds.attrs["scene"]
     assert sorted(os.listdir(tmp_path)) == ["run.nc", "tiny.toml"]
+
+
+def test_run_on_threads_records_them_and_refuses_none(tiny_scene, tmp_path):
+    """--threads sets the run's threads (recorded beside its cost), instead of the scene's; 0 is bad input."""
+    result = invoke("run", tiny_scene, "-o", tmp_path / "two.nc", "--threads", "2", "--set", "numerics.threads=5")
+    assert result.exit_code == 0, result.output
+    assert xr.open_dataset(tmp_path / "two.nc").attrs["threads"] == 2
+    refused = invoke("run", tiny_scene, "-o", tmp_path / "none.nc", "--threads", "0")
+    assert refused.exit_code == 2 and "--threads" in refused.stderr and not (tmp_path / "none.nc").exists()
 
 
 def test_run_defaults_to_the_scene_name_in_the_working_directory(tiny_scene, tmp_path, monkeypatch):
@@ -70,14 +80,21 @@ def test_scenes_lists_the_bundled_files_with_descriptions(write_toml, tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
-def test_a_failed_simulation_exits_1_and_writes_nothing(tiny_scene, tmp_path):
+def test_a_failed_simulation_exits_1_and_keeps_what_it_computed_but_no_earlier_result(tiny_scene, tmp_path):
+    """A run that stops writes its outputs up to there, marked incomplete (issue 33.3), nothing else; over an
+    earlier result of the scene it writes nothing, and that result stays as it was."""
     out = tmp_path / "fail.nc"
     result = invoke("run", tiny_scene, "-o", out, "-q", "--set", "params.k_alpha=1e100",
                     "--set", "numerics.max_substeps=40")
     assert result.exit_code == 1
     assert result.stderr.startswith(f"error: simulation failed: {tiny_scene}: t = ")
-    assert "Traceback" not in result.output
-    assert not out.exists() and sorted(os.listdir(tmp_path)) == ["tiny.toml"]
+    assert "Traceback" not in result.output and "(marked incomplete)" in result.stderr
+    assert sorted(os.listdir(tmp_path)) == ["fail.nc", "tiny.toml"] and "incomplete" in xr.open_dataset(out).attrs
+    out.unlink()
+    assert invoke("run", tiny_scene, "-o", out, "-q").exit_code == 0
+    before = out.read_bytes()
+    again = invoke("run", tiny_scene, "-o", out, "-q", "--set", "params.k_alpha=1e100")
+    assert again.exit_code == 1 and "the earlier result at" in again.stderr and out.read_bytes() == before
 
 
 def _write_mask(tmp_path, shape):
@@ -224,7 +241,7 @@ def test_version_short_help_completion_and_metavars():
             assert f" {metavar} " in rows[option], rows[option]
         flags = [o for o in ("--quiet", "--retry-failed") if o in rows]
         assert all("<bool>" not in rows[o] for o in flags), flags  # a flag takes no value
-        assert bool(flags) == (command != "plot")
+        assert "--quiet" in flags  # every command takes -q after it (issue 39.12)
 
 
 def test_an_incomplete_scene_tells_every_problem_one_line_each(write_toml, tmp_path):
@@ -287,3 +304,20 @@ def test_shell_completion_offers_bundled_names_by_kind():
     assert offered("biostudy sweep direc") == ["directional-sensitivity", "directional-sweep"]
     assert offered("biostudy stability st") == ["stability"]
     assert "agar-g1e8" in offered("biostudy convergence a")
+
+
+def test_every_command_takes_quiet_and_verbose_after_it_as_the_readme_says(tiny_scene, capsys):
+    """Issue 39.12: show, scenes, analyze, plot and export refused `-q` and `-v` after the command ("No such
+    option: -q") though the README says they work before or after it; every command takes them."""
+    from biostudy.cli.logs import is_quiet
+
+    group = typer.main.get_command(app)
+    commands = group.commands  # type: ignore[attr-defined]
+    assert len(commands) >= 11
+    for name, command in commands.items():  # as click parses them (rendering 22 helps took 1.5 s)
+        flags = {flag for parameter in command.params for flag in parameter.opts}
+        assert {"-q", "--quiet", "-v", "--verbose"} <= flags, (name, sorted(flags))
+    listed = invoke("scenes", "--verbose")
+    assert listed.exit_code == 0 and "agar" in listed.stdout, listed.output
+    shown = invoke("show", tiny_scene, "-q")
+    assert shown.exit_code == 0 and "memory" in shown.stdout and not is_quiet()  # the setting ends with the command

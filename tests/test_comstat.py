@@ -51,18 +51,64 @@ def test_a_flow_cell_cap_is_measured_from_the_face_it_rests_on_not_from_the_held
     assert load_scene(write_toml("agar.toml", agar)).substratum_face() == "z-"  # the colony on the agar
 
 
-def test_a_biofilm_resting_on_several_faces_alike_asks_for_the_face(write_toml, tmp_path):
-    corner = CAP.replace("upper = [6.0, 6.0, 4.0]", "upper = [3.0, 3.0, 3.0]").replace('face = "z+"', 'face = "y+"') \
+BAND_2D = """\
+name = "band"
+[grid]
+shape = [8, 6]
+spacing = 1.0
+[time]
+t_end = 0.002
+steps = 2
+outputs = 2
+[[nutrient]]
+shape = "face"
+face = "y+"
+[[biofilm]]
+shape = "box"
+lower = [0.0, 2.0]
+upper = [8.0, 4.0]
+"""
+
+
+@pytest.mark.parametrize("name, text, faces", [
+    ("slab", CAP.replace("lower = [0.0, 0.0, 0.0]", "lower = [0.0, 0.0, 4.0]").replace("[6.0, 6.0, 4.0]",
+                                                                                      "[6.0, 6.0, 8.0]"),
+     "x- and x+ and y- and y+ alike (it covers 33% of each)"),  # a slab across the domain, off both z faces
+    ("band", BAND_2D, "x- and x+ alike"),  # 2-D: a band from wall to wall
+    ("box", CAP.replace("[6.0, 6.0, 4.0]", "[6.0, 6.0, 12.0]").replace('"face"\nface = "z+"', '"box"\nlower = '
+                                                                       '[0.0, 0.0, 11.0]\nupper = [6.0, 6.0, 12.0]'),
+     "x- and x+ and y- and y+ and z- and z+ alike (it covers 100% of each)"),  # a block filling the box
+    ("floating", CAP.replace("lower = [0.0, 0.0, 0.0]", "lower = [2.0, 2.0, 4.0]").replace(
+        "[6.0, 6.0, 4.0]", "[4.0, 4.0, 6.0]"), "touches no face of the domain"),
+])
+def test_a_scene_runs_whatever_its_biofilm_touches_and_says_why_comstat_is_left_out(write_toml, tmp_path, name,
+                                                                                      text, faces):
+    """Issue 33.1: a scene without a single resting face runs; COMSTAT's six observables are left out of its
+    dataset, whose attribute says why and which key brings them back, and `show` prints it."""
+    out = tmp_path / f"{name}.nc"
+    result = CliRunner().invoke(app, ["run", str(write_toml(f"{name}.toml", text)), "-o", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    ds = xr.open_dataset(out)
+    assert not set(substratum.QUANTITIES) & set(ds.data_vars) and "substratum_face" not in ds.attrs
+    said = ds.attrs["comstat_left_out"]
+    assert faces in said and "[substratum] face = " in said and "biomass" in said, said
+    assert "biofilm_volume" in ds and "height" in ds  # the rest is measured as ever
+    shown = CliRunner().invoke(app, ["show", str(out)], env={"COLUMNS": "400"})
+    assert shown.exit_code == 0 and faces in shown.stdout and "biomass " not in shown.stdout
+    named = text + '[substratum]\nface = "' + ("y-" if name == "band" else "z-") + '"\n'
+    assert "biomass" in _run(write_toml, tmp_path, named, f"{name}-named.nc")  # naming the face brings them back
+
+
+def test_the_directional_sphere_floats_the_maze_says_none_and_a_held_face_settles_a_tie(write_toml):
+    assert load_scene("studies/directional.toml").substratum_attrs()["comstat_left_out"].startswith(
+        "COMSTAT's observables (biomass, ")
+    corner = CAP.replace("upper = [6.0, 6.0, 4.0]", "upper = [3.0, 3.0, 3.0]").replace('face = "z+"', 'face = "y-"') \
         .replace("shape = [6, 6, 12]", "shape = [6, 6, 6]")
-    result = CliRunner().invoke(app, ["run", str(write_toml("corner.toml", corner)), "-o", str(tmp_path / "x.nc")])
-    lines = result.stderr.strip().splitlines()
-    assert result.exit_code == 2 and len(lines) == 1, result.output
-    assert "substratum.face" in lines[0] and "x- and y- and z- alike" in lines[0]
-    held = corner.replace('face = "y+"', 'face = "y-"')
-    assert load_scene(write_toml("held.toml", held)).substratum_face() == "y-"  # the held face decides a tie
-    floating = CAP.replace("lower = [0.0, 0.0, 0.0]", "lower = [2.0, 2.0, 4.0]").replace("[6.0, 6.0, 4.0]",
-                                                                                          "[4.0, 4.0, 6.0]")
-    assert load_scene(write_toml("floating.toml", floating)).substratum_face() == "z-"  # touching none: bottom
+    assert load_scene(write_toml("held.toml", corner)).substratum_face() == "y-"  # the held face decides a tie
+    assert load_scene(write_toml("tie.toml", corner.replace('face = "y-"', 'face = "y+"'))).substratum_face() is None
+    maze = load_scene("studies/maze.toml")  # a plan view: its colony touches x+ at the entrance, but says "none"
+    assert maze.substratum_face() is None and "says it has none" in maze.substratum_attrs()["comstat_left_out"]
+    assert load_scene("studies/maze.toml", ['substratum.face="x+"']).substratum_face() == "x+"
 
 
 def test_connected_volume_filtering_counts_the_cap_alone(write_toml, tmp_path):
@@ -114,3 +160,28 @@ def test_connected_leaves_phi_where_the_biofilm_touches_the_substratum():
     kept = comstat.connected(phi, "z-")
     assert np.isnan(kept[0, 0, 0]) and (kept[5:7] == 0).all() and (kept[1] == 1).all()
     assert (comstat.connected(phi, "z+")[:2, 1:, 1:] == 0).all()  # seen from z+, the layer is what floats
+
+
+def test_asking_for_a_left_out_observable_is_refused_before_anything_runs(write_toml, tmp_path):
+    """A calibration whose table names a COMSTAT observable of a scene without a substratum, and `analyze --output`
+    of one, are refused in one line (exit 2); the calibration before any simulation, the analysis before it writes."""
+    from conftest import TINY_SCENE
+
+    write_toml("tiny.toml", TINY_SCENE.replace('[substratum]\nface = "y-"\n', ""))  # the colony floats
+    write_toml("table.tsv", "observableId\ttime\tmeasurement\tnoiseParameters\nbiofilm_volume\t0.1\t30\t1\n"
+                            "coverage\t0.1\t0.5\t0.1\n")
+    calibration = write_toml("fit.toml", 'scene = "tiny.toml"\n[data]\nmeasurements = "table.tsv"\n'
+                                         '[estimate]\nr = [50.0, 150.0]\n')
+    refused = CliRunner().invoke(app, ["calibrate", str(calibration), "-o", str(tmp_path / "fit")])
+    lines = refused.output.strip().splitlines()
+    assert refused.exit_code == 2 and len(lines) == 1, refused.output
+    assert "table.tsv: line 3: observableId: coverage: COMSTAT's observables" in lines[0]
+    assert "touches no face" in lines[0] and not (tmp_path / "fit").exists()
+    study = write_toml("study.toml", 'scene = "tiny.toml"\n[sweep]\nr = [50.0, 100.0]\n')
+    out = tmp_path / "study"
+    ran = CliRunner().invoke(app, ["sweep", str(study), "-o", str(out), "-q", "--set", "time.steps=4"])
+    assert ran.exit_code == 0, ran.output
+    refused = CliRunner().invoke(app, ["analyze", str(out), "--output", "biomass"])
+    lines = refused.output.strip().splitlines()
+    assert refused.exit_code == 2 and len(lines) == 1 and "biomass: COMSTAT's observables" in lines[0], refused.output
+    assert not (out / "analysis.nc").exists()

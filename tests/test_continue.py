@@ -114,13 +114,13 @@ def test_the_run_continued_is_read_an_output_at_a_time_and_counted(runs, tmp_pat
     assert _run(scene, "-o", tmp_path / "grow.nc").exit_code == 0
     estimated = []
     monkeypatch.setattr(resources, "run_problem", lambda found, *args, **kw: estimated.extend(found.values()) or "")
-    loaded = command.load(scene, overrides=LATER, output=tmp_path / "later.nc", continue_from=tmp_path / "grow.nc")
+    loaded = command.load(scene, set=LATER, output=tmp_path / "later.nc", continue_from=tmp_path / "grow.nc")
     assert loaded.previous is not None and loaded.previous["phi"].chunks == ((1, 1, 1), (12,), (12,))  # lazily
     assert estimated[-1].continuing == resources.CONTINUATION + 3 * resources.CONTINUATION_PER_OUTPUT
     command.compute(loaded)
     with pytest.raises(RuntimeError, match="Not a valid ID"):  # closed with the run: its file is held no longer
         loaded.previous["phi"].load()
-    kept = command.compute(command.load(scene, overrides=LATER, write=False, continue_from=tmp_path / "grow.nc"))
+    kept = command.compute(command.load(scene, set=LATER, write=False, continue_from=tmp_path / "grow.nc"))
     assert kept.dataset.sizes["time"] == 5 and np.isfinite(kept.dataset.phi.values).any()  # read before closing
 
 

@@ -15,6 +15,7 @@ from test_accuracy import exact_front_position
 from test_cli import invoke
 
 import biostudy
+from biostudy.errors import BadInput
 from biostudy.execution.estimate import estimate
 from biostudy.formatting import number
 from biostudy.inputs.scene import load_scene
@@ -130,30 +131,73 @@ def test_a_colony_one_cell_thick_has_no_inside_whatever_its_volume():
 
 
 def test_the_front_scenes_error_bars_hold_the_exact_error(tmp_path):
-    """The front scene on 1/4 µm cells (640 cells, 200 steps; its companions on 1/2 and 1 µm cells): the estimated
-    error of the front's advance is within a factor 3 of its distance from the exact front at every output
-    (measured 1.02-1.12 times it), and c, exactly linear on every grid, has no error beyond round-off.
-    Broken once: Q_error made of the time part alone read 0.15 times the exact error at the last output."""
-    sets = ["grid.shape=[160,4]", "grid.spacing=0.25", "time.steps=200", "params.beta=0"]
-    ds = biostudy.run("front", set=sets)
-    scene = load_scene(STUDIES / "front.toml", sets)
-    made = estimate(scene, STUDIES / "front.toml", ds)
-    assert set(made.runs) == {"coarse", "slow", "coarser"}
-    exact = exact_front_position(ds.time.values[1:]) - exact_front_position(0.0)
-    true = np.abs(ds.front_advance.values[1:] - exact)
-    estimated = made.variables["front_advance_error"].values[1:]
+    """`biostudy run front --error-estimate` on 1/4 µm cells (640 cells, 200 steps; its companions on 1/2 and 1 µm
+    cells): the estimated error of the front's advance is within a factor 3 of its distance from the exact front
+    at every output (measured 1.02-1.12 times it), and c, exactly linear on every grid, has no error beyond
+    round-off.  Broken once: Q_error made of the time part alone read 0.15 times the exact error at the last
+    output; without the option's use in `commands.run.compute` the file had no front_advance_error."""
+    path = tmp_path / "front.nc"
+    made = invoke("run", "front", "-o", path, "-q", "--error-estimate", "--set", "grid.shape=[160,4]", "--set",
+                  "grid.spacing=0.25", "--set", "time.steps=200", "--set", "params.beta=0")
+    assert made.exit_code == 0, made.output
+    assert "error bars' companions" in made.stderr
+    applied = xr.load_dataset(path)
+    said = applied.attrs[error_bars.ATTRIBUTE]
+    assert all(f"{name}: 80 x 2" in said or f"{name}: 40 x 1" in said for name in ("coarse", "slow", "coarser"))
+    exact = exact_front_position(applied.time.values[1:]) - exact_front_position(0.0)
+    true = np.abs(applied.front_advance.values[1:] - exact)
+    estimated = applied["front_advance_error"].values[1:]
     assert np.all((estimated > true / 3) & (estimated < 3 * true)), (estimated, true)
-    assert np.all(made.variables["c_mean_error"].values < 1e-8)
-    applied = made.applied(ds)
+    assert np.all(applied["c_mean_error"].values < 1e-8)
     assert applied["front_advance_error"].attrs["units"] == "um" and "error_estimate_cost" in applied.attrs
 
     # show prints Q ± Q_error (from the file, at a glance and in full), plot draws the bands
-    path = tmp_path / "front.nc"
-    applied.to_netcdf(path)
     shown = invoke("show", path)
-    value, error = float(ds.front_advance.values[-1]), float(estimated[-1])
+    value, error = float(applied.front_advance.values[-1]), float(estimated[-1])
     assert f"{number(value)} ± {number(error)}" in shown.stdout and "error bars" in shown.stdout
     assert f"{number(value)} ± {number(error)}" in rendered(summary(applied))
     figure = series.figure(applied)
     bands = [c for ax in figure.axes for c in ax.collections if isinstance(c, PolyCollection)]
     assert len(bands) >= 3  # c_mean, phi_mean, biofilm_volume (and the substratum's three)
+
+
+def test_a_run_whose_companions_cannot_be_made_says_why_instead_of_a_number(tmp_path):
+    """From Python, `error_estimate=True` on the bundled front scene (40 x 1 cells: the grid does not halve): every
+    Q_error NaN, the reason in the dataset and warned of; a continued run is refused before anything runs."""
+    with pytest.warns(UserWarning, match="no error bars: coarse: not run on 2 µm cells: the grid of 40 x 1 cells"):
+        ds = biostudy.run("front", error_estimate=True)
+    assert np.isnan(ds.front_advance_error.values).all() and ds.attrs["error_estimate"].startswith("not estimated")
+    with pytest.raises(BadInput, match="--error-estimate: a continued run has no error bars"):
+        biostudy.run("front", continue_from=tmp_path / "none.nc", error_estimate=True)
+
+
+def test_a_sweeps_study_nc_carries_each_cases_error_bars(write_toml, tmp_path):
+    """`biostudy sweep --error-estimate` over the front scene's growth speed r (1/2 µm cells, 100 steps): study.nc
+    has front_advance_error per case, each within a factor 3 of that case's distance from the exact front at
+    every output (measured 0.80-1.45 times); the companions are resumed like cases and are not cases.
+    Broken once: the cases' files written before their error bars (`add_error_bars` skipped) -> no variable."""
+    study = write_toml("fronts.toml", f"""\
+        scene = "{STUDIES / 'front.toml'}"
+        [set]
+        "grid.shape" = [80, 2]
+        "grid.spacing" = 0.5
+        "time.steps" = 100
+        "params.beta" = 0.0
+        [sweep]
+        mode = "grid"
+        "params.r" = [60.0, 100.0]
+        """)
+    out = tmp_path / "sweep"
+    result = invoke("sweep", study, "-o", out, "-q", "--error-estimate")
+    assert result.exit_code == 0, result.output
+    assert "2 cases run" in result.stderr and "(and 4 error-bar companions)" in result.stderr
+    ds = xr.load_dataset(out / "study.nc")
+    assert ds.front_advance_error.dims == ("r", "time") and ds.sizes["r"] == 2
+    for r in (60.0, 100.0):
+        case = ds.sel(r=r)
+        exact = exact_front_position(case.time.values[1:], r) - exact_front_position(0.0, r)
+        true = np.abs(case.front_advance.values[1:] - exact)
+        estimated = case.front_advance_error.values[1:]
+        assert np.all((estimated > true / 3) & (estimated < 3 * true)), (r, estimated, true)
+    again = invoke("sweep", study, "-o", out, "-q", "--error-estimate")
+    assert again.exit_code == 0 and "0 cases run, 2 skipped" in again.stderr

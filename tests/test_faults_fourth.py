@@ -240,6 +240,118 @@ def test_interrupts_at_random_moments_end_a_calibration_and_keep_every_finished_
         assert "Exception ignored" not in stderr and finished <= recorded, (trial, stderr, finished - recorded)
 
 
+# ---- 10. calibrate --workers under a memory limit ------------------------------------------------------------------
+
+def test_calibrate_on_more_workers_than_fit_is_refused_before_anything_runs(tmp_path, monkeypatch):
+    """Issue 39.10: `calibrate --workers 4` under a memory limit ran two simulations (its first round), then
+    refused ('4 runs at once need ~1.28 GB'), leaving a directory it owned and two cases; as `sweep`, it is
+    refused before anything runs or is claimed."""
+    from test_calibration_hostile import calibration, table
+
+    from biostudy.execution import backends, pool
+
+    path = calibration(tmp_path, table(("biomass", "", 0.05, 2.0, 0.1), ("biomass", "", 0.1, 2.2, 0.1)),
+                       '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n')
+    monkeypatch.setenv("BIOSTUDY_MEMORY", "700 MB")  # one simulation (~320 MB) fits, two do, four do not
+    monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
+    monkeypatch.setattr(backends, "solve", _refuse)
+    monkeypatch.setattr(pool.LocalPool, "__init__", _refuse)
+    line = one_line(invoke("calibrate", path, "-o", tmp_path / "out", "--workers", "4", "-q"), 2)
+    assert "4 simulations at once (--workers 4) need ~" in line and "700 MB available (BIOSTUDY_MEMORY=700 MB); " \
+        "use fewer workers" in line
+    assert not (tmp_path / "out").exists()
+
+
+# ---- 11. checks and reports linear in the table ---------------------------------------------------------------------
+
+class _Passes(list):
+    """A measurement table that counts the passes made over it."""
+
+    passes = 0
+
+    def __iter__(self):
+        self.passes += 1
+        return super().__iter__()
+
+
+def test_named_sigmas_and_datasets_take_one_pass_over_the_table_whatever_their_number(monkeypatch):
+    """Issue 39.11: validation scanned the whole table per σ name (64,000 rows of 32,000 names: 97 s) and
+    calibration.md's and the fit picture's datasets scanned every measurement per dataset (16,000: 10.5 s); both
+    grouped in one pass now (benchmarks/table_scaling.py measures the time).  The picture draws a panel of more
+    datasets and replicates than anyone tells apart as one series (30 ms an error-bar series)."""
+    import numpy as np
+    import xarray as xr
+
+    from biostudy.calibration import noise, petab, pictures
+    from biostudy.calibration.measurements import Measurement
+    from biostudy.calibration.methods import METHODS
+
+    names = 300
+    rows = _Passes(Measurement(2 + i, "biomass", 0.1 * (i % 4), 2.0 + i, float("nan"), noise=f"s{i // 2}")
+                   for i in range(2 * names))
+    found = noise.noise_parameters(rows)
+    assert [p.rows for p in found[:2]] == [(0, 1), (2, 3)] and len(found) == names and rows.passes <= 2
+    rows.passes = 0
+    assert noise.noise_problems(rows, METHODS["least-squares"], [], Path("t.tsv"), Path("c.toml")) == []
+    assert rows.passes <= 3, rows.passes
+
+    n = 2 * names
+    text = lambda values: ("measurement", np.array(values, dtype=object))  # noqa: E731
+    ds = xr.Dataset({"dataset": text([f"d{i // 2}" for i in range(n)]), "replicate": text(["r"] * n),
+                     "observable": text(["biomass"] * n), "condition": text([""] * n),
+                     "residual": ("measurement", np.ones(n)), "time_measured": ("measurement", np.arange(n) / n),
+                     "measured": ("measurement", np.ones(n)), "sigma": ("measurement", np.ones(n))})
+    scans = []
+    monkeypatch.setattr(petab, "enumerate", lambda items: scans.append(1) or enumerate(items), raising=False)
+    lines = petab.datasets_text(ds)
+    assert len(lines) == 5 + names and lines[-1] == f"| d{names - 1} | biomass | - | r | 2 | 2 |" and len(scans) <= 1
+
+    class Axes:
+        def __init__(self):
+            self.series: list[str] = []
+
+        def errorbar(self, t, y, yerr, label, **style):
+            self.series.append(label)
+
+    ax = Axes()
+    assert pictures._measured(ax, ds, np.arange(n))
+    assert ax.series == [f"measured ± σ ({names} datasets, 1 replicate)"]
+    ax = Axes()
+    assert pictures._measured(ax, ds, np.arange(6))  # three datasets: told apart
+    assert ax.series == [f"measured ± σ, dataset d{k}, replicate r" for k in range(3)]
+
+
+# ---- 13. ids as written or refused ---------------------------------------------------------------------------------
+
+def test_ids_with_a_line_break_or_a_tab_are_refused_one_line_each_at_their_lines(tmp_path):
+    """Issue 39.13: a quoted "new<line break>line" datasetId became `newline` in calibration.nc and
+    simulation.tsv (csv joins a quoted cell's lines without the break), no longer the table's; a tab inside an
+    id went raw into calibration.md.  Both are refused, one line each, and the rows after a cell that ran over
+    two lines are blamed at their own lines."""
+    from test_calibration_hostile import calibration
+
+    from biostudy.calibration.measurements import read_measurements
+
+    rows = ("observableId\ttime\tmeasurement\tnoiseParameters\tdatasetId\treplicateId\n"
+            'biomass\t0.05\t2.0\t0.1\t"new\nline"\t\n'
+            'biomass\t0.1\t2.2\t0.1\t"a\tb"\t\n'
+            "biomass\t0.1\t2.2\t0.1\tkept | as written\tr\x0b1\n"
+            "biomass\t0.1\tx\t0.1\tok\t\n")
+    path = calibration(tmp_path, rows, "[estimate]\nr = [50.0, 150.0]\n")
+    result = invoke("show", path)
+    assert result.exit_code == 2 and "Traceback" not in result.output, result.output
+    assert result.stderr.replace(f"{tmp_path}/", "").strip().splitlines() == [
+        "error: t.tsv: line 2: a quoted cell runs on to line 3: a cell is one line (csv joins its lines without "
+        "their line break, so the row would not be as written; close the quote on its line)",
+        "error: t.tsv: line 4: datasetId: has a tab or control character (got 'a\\tb'): an id is printable text, "
+        "as calibration.md, calibration.nc and simulation.tsv write it",
+        "error: t.tsv: line 5: replicateId: has a tab or control character (got 'r\\x0b1'): an id is printable "
+        "text, as calibration.md, calibration.nc and simulation.tsv write it",
+        "error: t.tsv: line 6: measurement: not a number (got 'x')"]
+    (tmp_path / "t.tsv").write_text(rows.split("\n", 1)[0] + "\nbiomass\t0.1\t2.2\t0.1\tkept | as  written\tr 1\n")
+    assert [(m.dataset, m.replicate) for m in read_measurements(tmp_path / "t.tsv")] == [("kept | as  written", "r 1")]
+
+
 def _scene(path: Path):
     from biostudy.inputs.scene import load_scene
 

@@ -1,11 +1,14 @@
 """The cached operators against FiPy's own, and the plain FiPy run against the fast path."""
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from fipy_reference import FipyTransport
 
 from solver import Grid, Numerics, Parameters, Problem
 from solver.transport import Transport
-from solver.transport.finite_volume import FiniteVolumeGrid
+from solver.transport.biofilm import Biofilm
+from solver.transport.finite_volume import FiniteVolumeGrid, fipy_laplacian
+from solver.transport.nutrient import Nutrient
 
 
 def second_difference(n, h):
@@ -84,22 +87,61 @@ def test_a_failed_step_names_its_cell_in_grid_coordinates_past_the_obstacles():
     assert fv.describe(fv.n - 1) == "cell (y, x) = (2, 3) (y = 5 µm, x = 7 µm)"
 
 
-def test_fipys_mesh_is_freed_once_the_laplacian_is_made_on_a_large_grid(monkeypatch):
-    """FiPy's mesh and variables refer to each other, so without a collection their arrays would outlive the
-    Laplacian (a large part of a big run's peak memory); from `COLLECT_ABOVE` cells on they are collected at once:
-    no FiPy mesh is left, though nothing else collects (here: 60 cells counted as large)."""
-    import gc
+def same_csr(a: sp.csr_matrix, b: sp.csr_matrix) -> bool:
+    """The same CSR arrays: shape, row pointers, column indices and values, bit for bit."""
+    return (a.shape == b.shape and np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
+            and np.array_equal(a.data, b.data))
 
-    from fipy.meshes.abstractMesh import AbstractMesh
 
+@pytest.mark.parametrize("seed", range(6))
+def test_the_laplacian_is_fipys_entry_for_entry(seed):
+    """The Laplacian made from the grid's indices is FiPy's DiffusionTerm matrix (the definition) bit for bit: 2-D
+    and 3-D, spacings whose products round (1/3, 20/64, random), obstacles, cells walled in on every side."""
+    rng = np.random.default_rng(seed)
+    for trial in range(8):
+        shape = tuple(int(n) for n in rng.integers(1, 9, 2 + (seed + trial) % 2))
+        spacing = [1.0, 0.5, 1 / 3, 20 / 64, 0.1, float(np.exp(rng.uniform(-4, 2)))][trial % 6]
+        grid = Grid(shape, spacing)
+        obstacle = rng.random(grid.cells_shape) < [0.0, 0.15, 0.45][trial % 3]
+        if obstacle.all():
+            continue
+        fv = FiniteVolumeGrid(grid, obstacle)
+        assert same_csr(fv.laplacian, fipy_laplacian(grid, ~obstacle)), (shape, spacing)
+
+
+@pytest.mark.parametrize("shape", [(9, 8, 7), (14, 11)])
+def test_the_nutrient_and_biofilm_operators_are_those_made_on_fipys_laplacian(shape):
+    """Held cells, held faces, obstacles and a region walled off from every source: the nutrient's matrix and
+    inflow and the biofilm's diffusion made on the fast Laplacian are those made on FiPy's, bit for bit."""
+    grid = Grid(shape, 0.8)
+    centres = grid.cell_coordinates()
+    obstacle = np.abs(centres[0] - 3.0) < 0.5  # a wall across x ...
+    obstacle &= centres[1] > 1.0  # ... with a gap below, and a sealed pocket beyond it
+    obstacle |= (np.abs(centres[0] - 5.5) < 0.5) | (np.abs(centres[1] - 5.0) < 0.5) & (centres[0] > 5.5)
+    held = (centres[0] > 6.5) & (centres[1] < 1.0)
+    faces = (("y-", 0.8),) if len(shape) == 2 else (("y-", 0.8), ("x-", 0.3))
+    built = []
+    for fipys in (False, True):
+        fv = FiniteVolumeGrid(grid, obstacle)
+        if fipys:
+            fv._laplacian = fipy_laplacian(grid, ~obstacle)
+        nutrient = Nutrient(fv, Parameters(), "first-order", held & ~obstacle, np.full(grid.cells_shape, 0.9),
+                            faces=faces)
+        biofilm = Biofilm(fv, Parameters(), Numerics(advection="tvd"), nutrient.faces)
+        built.append((nutrient, biofilm))
+    (fast, fast_biofilm), (fipy, fipy_biofilm) = built
+    assert np.array_equal(fast.free, fipy.free) and fast.free.size < fast.fv.n - np.count_nonzero(held)
+    assert same_csr(fast.stiffness, fipy.stiffness) and np.array_equal(fast.rhs, fipy.rhs)
+    assert fast_biofilm.neighbour == fipy_biofilm.neighbour and np.array_equal(fast_biofilm.own, fipy_biofilm.own)
+    assert same_csr(fast_biofilm.matrix, fipy_biofilm.matrix)
+
+
+def test_a_run_makes_its_laplacian_without_fipy(monkeypatch):
+    """No FiPy mesh is built for a run (FiPy's cost 5.9 s and 0.93 GB at 80^3)."""
     from solver.transport import finite_volume
 
-    monkeypatch.setattr(finite_volume, "COLLECT_ABOVE", 60)
-    gc.collect()
-    gc.disable()  # no collection but the one under test
-    try:
-        assert FiniteVolumeGrid(Grid((5, 4, 3), 1.0)).laplacian.shape == (60, 60)
-        meshes = sum(isinstance(item, AbstractMesh) for item in gc.get_objects())
-    finally:
-        gc.enable()
-    assert meshes == 0
+    def refused(grid):
+        raise AssertionError("a FiPy mesh was built")
+
+    monkeypatch.setattr(finite_volume, "fipy_mesh", refused)
+    assert FiniteVolumeGrid(Grid((5, 4, 3), 1.0)).laplacian.shape == (60, 60)

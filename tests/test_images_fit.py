@@ -125,3 +125,18 @@ def test_a_sweeps_case_files_record_the_image_and_the_sweep_says_it_was_cropped(
     for case in (tmp_path / "out" / "cases").glob("*.nc"):
         with xr.open_dataset(case) as ds:
             assert ds.attrs["image_biofilm_0_sha256"] and "75.0% of the image" in ds.attrs["image_left_out"]
+
+
+@pytest.mark.parametrize("rows", [6400, 240])  # the whole 80 x 80 picture at once; 3 rows at a time (27 slabs)
+def test_the_part_beyond_the_grid_is_counted_a_slab_at_a_time_as_whole(tmp_path, monkeypatch, rows):
+    """The spill check counts a region a slab of `SLAB_VOXELS` at a time (an image region's memory counts one
+    slab, issue 39.8): rows 30..49 of 0.5 µm pixels (y 15..25 µm) in a 20 µm grid, 20 columns wide: half the
+    colony (rows 40..49, 200 pixels) and three quarters of the picture lie outside, however it is sliced."""
+    from biostudy.inputs import images
+
+    path = picture(tmp_path, colony(rows=slice(30, 50)))
+    monkeypatch.setattr(images, "SLAB_VOXELS", rows)
+    stat = path.stat()
+    found = images._spill.__wrapped__(str(path), stat.st_mtime_ns, stat.st_size, None, None, (0.5, 0.5), (0.0, 0.0),
+                                      (20.0, 20.0))
+    assert found == (pytest.approx(0.75), pytest.approx(0.5), 200)

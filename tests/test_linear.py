@@ -1,4 +1,4 @@
-"""The transport's linear-algebra parts (solver/transport/linear.py) against plain scipy answers."""
+"""The transport's linear-algebra parts (solver/transport/linear.py, krylov.py) against plain scipy answers."""
 import copy
 
 import numpy as np
@@ -7,7 +7,8 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from solver.transport.linear import KeptDiagonal, ReusedAMG, VCycle, jacobi_bicgstab, pcg
+from solver.transport.krylov import jacobi_bicgstab, pcg
+from solver.transport.linear import KeptDiagonal, ReusedAMG, VCycle
 
 
 def laplacian_3d(n: int) -> sp.csr_matrix:

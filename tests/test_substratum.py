@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from biostudy.inputs.substratum_face import default_face
 from biostudy.quantities import substratum as sub
 from biostudy.quantities.substratum import substratum_observables as observe
 from solver.problem import FACES
@@ -342,7 +341,6 @@ def test_table_names_units_and_functions():
     for q in sub.QUANTITIES.values():
         assert q.long_name
         assert q.compute(phi, 1.0, "z-") == pytest.approx(together[q.name], rel=1e-12)
-    assert default_face(3) == "z-" and default_face(2) == "y-"
 
 
 # ---- the scene's [substratum], recorded in the datasets; a vanished dense biofilm ---------------------------------
@@ -405,7 +403,7 @@ def test_the_substratum_defaults_to_the_face_the_biofilm_rests_on_and_a_run_reco
 
 @pytest.mark.parametrize("face, expected", [
     ('"z-"', "substratum.face: 'z-' is not a face of a 2-D grid (faces: x-, x+, y-, y+)"),
-    ('"w-"', "substratum.face: must be 'x-', 'x+', 'y-', 'y+', 'z-' or 'z+'"),
+    ('"w-"', "substratum.face: must be 'x-', 'x+', 'y-', 'y+', 'z-', 'z+' or 'none'"),
 ])
 def test_a_wrong_substratum_face_is_one_line(write_toml, tmp_path, face, expected):
     from typer.testing import CliRunner

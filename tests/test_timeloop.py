@@ -41,6 +41,12 @@ class FlakyTransport:
             raise StepFailure("linear solver did not converge", "cell (z, y, x) = (1, 2, 3)")
         return State(state.t + dt, state.phi, state.alpha, state.c)
 
+    def velocity(self, state):
+        return [], 0.0  # no front moves: no step is split for its Courant number
+
+    def runaway(self, state):
+        return None
+
 
 def test_failed_steps_are_bisected_and_grow_back():
     problem = sphere_problem(t_end=1.0, steps=10)

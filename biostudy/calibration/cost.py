@@ -54,6 +54,20 @@ def problems(plan: CalibrationPlan, runs_here: bool) -> list[BadInput]:
     return found
 
 
+def workers_problem(plan: CalibrationPlan, workers: int | None) -> BadInput | None:
+    """A `BadInput` if `workers` local simulations at once, each as large as the largest, cannot fit in memory
+    here: said before anything runs or is claimed, as `sweep` refuses its largest cases `--workers` at a time (a
+    calibration's rounds grow to that many simulations only later: its starts, then the Jacobians' points)."""
+    if not workers or workers < 2:
+        return None
+    found = estimates(plan)
+    largest = max(found, key=lambda condition: found[condition].memory)
+    one = found[largest]
+    problem = resources.too_big(workers * one.memory, f"{workers} simulations at once (--workers {workers}) need",
+                                f"each up to {resources.size(one.memory)}, condition {largest}: {one.parts()}")
+    return BadInput(f"{problem}; use fewer workers", plan.file) if problem else None
+
+
 def note(plan: CalibrationPlan) -> str:
     """What its many outputs make every simulation cost, said before the first one runs ('' for a few)."""
     said = [f"{outputs_text(c, e.outputs)}: {resources.size(e.memory)} of memory and "

@@ -129,15 +129,11 @@ class Evaluator:
     def _recorded(self, job: Job) -> dict[str, np.ndarray]:
         """The time and the observables `job.measure` of its reused case file: those it holds, measured on the
         substratum its scene says now (else computed from its fields, as they are then)."""
-        now = job.scene.substratum_attrs()
         with netcdf_io.open_dataset(case_files.case_file(self.directory, job.id)) as opened:
-            ds = netcdf.as_run(opened)
-            stale = any(str(ds.attrs.get(name)) != str(value) for name, value in now.items())
-            ds.attrs.update(now)
+            ds = observables.as_measured(netcdf.as_run(opened), job.scene.substratum_attrs())
             series = {"time": ds["time"].values}
             for name in job.measure:
-                held = name in ds and not (stale and observables.get(name).needs_attrs)
-                series[name] = (ds[name] if held else observables.evaluate(ds, name)).values
+                series[name] = (ds[name] if name in ds else observables.evaluate(ds, name)).values
         return series
 
     def noise(self) -> np.ndarray:

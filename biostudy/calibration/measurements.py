@@ -15,7 +15,9 @@ parameter (PEtab's parameter ids, `NOISE_NAME`: σ estimated, one per name;
 `noise`), `simulationConditionId`
 names one of the calibration's `[conditions]` (empty or absent without them).
 PEtab's optional `datasetId`, `replicateId` and `datapointId` are read and
-kept (calibration.nc, calibration.md and simulation.tsv carry them); its
+kept as written (calibration.nc, calibration.md and simulation.tsv carry them;
+an id with a tab or control character is refused, as is a quoted cell that runs
+over several lines, which csv would join without its line break); its
 `preequilibrationConditionId` and `observableParameters` are accepted empty
 (a value there is refused: nothing here pre-equilibrates, and the observables
 have no parameters); any other column is refused rather than ignored.  The delimiter is whichever of tab,
@@ -55,6 +57,8 @@ _NUMBER = {mark: re.compile(rf"[+-]?([0-9]+\{mark}?[0-9]*|\{mark}[0-9]+)([eE][+-
 _NOT_FINITE = re.compile(r"[+-]?(inf|infinity|nan)", re.IGNORECASE)
 _LINE_BREAK = re.compile(r"\r\n|\r|\n")
 NOISE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # a noise parameter's name (PEtab's parameter ids)
+IDS = ("datasetId", "replicateId", "datapointId")  # PEtab's ids, kept as written
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")  # a tab, a line break, what a table cell cannot show
 
 
 @dataclass(frozen=True)
@@ -114,15 +118,15 @@ class _Decimals:
         return f"not a number (got {text!r})"
 
 
-def _decimals(delimiter: str, header: list[str], rows: list[list[str]], first_line: int) -> _Decimals:
+def _decimals(delimiter: str, header: list[str], rows: list[tuple[int, int, list[str]]]) -> _Decimals:
     """A comma in a number of a `;` table makes the comma its decimal mark."""
     if delimiter != ";":
         return _Decimals()
     columns = [(header.index(name), name) for name in NUMBERS if name in header]
-    for offset, cells in enumerate(rows):
+    for line, _, cells in rows:
         for index, name in columns:
             if index < len(cells) and "," in cells[index]:
-                return _Decimals(",", f"line {first_line + offset}: {name}")
+                return _Decimals(",", f"line {line}: {name}")
     return _Decimals()
 
 
@@ -173,11 +177,13 @@ def read_measurements(path: str | Path) -> list[Measurement]:
         raise BadInput("is empty: a measurement table needs a header line (" + ", ".join(REQUIRED) + ")", path)
     delimiter = _delimiter(path, lines[first])
     reader = csv.reader(lines[first:], delimiter=delimiter)
+    read: list[tuple[int, int, list[str]]] = []  # (its first line, its last line, cells) per row
     try:
-        header, *table = reader
+        for cells in reader:
+            read.append((read[-1][1] + 1 if read else first + 1, first + reader.line_num, cells))
     except csv.Error as error:  # a cell beyond csv's field limit (128 KiB)
         raise BadInput(f"cannot be read as a table ({error})", path, f"line {first + reader.line_num}") from None
-    header = [name.strip() for name in header]
+    header, table = [name.strip() for name in read[0][2]], read[1:]
     missing = [name for name in REQUIRED if name not in header]
     problems = [BadInput(f"missing column {name} (PEtab's measurement table: "
                          f"{', '.join(REQUIRED)}, optionally {', '.join(OPTIONAL)})", path) for name in missing]
@@ -192,12 +198,16 @@ def read_measurements(path: str | Path) -> list[Measurement]:
                           path) for name in sorted(counts) if counts[name] > 1]
     if problems:
         raise refusal(problems, path)
-    decimals = _decimals(delimiter, header, table, first + 2)
+    decimals = _decimals(delimiter, header, table)
     columns = tuple(header)
     rows = []
-    for offset, cells in enumerate(table):
-        line = first + 2 + offset
+    for line, last, cells in table:
         if not any(cell.strip() for cell in cells):
+            continue
+        if last > line:
+            problems.append(BadInput(f"a quoted cell runs on to line {last}: a cell is one line (csv joins its "
+                                     "lines without their line break, so the row would not be as written; close "
+                                     "the quote on its line)", path, f"line {line}"))
             continue
         if len(cells) != len(header):
             problems.append(BadInput(f"has {len(cells)} cells, the header {len(header)}", path, f"line {line}"))
@@ -207,6 +217,9 @@ def read_measurements(path: str | Path) -> list[Measurement]:
             problems.append(BadInput("missing (the observable's name)", path, f"line {line}: observableId"))
         problems += [BadInput(f"{why} (got {row[name]!r})", path, f"line {line}: {name}")
                      for name, why in EMPTY_ONLY.items() if row.get(name)]
+        problems += [BadInput(f"has a tab or control character (got {row[name]!r}): an id is printable text, as "
+                              "calibration.md, calibration.nc and simulation.tsv write it", path,
+                              f"line {line}: {name}") for name in IDS if _CONTROL.search(row.get(name, ""))]
         time = _number(row["time"], "time", line, path, problems, decimals)
         value = _number(row["measurement"], "measurement", line, path, problems, decimals)
         noise = row["noiseParameters"] if _named(row["noiseParameters"]) else ""

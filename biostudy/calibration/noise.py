@@ -39,14 +39,23 @@ class NoiseParameter:
     scale: float
 
 
+def groups(rows: list[Measurement]) -> dict[str, list[int]]:
+    """Each noise parameter the table names and its rows (indices), in the order first named: one pass over the
+    table (64,000 rows of as many names were validated in 97 s scanning the table per name, issue 39.11)."""
+    found: dict[str, list[int]] = {}
+    for i, m in enumerate(rows):
+        if m.noise:
+            found.setdefault(m.noise, []).append(i)
+    return found
+
+
 def noise_parameters(rows: list[Measurement]) -> list[NoiseParameter]:
     """The noise parameters the table names, in the order first named (rows checked by `noise_problems`)."""
     found = []
-    for name in dict.fromkeys(m.noise for m in rows if m.noise):
-        at = tuple(i for i, m in enumerate(rows) if m.noise == name)
+    for name, at in groups(rows).items():
         values = np.array([rows[i].value for i in at])
         rms = math.sqrt(float(np.mean(np.square(values))))
-        found.append(NoiseParameter(name, at, _units(rows[at[0]]), rms if rms > 0 else 1.0))
+        found.append(NoiseParameter(name, tuple(at), _units(rows[at[0]]), rms if rms > 0 else 1.0))
     return found
 
 
@@ -62,8 +71,8 @@ def noise_problems(rows: list[Measurement], method: type[Method], parameters: li
     """Why the table's noise parameters cannot be estimated, one `BadInput` each: a group of one row, a group of
     different units, a name that is an estimated parameter's, a method that takes σ as given."""
     problems = []
-    for name in dict.fromkeys(m.noise for m in rows if m.noise):
-        group = [m for m in rows if m.noise == name]
+    for name, at in groups(rows).items():
+        group = [rows[i] for i in at]
         if len(group) < MINIMUM_ROWS:
             problems.append(BadInput(f"{name} names the σ of this row alone: σ cannot be estimated from one row "
                                      "(name it on more rows, or give σ as a number)", data_file,

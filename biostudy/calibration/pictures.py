@@ -6,7 +6,8 @@
   a table with PEtab's `datasetId` or `replicateId` has its datasets drawn in
   their own colours and its replicates with their own open markers, each named
   in the panel's legend (replicates measured at the same time are told apart by
-  their markers).
+  their markers); a panel of more than `SHOWN_GROUPS` pairs draws its measurements
+  as one series, the datasets and replicates counted in the legend.
 * `profiles_figure`: one panel per parameter: chi² above its minimum along the
   profile (the others re-optimised), the 95 % threshold 3.84, the estimate and
   the interval; a log axis for a log parameter; the panel spans the profile (its
@@ -37,18 +38,31 @@ def _grid(count: int) -> tuple[int, int]:
 
 MARKERS = "osD^v<>PX*"
 COLOURS = ("C0", "C3", "C4", "C5", "C6", "C7", "C8", "C9")  # C1 is the fit, C2 the posterior band
+SHOWN_GROUPS = 24  # (dataset, replicate) pairs a panel draws and names apart; more are drawn as one series
+
+
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}" + ("s" if n != 1 else "")
 
 
 def _measured(ax, ds: xr.Dataset, at: np.ndarray) -> bool:
     """The measurements `at` with error bars; a colour per dataset and a marker per replicate (PEtab's ids; the
     colour per replicate in a panel of one dataset) when the table names them.  Whether any was named (the panel
     then needs its own legend)."""
-    ids = [(str(ds["dataset"].values[i]), str(ds["replicate"].values[i])) for i in at]
-    groups = list(dict.fromkeys(ids))
+    dataset, replicate = ds["dataset"].values, ds["replicate"].values
+    rows: dict[tuple[str, str], list[int]] = {}  # one pass (issue 39.11: a scan of the panel per dataset)
+    for i in at:
+        rows.setdefault((str(dataset[i]), str(replicate[i])), []).append(int(i))
+    groups = list(rows)
     datasets = list(dict.fromkeys(d for d, _ in groups))
     replicates = list(dict.fromkeys(r for _, r in groups))
+    if len(groups) > SHOWN_GROUPS:  # told apart by nobody, and 30 ms each: one series, counted
+        ax.errorbar(ds.time_measured.values[at], ds.measured.values[at], yerr=ds.sigma.values[at], fmt="o", ms=3.5,
+                    color=COLOURS[0], mfc="none", capsize=2,
+                    label=f"measured ± σ ({_count(len(datasets), 'dataset')}, {_count(len(replicates), 'replicate')})")
+        return True
     for group in groups:
-        where = at[[k for k, named in enumerate(ids) if named == group]]
+        where = np.array(rows[group])
         label = ", ".join(["measured ± σ"] + [f"{what} {name}" for what, name in zip(("dataset", "replicate"), group)
                                                if name])
         named = group != ("", "")

@@ -179,9 +179,10 @@ def _measurements(spec: Calibration, scenes: dict[str, Scene], scene_file: Path,
         except ValueError:
             problems.append(BadInput(unknown_observable(m.observable), data_file, f"line {m.line}: observableId"))
             continue
-        if "p" in observable.needs and scene.mechanics is None:
-            problems.append(BadInput(f"{m.observable} needs the mechanics, which the scene leaves out", data_file,
-                                     f"line {m.line}: observableId"))
+        missing = ("needs the mechanics, which the scene leaves out" if "p" in observable.needs and scene.mechanics
+                   is None else scene.substratum_found().why_none if observable.needs_attrs else "")
+        if missing:
+            problems.append(BadInput(f"{m.observable}: {missing}", data_file, f"line {m.line}: observableId"))
         t_end = scene.time.t_end
         if not 0 <= t <= t_end * (1 + 1e-12):
             when = "before the start" if t < 0 else "after the run's end"

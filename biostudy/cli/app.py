@@ -23,12 +23,12 @@ from . import logs, output, progress
 from .build import command, flag, own
 from .guard import OneLineErrors, guarded
 from .jobs import job_command
-from .options import FLAG, Json, Quiet, Verbose
+from .options import FLAG, Json
 
 app = typer.Typer(name="biostudy", cls=OneLineErrors, no_args_is_help=True, pretty_exceptions_enable=False,
                   context_settings={"help_option_names": ["-h", "--help"]},
                   help="Parameter studies of biofilm growth: run scenes, sweep studies, inspect results.")
-QUIET, VERBOSE, JSON = own("quiet", Quiet), own("verbose", Verbose), own("as_json", Json)
+JSON = own("as_json", Json)  # -q and -v: every command's (`build.EVERY`)
 
 
 def _version(value: bool) -> None:
@@ -58,7 +58,7 @@ def _process(ctx: typer.Context,
     os.environ["MPLBACKEND"] = "Agg"
 
 
-@command(app, declared.RUN, QUIET, VERBOSE)
+@command(app, declared.RUN)
 def run(options: dict, quiet: bool = False, verbose: bool = False) -> None:
     with guarded():
         from ..commands import run as command  # lazily (module docstring)
@@ -72,7 +72,7 @@ def run(options: dict, quiet: bool = False, verbose: bool = False) -> None:
         result.dataset.close()  # the file written, opened lazily (`commands.run.compute`)
 
 
-@command(app, declared.SWEEP, QUIET, VERBOSE, JSON)
+@command(app, declared.SWEEP, JSON)
 def sweep(options: dict, quiet: bool = False, verbose: bool = False, as_json: bool = False) -> None:
     job_command(declared.SWEEP, options, quiet, as_json)
 
@@ -145,16 +145,16 @@ def measure(options: dict, as_json: bool = False) -> None:
             progress.err().print(f"wrote {found.written}", markup=False, highlight=False)
 
 
-@command(app, declared.CONVERGENCE, QUIET, VERBOSE, JSON)
+@command(app, declared.CONVERGENCE, JSON)
 def convergence(options: dict, quiet: bool = False, verbose: bool = False, as_json: bool = False) -> None:
     job_command(declared.CONVERGENCE, options, quiet, as_json)
 
 
-@command(app, declared.STABILITY, QUIET, VERBOSE, JSON)
+@command(app, declared.STABILITY, JSON)
 def stability(options: dict, quiet: bool = False, verbose: bool = False, as_json: bool = False) -> None:
     job_command(declared.STABILITY, options, quiet, as_json)
 
 
-@command(app, declared.CALIBRATE, QUIET, VERBOSE, JSON)
+@command(app, declared.CALIBRATE, JSON)
 def calibrate(options: dict, quiet: bool = False, verbose: bool = False, as_json: bool = False) -> None:
     job_command(declared.CALIBRATE, options, quiet, as_json)

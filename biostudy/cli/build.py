@@ -14,7 +14,7 @@ import typer
 from ..commands.options import REQUIRED, Command, Option
 from ..errors import BadInput
 from .guard import guarded
-from .options import FLAG
+from .options import FLAG, Quiet, Verbose
 
 
 def _complete(kinds: tuple[str, ...]):
@@ -63,17 +63,19 @@ def values(declared: Command, given: dict[str, Any]) -> dict[str, Any]:
 
 def command(app: typer.Typer, declared: Command, *own: inspect.Parameter) -> Callable:
     """Register `declared` on `app`: the decorated function is called with the options' values (a dict, read
-    and checked) and the command line's own options `own` (-q, -v, --json) by name."""
+    and checked) and the command line's own options by name: -q and -v, which every command takes after it as
+    before it (`EVERY`; their callbacks set them, `logs`), and `own` (--json), those its signature names."""
     def register(shows: Callable[..., None]) -> Callable[..., None]:
-        mine = {p.name for p in own}
+        mine = [*EVERY, *own]
+        taken = inspect.signature(shows).parameters
 
         def called(**given: Any) -> None:
-            extra = {name: given.pop(name) for name in mine}
+            extra = {p.name: given.pop(p.name) for p in mine}
             with guarded():
                 checked = values(declared, given)
-            shows(checked, **extra)
+            shows(checked, **{name: value for name, value in extra.items() if name in taken})
 
-        params = [parameter(option) for option in declared.on("cli")] + list(own)
+        params = [parameter(option) for option in declared.on("cli")] + mine
         called.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
         called.__annotations__ = {p.name: p.annotation for p in params}
         called.__name__ = declared.name
@@ -86,3 +88,6 @@ def command(app: typer.Typer, declared: Command, *own: inspect.Parameter) -> Cal
 def own(name: str, annotated: Any, default: Any = False) -> inspect.Parameter:
     """One of the command line's own options (`options.Quiet`, ...) as a parameter."""
     return inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default, annotation=annotated)
+
+
+EVERY = (own("quiet", Quiet), own("verbose", Verbose))  # every command takes -q and -v after it (README)

@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..calibration import cost, petab_out
+from ..calibration import cost, grid_error, petab_out
 from ..calibration.evaluator import Evaluator
 from ..calibration.methods import FIT, Method, Result, chosen
 from ..calibration.petab import simulation_table
@@ -45,6 +45,7 @@ class Calibrate:
     plan: CalibrationPlan
     directory: Path
     noun: str = "simulations"
+    error_estimate: bool = False  # the discretisation error at the optimum against σ (`calibration.grid_error`)
 
     @property
     def title(self) -> str:
@@ -67,6 +68,10 @@ class Calibrate:
         result's summary."""
         began = time.perf_counter()
         method = chosen(self.plan.spec.method)
+        if not (execution.scheduler or execution.scheduler_file):  # local workers: as many simulations at once
+            crowded = cost.workers_problem(self.plan, execution.workers)
+            if crowded is not None:
+                raise crowded
         said = cost.note(self.plan)
         if said and execution.notify is not None:
             execution.notify("note", "", said)
@@ -74,8 +79,11 @@ class Calibrate:
                    digested=(SIMULATIONS, *(f"{petab_out.FOLDER}/{name}" for name in petab_out.NAMES))):
             backend = _backend(execution)
             runs = Evaluator(self.plan, self.directory, execution, backend)
+            grid = None
             try:
                 result = method(runs.objective())
+                if self.error_estimate:
+                    grid = grid_error.at_optimum(runs, result.estimate.best.x)
             finally:
                 if backend is not None:
                     backend.end()
@@ -83,6 +91,12 @@ class Calibrate:
                          {**runs.cost(), "wall_time": time.perf_counter() - began, **method.cost(result)}, runs.failed,
                          runs.raised)
             table, simulations = table_text(ds), simulation_table(ds)
+            if grid is not None:
+                sigma = ds["sigma"].values
+                ds = ds.assign(grid_error.variables(grid, sigma, [str(ds["measured"].attrs.get("units", "1"))]))
+                said = grid_error.text(grid, self.plan, sigma)
+                ds.attrs["discretisation"] = said.strip()
+                table += "\n" + said
             before = reading.attributes(self.directory / "calibration.nc")  # what proves simulation.tsv biostudy's
             present = claims.sha256(self.directory / SIMULATIONS)
             ds.attrs.update(claims.digested(SIMULATIONS, simulations,
@@ -99,8 +113,11 @@ class Calibrate:
         summary = (f"{len(runs.ran)} simulations run, {len(runs.reused)} reused (finished before); "
                    f"wrote {self.directory / 'calibration.nc'}, {', '.join(self.reports())}, {SIMULATIONS}"
                    + (f", {petab_out.FOLDER}/ (the PEtab problem)" if problem else ""))
+        over = [] if grid is None else grid_error.exceeding(grid, ds["sigma"].values)
+        biased = [f"the grid's discretisation error exceeds {grid_error.RATIO:g} σ on {len(over)} rows (calibration.md)"
+                  ] if over else [] if grid is None else grid_error.missing(grid, ds["sigma"].values)
         return Finished(summary, {}, len(runs.ran) + len(runs.reused), table, self.noun,
-                        [*_warnings(runs, method, result), *unwritten], result=ds)
+                        [*_warnings(runs, method, result), *unwritten, *biased], result=ds)
 
 
 def _warnings(runs: Evaluator, method: Method, result: Result) -> list[str]:
@@ -131,8 +148,8 @@ def _backend(execution: Execution) -> Kept | None:
     return Kept(backend(execution, None if notify is None else lambda message: notify("note", "", message)))
 
 
-def load(calibration: str | Path, *, directory: Path | None = None,
-         set: list[str] | tuple[str, ...] = (), runs_here: bool = False) -> Calibrate:  # noqa: A002
+def load(calibration: str | Path, *, directory: Path | None = None, set: list[str] | tuple[str, ...] = (),  # noqa: A002
+         error_estimate: bool = False, runs_here: bool = False) -> Calibrate:
     """Read and validate a calibration file (a path or a bundled name), its scene with the overrides `set`, its
     conditions and measurements (the options: `declared.CALIBRATE`); bad input is `BadInput` (`runs_here`: as
     for `commands.sweep.load`)."""
@@ -140,4 +157,5 @@ def load(calibration: str | Path, *, directory: Path | None = None,
     too_costly = cost.problems(plan, runs_here)
     if too_costly:
         raise BadInput.every(too_costly)
-    return Calibrate(plan, Path(directory) if directory is not None else Path(plan.spec.name))
+    return Calibrate(plan, Path(directory) if directory is not None else Path(plan.spec.name),
+                     error_estimate=error_estimate)

@@ -14,6 +14,7 @@ from pathlib import Path
 import xarray as xr
 
 from ..data import claims, provenance, writing
+from ..errors import BadInput
 from ..execution.jobs import Execution, Job, SweepReport, run_jobs
 from ..execution.ownership import Owner
 from ..execution.targets import owned
@@ -21,10 +22,12 @@ from ..inputs import bundled
 from ..inputs.keys import apply_overrides, given_by
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, overrides_text, read_scene_data, scene_from_data
+from ..plans import resolution
 from ..plans.refinement import check_refinable, plan, refined, with_reference
 from ..plots.accuracy import work_precision
+from ..reports import error_model
 from ..reports.convergence import measure
-from ..reports.convergence_levels import Level, given_reference
+from ..reports.convergence_levels import SCALARS, Level, given_reference
 from ..reports.convergence_table import table_text
 from .finished import Finished
 
@@ -46,6 +49,8 @@ class Convergence:
     reference: Path | None = None  # a run every level is measured against
     given: Level | None = None  # its quantities at the scene's output times
     time: float | None = None
+    target_error: float | None = None  # recommend the cheapest resolution for it (`reports.error_model`)
+    observable: str = "biofilm_volume"
     noun: str = "runs"
 
     @property
@@ -80,15 +85,29 @@ class Convergence:
             ds = measure(wanted, self.directory, self.levels, series, self.base, given, self.time, scenes)
             if self.reference is not None and given is not None:
                 ds.attrs["reference"] = f"the run in {Path(self.reference).resolve()}"
+            if self.target_error is not None:
+                ds.attrs.update(self.recommended(ds, wanted, scenes).attrs(self.observable))
             ds.attrs = provenance.with_provenance({**ds.attrs, "scene": self.base.to_toml(),
                                               "scene_file": str(self.path.resolve()), "overrides": text})
             writing.write_atomic(ds, self.directory / "convergence.nc")
         return ds, report
 
 
+    def recommended(self, ds: xr.Dataset, wanted: list, scenes: dict) -> error_model.Recommendation:
+        """The cheapest resolution predicted to reach `target_error` in `observable` at `time`, among the grids
+        that hold the scene's regions as the finest level does."""
+        finest = scenes[max(wanted, key=lambda level: level.refine).job_id]
+        scheme = self.base.numerics.advection  # type: ignore[attr-defined]  # (a model made from solver.Numerics)
+        fit = error_model.fit(ds, self.observable, self.time, scheme)
+        resolves = resolution.resolves_like(self.base, self.path, finest)
+        return error_model.recommend(fit, float(self.target_error or 0), ds, self.base.time.t_end,
+                                     list(self.base.grid.shape), self.base.grid.spacing, resolves)
+
+
 def load(scene: str | Path, *, levels: int, series: tuple[str, ...], tolerance: float, directory: Path | None = None,
          set: list[str] | tuple[str, ...] = (), reference: Path | None = None,  # noqa: A002
-         time: float | None = None, runs_here: bool = False) -> Convergence:
+         time: float | None = None, target_error: float | None = None, observable: str = "biofilm_volume",
+         runs_here: bool = False) -> Convergence:
     """Read and validate the scene with the overrides `set` (level 0's) and the plan of `levels` per `series`
     (the options, their defaults and rules: `declared.CONVERGENCE`); bad input is `BadInput` (`runs_here`: level
     0 runs here, as for `commands.sweep.load`)."""
@@ -97,7 +116,10 @@ def load(scene: str | Path, *, levels: int, series: tuple[str, ...], tolerance: 
     common = dict(apply_overrides(data, set))
     base = scene_from_data(copy.deepcopy(data), path, given_by(common, "--set"), Preflight(runs=runs_here))
     check_refinable(base, path)
+    if target_error is not None and observable not in SCALARS:
+        raise BadInput(f"{observable!r} is not measured by a convergence study; choose from {', '.join(SCALARS)}",
+                       None, "--observable")
     directory = Path(directory) if directory is not None else Path(f"{path.stem}-convergence")
     given = None if reference is None else given_reference(reference, base)
     return Convergence(path, data, base, levels, tuple(series), tolerance, common, directory, reference, given,
-                       time)
+                       time, target_error, observable)

@@ -9,7 +9,7 @@ Kept to the standard library and constants: the command line is built from this 
 from __future__ import annotations
 
 from ..plans.refinement import FIRST_TOLERANCE, SERIES
-from .kinds import Named, Numbers
+from .kinds import Fraction, Named, Numbers
 from .options import (
     REQUIRED,
     Choice,
@@ -41,6 +41,13 @@ def source(name: str, metavar: str, help: str, *kinds: str, data: bool = False) 
     return Option(name, Source(data), REQUIRED, help, metavar=metavar, positional=True, complete=kinds)
 
 
+def error_estimate(what: str) -> Option:
+    """--error-estimate: each observable's discretisation error from cheaper companion runs, for `what`."""
+    return Option("error_estimate", Flag(), False, f"also run the scene on 2x coarser cells with 2x and 4x longer "
+                  f"steps (and 4x coarser) and add, {what}, each observable's estimated discretisation error "
+                  "Q_error at every output (docs/accuracy.md, 'Error bars on a run')", ("--error-estimate",))
+
+
 def directory(help: str) -> Option:  # noqa: A002
     """Where a job command writes: -o DIR, and from Python its second argument."""
     return Option("directory", File(), None, help, ("-o", "--output"), "DIR", positional=True)
@@ -60,7 +67,10 @@ RERUN_ALL = Option("rerun_all", Flag(), False, "run every case again, also those
                    "software upgrade)", ("--rerun-all",))
 RETRY_FAILED = Option("retry_failed", Flag(), False, "run failed cases again (finished ones are skipped unless "
                       "--rerun-all)", ("--retry-failed",))
-EXECUTION = ("workers", "scheduler", "scheduler_file", "retry_failed", "rerun_all", "force")  # `jobs.Execution`'s
+THREADS = Option("threads", Whole(least=1, of="threads"), None, "threads of each simulation (default: the scene's "
+                 "numerics.threads, else the processors here, shared among a sweep's workers); the results are the "
+                 "same for every count", ("--threads",), "N")
+EXECUTION = ("workers", "scheduler", "scheduler_file", "retry_failed", "rerun_all", "force", "threads")  # `Execution`'s
 WHERE = (WORKERS, SCHEDULER, SCHEDULER_FILE)
 ARRAY_TASKS = "array tasks are batch jobs of the command line (docs/clusters.md)"
 FORMATS = ("vti", "vtu", "tiff")  # the first is the default
@@ -77,8 +87,10 @@ RUN = Command("run", "Run one simulation and write its dataset (netCDF).", (
            ("--continue",), "RUN.nc"),
     Option("force", Flag(), False, "replace OUT.nc even if it holds the result of another scene or a sweep's file "
            "(never an input or a file biostudy did not write)", ("--force",)),
+    error_estimate("to the dataset"),
     Option("progress", Function(), None, "called with a `solver.Progress` after every step", side="python",
            why="the command line draws its own progress (-q leaves it out)"),
+    THREADS,
 ), "the run's dataset, the one the command writes; keys that `set` overrides are scalar coordinates of it (runs "
    "with different values combine with xr.open_mfdataset(files, combine='nested', concat_dim=KEY))")
 
@@ -87,7 +99,8 @@ SWEEP = Command("sweep", "Run every case of a study; re-running skips finished c
     directory("directory for cases/ and the results (default: from the file's name)"),
     *WHERE,
     overrides("every case"),
-    RETRY_FAILED, RERUN_ALL, FORCE,
+    RETRY_FAILED, RERUN_ALL, FORCE, THREADS,
+    error_estimate("to every case's file and to study.nc"),
     Option("cases", Many(Text("a case id"), "a case id or a list of them"), None, "run only this case (an array "
            "task; repeatable): its file goes into DIR beside those of other such tasks; study.nc is left to "
            "--combine", ("--case",), "ID", side="cli", why=ARRAY_TASKS),
@@ -108,6 +121,8 @@ CALIBRATE = Command("calibrate", "Estimate scene parameters from measurements: l
     *WHERE,
     overrides("the scene of every simulation"),
     RERUN_ALL, FORCE,
+    error_estimate("for the simulation at the optimum, and compare it with each measurement's sigma in "
+                   "calibration.md"),
 ), "calibration.nc: estimates, standard errors, 95 % profile intervals, which parameters the data determine, the "
    "data beside the fitted observables")
 
@@ -127,8 +142,14 @@ CONVERGENCE = Command("convergence", "Refine grid, time step and both; measure e
            "another scheme) instead of the finest level", ("--reference",), "RUN.nc"),
     Option("time", Real(), None, "compare at the output nearest this T* (default: the last)", ("--time",), "T",
            unit="T*"),
+    Option("target_error", Fraction(what="a relative error"), None, "recommend the cheapest grid.shape, grid.spacing "
+           "and time.steps predicted to reach this relative error in --observable at --time (the error model "
+           "a h^p + b dt^q fitted to the levels; docs/accuracy.md)", ("--target-error",), "E"),
+    Option("observable", Text("an observable's name"), "biofilm_volume", "the observable --target-error is for",
+           ("--observable",), "NAME"),
     RERUN_ALL, FORCE,
-), "convergence.nc: each level's error and cost, the observed orders")
+), "convergence.nc: each level's error at every output against one reference, its cost, the observed orders, and "
+   "with target_error the recommended resolution (attributes recommended_*)")
 
 STABILITY = Command("stability", "Run stiff and extreme cases: each completes within its bounds or stops with a "
                                  "diagnosis.", (

@@ -1,6 +1,6 @@
 """Option kinds of numbers given as a list or by name (`options.Kind`): ``--voxel 0.5,0.2,0.2``, ``--time 0,12,24``
 (`Numbers`) and ``--noise biomass=0.2`` (`Named`), the same rule from the command line's text and from Python's
-values (`biostudy measure`)."""
+values (`biostudy measure`); a fraction strictly between 0 and 1 (`Fraction`: ``--target-error 0.02``)."""
 from __future__ import annotations
 
 import numbers
@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .options import Kind
+from .options import Kind, Real
 
 
 @dataclass(frozen=True)
@@ -66,3 +66,18 @@ class Named(Kind):
             except (TypeError, ValueError):
                 raise self.refuse(value, key) from None
         return found
+
+
+@dataclass(frozen=True)
+class Fraction(Real):
+    """A number strictly between 0 and 1 (a relative error); `what` names it."""
+
+    what: str = "a fraction"
+
+    def wanted(self) -> str:
+        return f"{self.what} between 0 and 1 (0.02 for 2 %)"
+
+    def check(self, value: Any, key: str) -> Any:
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0 < float(value) < 1:
+            raise self.refuse(value, key)
+        return float(value)

@@ -27,17 +27,18 @@ import xarray as xr
 import solver
 from solver.restart import start_state
 
-from ..data import claims, combine, continuation, netcdf_io, writing
+from ..data import claims, combine, continuation, incomplete, netcdf_io, writing
 from ..data.finish import Record, finish
 from ..data.spool import Spool
-from ..errors import Failed
+from ..errors import BadInput, Failed
+from ..execution.estimate import estimate
 from ..execution.targets import check_run, claim_run
-from ..execution.worker import provenance
+from ..execution.worker import provenance, with_threads
 from ..inputs import bundled, resources
 from ..inputs.keys import apply_overrides, given_by, key_parts, parse_override
 from ..inputs.resources import Preflight
 from ..inputs.scene import Scene, load_scene, overrides_text, scene_from_data
-from ..quantities import alerts
+from ..quantities import alerts, error_bars
 
 log = logging.getLogger(__name__)  # detail for `-v` and for Python callers who configure logging (cli.logs)
 
@@ -54,6 +55,8 @@ class Loaded:
     previous: xr.Dataset | None = None  # the run it continues
     previous_path: Path | None = None
     claim: claims.Claim | None = None  # the output, reserved for this run until `compute` ends
+    threads: int | None = None  # the run's threads, instead of the scene's or the processors here
+    error_estimate: bool = False  # its companions run too, each observable's Q_error added (`execution.estimate`)
 
     def __enter__(self) -> Loaded:
         return self
@@ -73,14 +76,18 @@ class Result:
 
     def warnings(self) -> list[str]:
         """What a user should know about the result besides the summary (`quantities.alerts`): a vanished dense
-        biofilm, a biofilm lost."""
-        return alerts.said(self.dataset.attrs)
+        biofilm, a biofilm lost; error bars asked for and not made, and why."""
+        said = str(self.dataset.attrs.get(error_bars.ATTRIBUTE, ""))
+        missing = [f"no error bars: {said.removeprefix('not estimated: ')}"] if said.startswith("not estimated") else []
+        return [*alerts.said(self.dataset.attrs), *missing]
 
     def message(self) -> str:
         attrs = self.dataset.attrs
         went_on = f", continuing {attrs['continued_from'].split(' (')[0]}" if "continued_from" in attrs else ""
+        companions = (f", error bars' companions {attrs['error_estimate_wall_time']:.3g} s"
+                      if "error_estimate_wall_time" in attrs else "")
         return (f"wrote {self.target} (wall time {attrs['wall_time']:.3g} s, {attrs['steps_taken']} steps, "
-                f"{attrs['steps_bisected']} bisected{went_on}){self.replacing}")
+                f"{attrs['steps_bisected']} bisected{went_on}{companions}){self.replacing}")
 
 
 def default_output(scene: Scene, previous: Path | None = None) -> Path:
@@ -93,10 +100,10 @@ def default_output(scene: Scene, previous: Path | None = None) -> Path:
 
 def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # noqa: A002
          output: Path | None = None, force: bool = False, continue_from: str | Path | None = None,
-         write: bool = True) -> Loaded:
+         threads: int | None = None, error_estimate: bool = False, write: bool = True) -> Loaded:
     """Read and validate a scene (a path, a bundled name, or its data as a dict) with its overrides `set`, the
-    run it continues, and its output before anything is computed (the options: `declared.RUN`; `write`: the
-    dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
+    run it continues, and its output before anything is computed (the options: `declared.RUN`; `threads`: the
+    run's, checked there; `write`: the dataset goes to `output` or NAME.nc); bad input is `BadInput`."""
     overrides = set
     preflight = Preflight(runs=True, streamed=write or output is not None)  # a run that writes streams its outputs
     if isinstance(scene, dict):
@@ -109,17 +116,22 @@ def load(scene: str | Path | dict, *, set: tuple[str, ...] | list[str] = (),  # 
     log.debug("%s: %s cells of %g µm, %d steps to T* = %g, %d outputs, mechanics %s", loaded.name,
               " × ".join(map(str, loaded.grid.shape)), loaded.grid.spacing, loaded.time.steps, loaded.time.t_end,
               loaded.time.count(), "on" if loaded.mechanics is not None and loaded.mechanics.enabled else "off")
+    if continue_from is not None and error_estimate:  # its companions would have to repeat the run it continues
+        raise BadInput("a continued run has no error bars: its companions would repeat the run it continues from "
+                       "T* = 0; run the whole span with --error-estimate instead", None, "--error-estimate")
     previous = None
     if continue_from is not None:
         continue_from = Path(continue_from)
         previous = continuation.previous_run(continue_from, loaded)
     if not write and output is None:
-        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from)
+        return Loaded(path, loaded, tuple(overrides), None, "", previous, continue_from, threads=threads,
+                      error_estimate=error_estimate)
     try:
         target = Path(output) if output is not None else default_output(loaded, continue_from)
         replacing = check_run(loaded, path, target, force, inputs=[continue_from] if continue_from else [],
                               history=previous.sizes["time"] if previous is not None else None)
-        return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target))
+        return Loaded(path, loaded, tuple(overrides), target, replacing, previous, continue_from, claim_run(target),
+                      threads, error_estimate)
     except BaseException:
         if previous is not None:
             previous.close()  # open, read lazily (`continuation.previous_run`)
@@ -137,13 +149,22 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
     """The run's dataset: simulated (from the run it continues, if any), with every observable, stamped; its
     fields go to `sink` as they are made, if given (then they are lazy arrays reading it)."""
     _first_dataset()
-    problem = loaded.scene.problem()
+    problem = with_threads(loaded.scene.problem(), threads=loaded.threads)
     if loaded.previous is not None:
         problem = dataclasses.replace(problem, **start_state(loaded.previous))
     try:
         ds = solver.simulate(problem, progress=progress, sink=sink)
     except solver.SimulationError as error:
-        raise Failed(f"simulation failed: {loaded.path or loaded.scene.name}: {error}") from None
+        message = f"simulation failed: {loaded.path or loaded.scene.name}: {error}"
+        if error.partial is None:
+            raise Failed(message) from None
+        why = f"{error.cause}{' at ' + error.where if error.where else ''}"
+        raise Stopped(message, _finished(loaded, incomplete.marked(error.partial, why))) from None
+    return _finished(loaded, ds)
+
+
+def _finished(loaded: Loaded, ds: xr.Dataset) -> xr.Dataset:
+    """The simulated dataset with its history (a continuation), provenance, observables and warnings."""
     log.debug("%s: wall time %.3g s (%s)", loaded.scene.name, ds.attrs["wall_time"], ", ".join(
         f"{name.removeprefix('wall_time_')} {seconds:.3g} s" for name, seconds in ds.attrs.items()
         if name.startswith("wall_time_")))
@@ -157,6 +178,27 @@ def _simulated(loaded: Loaded, progress, sink: Spool | None = None) -> xr.Datase
         ds.attrs["history"] = f"{before}\n{ds.attrs['history']}" if before else ds.attrs["history"]
     ds = combine.with_overrides(ds, pairs)
     return ds
+
+
+class Stopped(Exception):
+    """A simulation that stopped (`solver.SimulationError`), with the dataset of what it computed up to there."""
+
+    def __init__(self, message: str, dataset: xr.Dataset):
+        super().__init__(message)
+        self.message, self.dataset = message, dataset
+
+
+def _write(loaded: Loaded, ds: xr.Dataset) -> None:
+    """The dataset to the run's target, atomically (through its claim); `Failed` if it cannot be written."""
+    assert loaded.target is not None
+    try:
+        if loaded.claim is not None:
+            loaded.claim.write_dataset(ds)
+        else:
+            writing.write_atomic(ds, loaded.target)
+    except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
+        kept = "the earlier file there is kept as it was" if loaded.replacing else "nothing was written"
+        raise Failed(f"{error}; this run's result is lost ({kept})") from None
 
 
 def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | None = None) -> Result:
@@ -173,14 +215,18 @@ def compute(loaded: Loaded, *, progress: Callable[[solver.Progress], None] | Non
             ds = _simulated(loaded, progress, spool)
         except writing.NotWritten as error:  # the spool's disk filled up while it ran
             raise Failed(f"{error}; this run stopped there and its result is lost ({kept})") from None
+        except Stopped as stopped:  # what it computed up to there is kept, marked incomplete, but not over a result
+            if loaded.target is None:
+                raise Failed(stopped.message) from None
+            if loaded.replacing:
+                raise Failed(f"{stopped.message}; the earlier result at {loaded.target} is kept as it was (this "
+                             "run's incomplete outputs are not written over it)") from None
+            _write(loaded, stopped.dataset)
+            raise Failed(f"{stopped.message}; {incomplete.kept(stopped.dataset, loaded.target)}") from None
+        if loaded.error_estimate:  # companions of the whole run (never a continuation: `load`)
+            ds = estimate(loaded.scene, loaded.path or "<scene>", ds, log.info, loaded.threads).applied(ds)
         if loaded.target is not None:
-            try:
-                if loaded.claim is not None:
-                    loaded.claim.write_dataset(ds)
-                else:
-                    writing.write_atomic(ds, loaded.target)
-            except OSError as error:  # e.g. the disk filled up while it ran (`writing.NotWritten`)
-                raise Failed(f"{error}; this run's result is lost ({kept})") from None
+            _write(loaded, ds)
             ds = netcdf_io.open_dataset(loaded.target)
         elif loaded.previous is not None:
             ds = ds.load()  # the history it continues, read before that run's file is closed

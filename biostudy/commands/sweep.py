@@ -23,6 +23,7 @@ from pathlib import Path
 
 from ..data import case_files, combine, netcdf_io
 from ..errors import BadInput
+from ..execution import case_errors
 from ..execution.jobs import Execution, SweepError, SweepReport, plan_jobs, plan_owner, run_jobs
 from ..execution.targets import owned
 from ..inputs import bundled
@@ -69,17 +70,21 @@ def choose(plan: Plan, share: Share) -> list[str]:
 
 
 def run_study(plan: Plan, directory: str | Path, execution: Execution = Execution(),
-              share: Share | None = None) -> SweepReport:
+              share: Share | None = None, error_estimate: bool = False) -> SweepReport:
     """Run every case not yet recorded (or, for an array task, those of its `share`), write DIR/cases/<id>.nc
     for each and, unless it is an array task, DIR/study.nc (see `run_jobs`); the directory must be this
-    study's (or new, or `execution.force`) and not in use by another run (array tasks share it)."""
+    study's (or new, or `execution.force`) and not in use by another run (array tasks share it).
+    `error_estimate`: each case's companions run too, and its file gets its error bars (`case_errors`)."""
     layouts = combine.case_layouts(plan)
     jobs = [replace(job, layout=layouts[job.id]) for job in plan_jobs(plan, study_file=str(plan.file.resolve()))]
     if share is not None:
         chosen = set(choose(plan, share))
         jobs = [job for job in jobs if job.id in chosen]
+    extra, notes = case_errors.companion_jobs(jobs) if error_estimate else ([], {})
     with owned(directory, plan_owner(plan, "study"), "study.nc", execution.force, shared=share is not None):
-        report = run_jobs(jobs, directory, execution, tidy=share is None)
+        report = run_jobs([*jobs, *extra], directory, execution, tidy=share is None)
+        if error_estimate:
+            case_errors.add_error_bars(jobs, notes, directory)
         if share is None:
             write_study(plan, Path(directory))
     return report
@@ -119,6 +124,7 @@ class Sweep:
     noun: str = "cases"
     share: Share | None = None  # an array task's cases
     combine_only: bool = False  # --combine: write study.nc from what is there
+    error_estimate: bool = False  # every case's companions run too, its file given error bars
 
     @property
     def title(self) -> str:
@@ -137,16 +143,19 @@ class Sweep:
                      " runs just those again as one-case array tasks (docs/clusters.md)") if again else ""
             return Finished(f"combined {len(self.plan.cases)} cases ({statuses}) into {written}{rerun}", {},
                             len(self.plan.cases), result=written)
-        report = run_study(self.plan, self.directory, execution, self.share)
+        report = run_study(self.plan, self.directory, execution, self.share, self.error_estimate)
+        companions, said = case_errors.cases_only(report)
+        warnings = [*report.warnings(), *said]
         total = len(self.plan.cases) if self.share is None else len(report.ran) + len(report.skipped)
         if self.share is not None:
             return Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
                             f"{len(report.failed)} failed ({self.share.describe()}); study.nc is written by "
                             f"`biostudy sweep {self.plan.file} -o {self.directory} --combine` once every task "
-                            "is done", report.failed, total, warnings=report.warnings(), result=report)
+                            "is done", report.failed, total, warnings=warnings, result=report)
+        with_companions = f" (and {len(companions)} error-bar companions)" if companions else ""
         return Finished(f"{len(report.ran)} cases run, {len(report.skipped)} skipped (finished before), "
-                        f"{len(report.failed)} failed; wrote {report.study}", report.failed, total,
-                        warnings=report.warnings(), result=report)
+                        f"{len(report.failed)} failed{with_companions}; wrote {report.study}", report.failed, total,
+                        warnings=warnings, result=report)
 
 
 def not_done(plan: Plan, study: Path) -> list[int]:
@@ -167,7 +176,7 @@ def _statuses(study: Path) -> str:
 
 def load(study: str | Path, *, directory: Path | None = None, set: list[str] | tuple[str, ...] = (),  # noqa: A002
          cases: list[str] | tuple[str, ...] = (), task: int | None = None, tasks: int | None = None,
-         combine: bool = False, runs_here: bool = False) -> Sweep:
+         combine: bool = False, error_estimate: bool = False, runs_here: bool = False) -> Sweep:
     """Read and validate a study (a path or a bundled name) and every case with the overrides `set`, and which
     cases to run (`cases`, or share `task` of `tasks`; `combine`: none; the options: `declared.SWEEP`); bad input
     is `BadInput`.  `runs_here`: the cases run on this machine, so one too big for its memory is refused by its
@@ -183,4 +192,5 @@ def load(study: str | Path, *, directory: Path | None = None, set: list[str] | t
     if combine_only and share is not None:
         raise BadInput("--combine runs no case; leave out --case and --task", "--combine")
     return Sweep(plan, Path(directory) if directory is not None else Path(plan.spec.name), share=share,
-                 combine_only=combine_only)
+                 combine_only=combine_only, error_estimate=error_estimate,
+                 noun="runs" if error_estimate else "cases")  # the progress counts the companions' runs too

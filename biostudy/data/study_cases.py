@@ -93,7 +93,7 @@ class Reader:
         """Whether a finished case file can be read as the template says: the same variables, dimensions and types,
         and measured on the substratum its scene says now."""
         return (self.template is not None and self.template.usable and layout == self.template.layout
-                and all(str(attrs.get(name)) == str(value) for name, value in now.items()))
+                and not observables.remeasured(attrs, now))
 
     def _as_template(self, nc, path: Path, attrs: dict, now: dict) -> xr.Dataset:
         """A case file of the template's layout, its small variables read as stored, its fields lazy."""
@@ -133,7 +133,7 @@ def read(path: Path, coords: dict, now: dict) -> Case:
         status = str(attrs.get("status", "missing"))
         if status != "done":
             return Case(status, str(attrs.get("message", "")), attrs)
-        run = _measured_as_now(as_run(ds, coords), now)
+        run = observables.as_measured(as_run(ds, coords), now)
         missing = [name for name, o in observables.REGISTRY.items()
                    if name not in run and observables.available(run, o)]
         computed = observables.variables(run, names=missing) if missing else {}
@@ -154,18 +154,6 @@ def as_run(ds: xr.Dataset, coords: dict) -> xr.Dataset:
     dims = [d.strip() for d in str(ds.attrs.get(netcdf.CASE_DIMENSIONS, "")).split(",") if d.strip()]
     ds = netcdf.renamed(ds).isel({d: 0 for d in dims if d in ds.dims}, drop=True)
     return ds.drop_vars([n for n in (*CASE_VARIABLES, *coords) if n in ds.variables])
-
-
-def _measured_as_now(ds: xr.Dataset, now: dict) -> xr.Dataset:
-    """A case as its scene measures it now: the substratum (face, threshold) the scene says, and the stored
-    observables that depend on it dropped where the case was measured on another one (they are computed
-    again from its fields; nothing is simulated again)."""
-    changed = any(str(ds.attrs.get(name)) != str(value) for name, value in now.items())
-    if changed:
-        stale = [o.name for o in observables.REGISTRY.values() if o.needs_attrs and o.name in ds]
-        ds = ds.drop_vars(stale)
-    ds.attrs.update(now)
-    return ds
 
 
 def as_stored(var: xr.DataArray | xr.Variable) -> bool:

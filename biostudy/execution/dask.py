@@ -8,7 +8,9 @@ The cluster's workers do all of a case's work (`worker.perform`): each receives
 a `worker.Task` (the compiled problem, plain arrays) and hands back its
 `worker.Outcome` with the case file's bytes, which this process puts in place
 without reading them (`jobs`), so the workers need no shared filesystem.  Dask's nanny
-starts its workers with one thread per library.  A `tls://` scheduler needs
+starts its workers with one thread per library, and a case runs on one thread
+unless its scene names more (``[numerics] threads``): the processors of a node
+are shared by worker processes that no one of them sees.  A `tls://` scheduler needs
 Dask's TLS configuration (certificates), checked before anything runs.
 
 What a user is told, in one line each, instead of Dask's tracebacks: an
@@ -23,6 +25,7 @@ uses the cluster.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import socket
@@ -200,7 +203,11 @@ class DaskCluster:
         return len(self.running)
 
     def submit(self, case_id: str, task: Task) -> None:
-        future = self.client.submit(perform, task, key=f"biostudy-{case_id}-{self.tag}", pure=False)
+        problem = task.problem
+        if problem.numerics.threads is None:  # a node's processors are shared by worker processes no one of them sees
+            problem = dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=1))
+        future = self.client.submit(perform, dataclasses.replace(task, problem=problem),
+                                    key=f"biostudy-{case_id}-{self.tag}", pure=False)
         self.running[future] = case_id
 
     def _lost(self, error: BaseException) -> SchedulerLost:

@@ -2,8 +2,8 @@
 
 `plans.companions` says which companions a scene has (or why one cannot be
 made); each runs in this process as a run would (`worker.solve`: a failure is a
-reason, not an exception), is stamped with the scene's substratum and gets
-its observables; `quantities.error_bars` turns them into one ``Q_error`` per
+reason, not an exception) and is finished as a run's dataset is (`data.finish`:
+stamped, its observables, its alerts); `quantities.error_bars` turns them into one ``Q_error`` per
 observable of the run.  What the companions cost (their wall time, set-up
 included) is recorded beside the run's own: ``error_estimate_wall_time`` and
 ``error_estimate_cost`` (its ratio to the run's wall time).
@@ -17,7 +17,7 @@ from typing import Callable
 
 import xarray as xr
 
-from ..data import netcdf, provenance
+from ..data.finish import Record, finish
 from ..inputs.scene import Scene
 from ..plans import companions
 from ..quantities import error_bars
@@ -40,19 +40,18 @@ class Estimate:
         return out
 
 
-def measured(scene: Scene, file: str | Path) -> xr.Dataset | str:
-    """One companion run with its observables (a dataset), or the reason it failed."""
-    outcome = worker.solve(scene.problem())
+def measured(scene: Scene, file: str | Path, threads: int | None = None) -> xr.Dataset | str:
+    """One companion run with its observables (a dataset), or the reason it failed (`threads`: the run's)."""
+    outcome = worker.solve(worker.with_threads(scene.problem(), threads=threads))
     if outcome.status != "done" or outcome.dataset is None:
         return f"failed: {outcome.message}"
-    ds = provenance.stamp(outcome.dataset, scene.to_toml(), file, "", **scene.substratum_attrs(),
-                          **scene.real_time_attrs())
-    return netcdf.with_observables(ds)
+    return finish(outcome.dataset, Record.of(scene, file, ""))
 
 
-def estimate(scene: Scene, file: str | Path, ds: xr.Dataset,
-             announce: Callable[[str], None] | None = None) -> Estimate:
-    """The error estimate of `ds`, the run of `scene`: its companions run here (`announce` hears of each)."""
+def estimate(scene: Scene, file: str | Path, ds: xr.Dataset, announce: Callable[[str], None] | None = None,
+             threads: int | None = None) -> Estimate:
+    """The error estimate of `ds`, the run of `scene`: its companions run here (`announce` hears of each), on
+    `threads` as the run was (``--threads``)."""
     began = time.perf_counter()
     notes, runs = {}, {}
     for planned in companions.plan(scene, file):
@@ -62,7 +61,7 @@ def estimate(scene: Scene, file: str | Path, ds: xr.Dataset,
             continue
         if announce is not None:
             announce(notes[name])
-        found = measured(planned.scene, file)
+        found = measured(planned.scene, file, threads)
         if isinstance(found, str):
             notes[name] = f"{notes[name]}: {found}"
             continue

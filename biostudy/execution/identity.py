@@ -9,7 +9,9 @@ leaves every finished case's identity as it was: sweeps and calibrations
 finished before it are reused, not recomputed.  The laws (`Problem.laws`) are
 hashed as fields of the problem itself (`INLINED`): `consumption` was one
 before the laws were gathered in `solver.Laws`, so a zero-order case keeps
-its identity.
+its identity.  An option that changes how a run is computed but not what
+(`solver.declared.changes_result`: the threads) is never in it: a case
+finished on 2 threads is finished for 32.
 
 Case files written by biostudy 0.3.0 and earlier carry the fingerprint of the
 scheme before (nested options hashed by their `repr`); `legacy_fingerprint`
@@ -24,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from solver.declared import changes_result
 from solver.laws import Laws
 from solver.problem import Grid, MechanicsSetup, Numerics, Parameters, Problem
 
@@ -48,7 +51,7 @@ def canonical(value: Any, skip: tuple[str, ...] = (), inline: tuple[str, ...] = 
     if is_dataclass(value) and not isinstance(value, type):
         kept = []
         for part in fields(value):
-            if part.name in skip:
+            if part.name in skip or not changes_result(part):
                 continue
             mine = canonical(getattr(value, part.name))
             if part.name in inline:
@@ -91,7 +94,7 @@ KNOWN_IN_0_3_0: dict[type, tuple[str, ...]] = {
 }
 # Fields `solver.Problem` gained after sweeps had been recorded, with their defaults: at those 0.3.0 left them
 # out of its fingerprint, so that the cases older sweeps finished stayed finished.
-ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None}
+ADDED_LATER = {"start_time": 0.0, "alpha0": None, "c0": None, "u0": None, "first_step": None, "step_limit": None}
 
 
 class _Unknown(Exception):
@@ -130,7 +133,7 @@ def _known(value: Any, kind: type) -> None:
     for part in fields(value):
         if part.name in INLINED:
             _known(getattr(value, part.name), Laws)
-        elif part.name not in KNOWN_IN_0_3_0[kind] and part.name not in NOT_PART \
+        elif part.name not in KNOWN_IN_0_3_0[kind] and part.name not in NOT_PART and changes_result(part) \
                 and not _is_default(part, canonical(getattr(value, part.name))):
             raise _Unknown(part.name)
 

@@ -30,17 +30,19 @@ case with it; `dask`: a cluster).  The caller claims the directory first
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import solver
 from solver.output import versions
 
 from ..data import case_files, netcdf, netcdf_io, provenance, writing
 from ..data.finish import Record
 from ..errors import BadInput, Failed
-from ..inputs import resources
+from ..inputs import cores, resources
 from ..inputs.scene import Scene, overrides_text
 from ..plans.cases import Plan
 from ..quantities import alerts
@@ -70,6 +72,7 @@ class Execution:
     rerun_all: bool = False
     force: bool = False
     notify: Callable[[str, str, str], None] | None = None
+    threads: int | None = None  # each case's threads, instead of its scene's or its share of the processors
 
 
 @dataclass
@@ -176,8 +179,8 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     def task(job_id: str) -> Task:
         job = by_id[job_id]
         path = case_files.case_file(out_dir, job_id).absolute()  # workers started before a chdir keep theirs
-        return Task(job.scene.problem(), _record(job, prints[job_id]), str(path) if backend.sees_files else None,
-                    job.layout, job.measure, made_by)
+        return Task(_threaded(job.scene.problem(), execution.threads), _record(job, prints[job_id]),
+                    str(path) if backend.sees_files else None, job.layout, job.measure, made_by)
 
     try:
         with contextlib.closing(windowed(ids, task, backend)) as results:
@@ -193,6 +196,13 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
     except SchedulerLost as lost:
         raise SweepError(f"{lost}; {_kept(report, len(ids))}") from None
     return report
+
+
+def _threaded(problem: solver.Problem, threads: int | None) -> solver.Problem:
+    """The case's problem, on `threads` threads if given (``--threads``; no part of its identity)."""
+    if threads is None:
+        return problem
+    return dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=threads))
 
 
 def _started(out_dir: Path, tidy: bool) -> SweepReport:
@@ -248,7 +258,9 @@ def _skipped(report: SweepReport, job_id: str, record: dict) -> None:
 
 def _check_room(scenes: dict[str, Scene], processes: int, out_dir: Path) -> None:
     """`BadInput` before any case runs if the cases to run (by id) do not fit the memory of `processes` at once (0:
-    on a cluster) or the disk: the case files and the summary stacking them."""
+    on a cluster) or the disk: the case files and the summary stacking them; or if BIOSTUDY_THREADS, which the
+    cases run here take their threads from, is no thread count (`inputs.cores`)."""
+    cores.available()
     estimates = {job_id: resources.estimate(scene) for job_id, scene in scenes.items()}
     too_big = resources.run_problem(estimates, processes, out_dir, 2 * sum(e.disk for e in estimates.values()))
     if too_big:

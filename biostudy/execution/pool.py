@@ -2,8 +2,10 @@
 
 Workers are forked from a fork server that imported the solver once (start-up ~0.1 s instead of ~1.2 s of
 imports per worker), fresh interpreters (spawn) where there is no fork server; they start with
-``OMP_NUM_THREADS=1`` (one simulation per core; FiPy's suite ran 40x slower with unrestricted threads) and
-``FIPY_SOLVERS=scipy``.  What a worker runs is `worker.serve`; the loop that hands cases out is `backends.windowed`.
+``OMP_NUM_THREADS=1`` (BLAS's own threads: FiPy's suite ran 40x slower with unrestricted threads) and
+``FIPY_SOLVERS=scipy``.  The workers share the machine's processors: a case runs on its scene's threads, else
+on the processors here divided by the workers (`worker.with_threads`).  What a worker runs is `worker.serve`; the
+loop that hands cases out is `backends.windowed`.
 
 Each worker has a pipe of its own for problems and outcomes, so a worker that dies (SIGKILL, the kernel's
 out-of-memory killer, a crash in a library) takes only its own case with it: that case is recorded as
@@ -25,6 +27,7 @@ command line has imported the rest, so the two import at once.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -145,6 +148,8 @@ class LocalPool:
         return self.workers[-1]
 
     def submit(self, case_id: str, task: Task) -> None:
+        # the processors here, shared by the workers
+        task = dataclasses.replace(task, problem=worker.with_threads(task.problem, self.capacity))
         idle = next((w for w in self.workers if w.case_id is None), None) or self._start()
         try:
             idle.tasks.send(task)

@@ -18,6 +18,7 @@ them once, `pool`).
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 import signal
@@ -29,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import first_line
+from ..inputs import cores
 from . import interrupts
 
 if TYPE_CHECKING:
@@ -45,7 +47,7 @@ if TYPE_CHECKING:
 # ones, so every process that simulates pins the scipy suite before that (whatever else is installed).
 SOLVER_ENV = {"FIPY_SOLVERS": "scipy"}
 # What a worker imports for a case's whole work (the solver, finishing, writing): made once by a fork server (`pool`).
-IMPORTS = ("solver.output", "fipy", "biostudy.data.finish", "biostudy.data.case_files", "biostudy.data.writing",
+IMPORTS = ("solver.output", "biostudy.data.finish", "biostudy.data.case_files", "biostudy.data.writing",
            "biostudy.data.netcdf_io", "biostudy.quantities.observables", "netCDF4")
 
 
@@ -153,14 +155,26 @@ def _failure(error: BaseException, began: float) -> Simulated:
     return Simulated("failed", None, message, time.perf_counter() - began, type(error).__name__)
 
 
-def solve(problem: "solver.Problem") -> Simulated:
-    """Simulate one problem; a failure becomes a `Simulated` that says why, never an exception."""
+def with_threads(problem: "solver.Problem", sharing: int = 1, threads: int | None = None) -> "solver.Problem":
+    """`problem` with the threads it runs on: `threads` if given (``--threads``), else its own (`[numerics]
+    threads`), else the processors this process may use (`inputs.cores`) shared among `sharing` cases computed on
+    this machine at once, at least one each.  The count changes how fast a case runs, never its result or its
+    identity (`identity.fingerprint`)."""
+    if threads is None and problem.numerics.threads is not None:
+        return problem
+    count = threads or max(1, cores.available().count // max(1, sharing))
+    return dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=count))
+
+
+def solve(problem: "solver.Problem", sharing: int = 1) -> Simulated:
+    """Simulate one problem (on its threads, `with_threads`); a failure becomes a `Simulated` that says why, never
+    an exception."""
     pin_solvers()  # a Dask worker's process was not started by biostudy: before FiPy is first imported
     from solver import SimulationError, simulate  # lazily: after pin_solvers, before FiPy is first imported
 
     began = time.perf_counter()
     try:
-        ds = simulate(problem)
+        ds = simulate(with_threads(problem, sharing))
     except SimulationError as error:
         return Simulated("failed", None, str(error), time.perf_counter() - began, type(error).__name__)
     except Exception as error:  # a bug or resource problem in this case must not sink the others

@@ -260,22 +260,29 @@ def _averaged(path: str, mtime_ns: int, size: int, of: str, threshold: float | N
 def _spill(path: str, mtime_ns: int, size: int, threshold: float | None, scale: float | None,
            voxel: tuple[float, ...], origin: tuple[float, ...], tops: tuple[float, ...]):
     """(image share, region share, region voxels) outside [0, tops] ([z,] y, x), or None if the image lies inside
-    (to `SPILL_TOLERANCE`); computed once per image and grid."""
+    (to `SPILL_TOLERANCE`); computed once per image and grid, a slab of `SLAB_VOXELS` at a time (no copy of a
+    stack's size: what its region's memory counts, `image_files.averaging_bytes`)."""
     values = read(path, mtime_ns, size).values
     shares = [inside_share(o + d * np.arange(n + 1), top) for o, d, n, top in zip(origin, voxel, values.shape, tops)]
     image = 1.0 - float(np.prod([s.mean() for s in shares]))
     if image <= SPILL_TOLERANCE:
         return None
-    if scale is not None:
-        region = scale * values >= BIOFILM_THRESHOLD
-    else:
-        region = values >= threshold if threshold is not None else values != 0
-    count = int(np.count_nonzero(region))
-    outside = count - weighted_count(region, shares) if count else 0.0
+    rows = max(1, SLAB_VOXELS // max(1, math.prod(values.shape[1:])))  # a slab at a time, as the averaging
+    count, inside, voxels = 0, 0.0, 0
+    for start in range(0, values.shape[0], rows):
+        block = values[start:start + rows]
+        if scale is not None:
+            region = scale * block >= BIOFILM_THRESHOLD
+        else:
+            region = block >= threshold if threshold is not None else block != 0
+        slab = [shares[0][start:start + rows], *shares[1:]]
+        count += int(np.count_nonzero(region))
+        inside += weighted_count(region, slab)
+        reaching = np.zeros(region.shape, bool)  # voxels not wholly inside
+        for axis, share in enumerate(slab):
+            reaching |= (share < 1.0 - SPILL_TOLERANCE).reshape([-1 if a == axis else 1 for a in range(region.ndim)])
+        voxels += int(np.count_nonzero(region & reaching))
+    outside = count - inside if count else 0.0
     if outside <= SPILL_TOLERANCE * max(count, 1):
         return image, 0.0, 0
-    reaching = np.zeros(region.shape, bool)  # voxels not wholly inside
-    for axis, share in enumerate(shares):
-        reaching |= (share < 1.0 - SPILL_TOLERANCE).reshape([-1 if a == axis else 1 for a in range(region.ndim)])
-    voxels = int(np.count_nonzero(region & reaching))
     return image, outside / count, voxels

@@ -51,8 +51,9 @@ def _number(path: Path) -> float | None:
     return value if value < UNLIMITED else None
 
 
-def _groups(proc: Path) -> dict[str, str]:
-    """This process's cgroup paths by hierarchy: {'v2': '/user.slice/...', 'memory': '/slurm/uid_1/job_7'}."""
+def groups(proc: Path) -> dict[str, str]:
+    """This process's cgroup paths by hierarchy: {'v2': '/user.slice/...', 'memory': '/slurm/uid_1/job_7', 'cpu':
+    ...} (v2's single hierarchy, and each controller of v1's)."""
     try:
         lines = (proc / "self" / "cgroup").read_text().splitlines()
     except OSError:
@@ -65,12 +66,12 @@ def _groups(proc: Path) -> dict[str, str]:
         _, controllers, path = parts
         if controllers == "":
             found["v2"] = path
-        elif "memory" in controllers.split(","):
-            found["memory"] = path
+        else:
+            found.update((controller, path) for controller in controllers.split(","))
     return found
 
 
-def _levels(root: Path, group: str) -> list[Path]:
+def levels(root: Path, group: str) -> list[Path]:
     """The group's directory under the hierarchy's mount, then each parent up to the mount itself."""
     here = root / group.strip("/")
     levels = []
@@ -84,7 +85,7 @@ def _levels(root: Path, group: str) -> list[Path]:
 def _room(root: Path, group: str, limit_file: str, usage_file: str, version: str) -> Limit | None:
     """The tightest level of one hierarchy: its limit less its usage (a level without a limit is no bound)."""
     tightest = None
-    for level in _levels(root, group):
+    for level in levels(root, group):
         limit = _number(level / limit_file)
         if limit is None:
             continue
@@ -98,18 +99,18 @@ def _room(root: Path, group: str, limit_file: str, usage_file: str, version: str
 def cgroup(proc: Path | None = None, sys: Path | None = None) -> Limit | None:
     """Room under this process's cgroups (v2, and v1's memory controller), the tighter; None if unlimited."""
     proc, sys = proc or PROC, sys or SYS
-    groups = _groups(proc)
+    mine = groups(proc)
     found = []
-    if "v2" in groups:
-        found.append(_room(sys / "fs" / "cgroup", groups["v2"], "memory.max", "memory.current", "v2"))
-    if "memory" in groups:
-        found.append(_room(sys / "fs" / "cgroup" / "memory", groups["memory"], "memory.limit_in_bytes",
+    if "v2" in mine:
+        found.append(_room(sys / "fs" / "cgroup", mine["v2"], "memory.max", "memory.current", "v2"))
+    if "memory" in mine:
+        found.append(_room(sys / "fs" / "cgroup" / "memory", mine["memory"], "memory.limit_in_bytes",
                            "memory.usage_in_bytes", "v1"))
     found = [limit for limit in found if limit is not None]
     return min(found, key=lambda limit: limit.bytes) if found else None
 
 
-def _integer(environ: Mapping[str, str], name: str) -> int | None:
+def integer(environ: Mapping[str, str], name: str) -> int | None:
     """A scheduler's count: '1500' -> 1500; SLURM's '2(x3)' repetition -> 2; absent or odd -> None."""
     text = environ.get(name, "").split("(")[0].split(",")[0].strip()
     return int(text) if text.isdigit() else None
@@ -118,13 +119,13 @@ def _integer(environ: Mapping[str, str], name: str) -> int | None:
 def scheduler(environ: Mapping[str, str] | None = None) -> Limit | None:
     """What a SLURM job was granted on this node, from its environment; None outside such a job."""
     environ = os.environ if environ is None else environ
-    per_node = _integer(environ, "SLURM_MEM_PER_NODE")
+    per_node = integer(environ, "SLURM_MEM_PER_NODE")
     if per_node:
         return Limit(per_node * MIB, f"SLURM_MEM_PER_NODE={per_node} (MB)")
-    per_cpu = _integer(environ, "SLURM_MEM_PER_CPU")
+    per_cpu = integer(environ, "SLURM_MEM_PER_CPU")
     if per_cpu:
         for name in ("SLURM_CPUS_ON_NODE", "SLURM_CPUS_PER_TASK"):
-            cpus = _integer(environ, name)
+            cpus = integer(environ, name)
             if cpus:
                 return Limit(per_cpu * cpus * MIB, f"SLURM_MEM_PER_CPU={per_cpu} (MB) × {name}={cpus}")
         return Limit(per_cpu * MIB, f"SLURM_MEM_PER_CPU={per_cpu} (MB) × 1 CPU")

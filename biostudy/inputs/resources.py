@@ -7,9 +7,10 @@ the solver holds, fitted to peak resident memory (VmHWM) measured on this
 solver (docs/transport.md and docs/mechanics.md, "How far one machine goes";
 `python benchmarks/scale.py`, `python benchmarks/mechanics_memory.py`):
 
-- transport: per cell (matrices, the AMG hierarchy, Krylov vectors, index
-  arrays; FiPy's mesh while the Laplacian is made): ~1.9 kB in 3-D, ~1.6 kB
-  in 2-D;
+- transport: per cell (matrices, the AMG hierarchy and its set-up, Krylov
+  vectors, index arrays): ~1.1 kB in 3-D, ~0.8 kB in 2-D (measured peaks
+  without mechanics grow by 1.03 kB per cell from 64^3 to 96^3 and by 0.75 kB
+  from 400^2 to 800^2: `python benchmarks/scale.py --no-mechanics`, `--2d`);
 - mechanics (`mechanics_memory`): a fixed part (imports, compiled kernels,
   the temporaries of the box of cells assembled at once) and per grid node the
   tangent in double precision (half a stencil of ndim x ndim blocks,
@@ -66,7 +67,7 @@ from . import memory
 
 PROCESS = 0.32e9  # bytes: a process that runs and writes a scene (biostudy, FiPy, xarray, dask, netCDF4 imported):
 # VmHWM of `biostudy run` at 12³ 0.31 GB (benchmarks/scale.py); a bare `solver.simulate` needs ~0.2 GB
-TRANSPORT_PER_CELL = {2: 1.6e3, 3: 1.9e3}
+TRANSPORT_PER_CELL = {2: 0.8e3, 3: 1.1e3}
 MECHANICS_IMPORTS = 0.06e9  # scikit-fem and the mechanics' compiled kernels: 12³ with mechanics 0.37 GB
 ASSEMBLY_PER_CELL = {2: 5e3, 3: 35e3}  # temporaries per cell of the box assembled at once (`Settings.chunk` cells)
 MECHANICS_PER_NODE = {  # bytes per grid node besides the tangent (`tangent_bytes`), by preconditioner

@@ -39,7 +39,7 @@ from .geometry import SHAPES as DRAWN
 from .geometry import BoundaryFace, Grate, Maze, Shape
 from .images import Image
 from .keys import Origins, all_keys, apply_overrides, blame, field_of, given_by
-from .substratum_face import resting_face
+from .substratum_face import LEFT_OUT, NONE, Substratum, left_out, resting_face
 from .tomltext import dumps as toml_dumps
 
 if TYPE_CHECKING:
@@ -79,8 +79,10 @@ class SubstratumSpec(BaseModel):
     measured.  Measurement only: the simulation is the same whatever it says."""
 
     model_config = CONFIG
-    face: Face | None = Field(None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+); default: "
-                                                "the face the initial biofilm rests on (inputs/substratum_face.py)")
+    face: Literal[Face, "none"] | None = Field(
+        None, description="the face the biofilm grows on (x-, x+, y-, y+, z-, z+), or none; default: the single "
+                          "face the initial biofilm rests on; without one (none, a floating biofilm, several faces "
+                          "alike) COMSTAT's observables are left out (inputs/substratum_face.py)")
     threshold: float = unit_field(BIOFILM_THRESHOLD, "biofilm is phi >= threshold for the substratum observables", "1",
                                   gt=0, lt=1)
     connected: bool = Field(False, description="COMSTAT's connected-volume filtering: only biofilm connected to "
@@ -153,7 +155,6 @@ class Scene(BaseModel):
             raise InvalidAt("numerics.max_substeps", f"must be >= time.steps = {self.time.steps} "
                                                      f"(got {self.numerics.max_substeps})")
         self._faces_exist(grid)
-        self.substratum_face()  # an ambiguous default is bad input before anything runs
         return self
 
     def _regions_fit(self, grid: solver.Grid) -> None:
@@ -194,7 +195,7 @@ class Scene(BaseModel):
 
     def _faces_exist(self, grid: solver.Grid) -> None:
         """The substratum's and the mechanics' faces are faces of this grid (`solver.problem.face_problem`)."""
-        named = [("substratum.face", self.substratum.face)] if self.substratum.face is not None else []
+        named = [("substratum.face", self.substratum.face)] if self.substratum.face not in (None, NONE) else []
         if self.mechanics is not None:
             named += [(f"mechanics.{name}", face) for name in ("clamp", "slide") for face in getattr(self.mechanics,
                                                                                                     name)]
@@ -230,11 +231,17 @@ class Scene(BaseModel):
             params=solver.Parameters(**self.params.model_dump()), laws=self.model.solver_settings(),
             numerics=self.numerics.solver_settings(), mechanics=mechanics, name=self.name)
 
-    def substratum_face(self) -> str:
-        """The substratum: the face the scene names, else the face the initial biofilm rests on
-        (`substratum_face.resting_face`)."""
+    def substratum_face(self) -> str | None:
+        """The substratum: the face the scene names, else the single face the initial biofilm rests on, else
+        None (`substratum_face.resting_face`: a floating biofilm, or several faces alike)."""
+        return self.substratum_found().face
+
+    def substratum_found(self) -> Substratum:
+        """The substratum's face, or why there is none."""
+        if self.substratum.face == NONE:
+            return Substratum(None, left_out("the scene says it has none ([substratum] face = \"none\")"))
         if self.substratum.face is not None:
-            return self.substratum.face
+            return Substratum(self.substratum.face)
         grid = self.grid.solver_grid()
         biofilm = initial_biofilm(self.biofilm, grid) >= self.substratum.threshold
         biofilm &= ~self._union(self.obstacle, grid)
@@ -242,8 +249,11 @@ class Scene(BaseModel):
         return resting_face(biofilm, held)
 
     def substratum_attrs(self) -> dict:
-        """What a dataset records so that the substratum observables can be computed from it alone."""
-        return {"substratum_face": self.substratum_face(), "substratum_threshold": self.substratum.threshold,
+        """What a dataset records so that the substratum observables can be computed from it alone; without a
+        substratum, `LEFT_OUT` (why COMSTAT's observables are not there, and how to get them) instead of its face."""
+        found = self.substratum_found()
+        where = {"substratum_face": found.face} if found.face is not None else {LEFT_OUT: found.why_none}
+        return {**where, "substratum_threshold": self.substratum.threshold,
                 "substratum_connected": int(self.substratum.connected),
                 "substratum_estimator": self.substratum.estimator}
 

@@ -2,9 +2,10 @@
 
 Each check reads a run's dataset and returns '' or a sentence: `dense` (the dense biofilm vanished while the
 biofilm grew, a grid artefact), `retreat` (the biofilm shrank or vanished, the model's own retreat from
-where the nutrient is not) and `image_left_out` (an image region larger than the grid, cropped to it: the scene
-records how much, `inputs.scene.Scene.image_attrs`).  Commands store each sentence as the dataset attribute named
-by its check, print it after a run, and list the runs that raised it in sweeps and calibrations.
+where the nutrient is not), `quasi_steady` (diffusion does not settle the nutrient within a step, which the
+model assumes) and `image_left_out` (an image region larger than the grid, cropped to it: the scene records how
+much, `inputs.scene.Scene.image_attrs`).  Commands store each sentence as the dataset attribute named by its check,
+print it after a run, and list the runs that raised it in sweeps and calibrations.
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from typing import Callable, Mapping
 
 import xarray as xr
 
-from . import dense, retreat
+from . import dense, quasi_steady, retreat
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,8 @@ ALERTS = (
           "lost their dense biofilm (phi >= 0.8) while the biofilm grew, likely a grid artefact"),
     Alert(retreat.ATTRIBUTE, retreat.lost,
           "lost a quarter or more of their biofilm (the model retreats from where the nutrient is not)"),
+    Alert(quasi_steady.ATTRIBUTE, quasi_steady.unsettled,
+          "have a nutrient that diffusion does not settle within a step (the model takes it as settled)"),
     Alert(IMAGE_LEFT_OUT, _image_left_out, "were given an image larger than the grid, cropped to it"),
 )
 ATTRIBUTES = tuple(alert.attribute for alert in ALERTS)

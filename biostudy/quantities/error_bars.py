@@ -30,7 +30,7 @@ from typing import Mapping
 import numpy as np
 import xarray as xr
 
-from . import alerts, richardson
+from . import alerts, observables, richardson
 
 SUFFIX = "_error"
 ATTRIBUTE = "error_estimate"  # the dataset's sentence: how the error was estimated, or why it was not
@@ -75,14 +75,21 @@ def usable(run: xr.Dataset, companions: Mapping[str, xr.Dataset | None], notes: 
     return kept
 
 
+def series(ds: xr.Dataset, name: str) -> np.ndarray:
+    """An observable over time: as the dataset holds it, or measured on its fields (one it does not keep)."""
+    if name in ds and ds[name].dims == ("time",):
+        return np.asarray(ds[name].values, dtype=float)
+    return np.asarray(observables.evaluate(ds, name).values, dtype=float)
+
+
 def estimate(run: xr.Dataset, companions: Mapping[str, xr.Dataset | None], notes: Mapping[str, str],
-             scheme: str) -> tuple[dict[str, xr.DataArray], dict[str, str]]:
-    """({Q_error: DataArray on the run's time axis}, dataset attributes) for every observable of `run`.
-    `companions`: name -> dataset (None where it did not run); `notes`: name -> what each companion ran, or
-    why it did not; `scheme`: the run's advection scheme (its formal order caps an observed one)."""
+             scheme: str, names: list[str] | None = None) -> tuple[dict[str, xr.DataArray], dict[str, str]]:
+    """({Q_error: DataArray on the run's time axis}, dataset attributes) for every observable of `run` (or those
+    `names`).  `companions`: name -> dataset (None where it did not run); `notes`: name -> what each companion
+    ran, or why it did not; `scheme`: the run's advection scheme (its formal order caps an observed one)."""
     notes = dict(notes)
     kept = usable(run, companions, notes)
-    names = observables_of(run)
+    names = observables_of(run) if names is None else list(names)
     if "coarse" not in kept:
         why = notes.get("coarse", "coarse: did not run")
         said = f"not estimated: {why}"
@@ -91,10 +98,10 @@ def estimate(run: xr.Dataset, companions: Mapping[str, xr.Dataset | None], notes
     rho = {name: _steps(run) / _steps(ds) for name, ds in kept.items()}
     variables = {}
     for name in names:
-        q = run[name].values.astype(float)
-        coarse = kept["coarse"][name].values.astype(float)
+        q = series(run, name)
+        coarse = series(kept["coarse"], name)
         if "slow" in kept:
-            time = richardson.time_part(coarse, kept["slow"][name].values, rho["coarse"], rho["slow"])
+            time = richardson.time_part(coarse, series(kept["slow"], name), rho["coarse"], rho["slow"])
             difference = richardson.space_difference(q, coarse, time, rho["coarse"])
         else:
             time = np.zeros_like(q)
@@ -102,13 +109,12 @@ def estimate(run: xr.Dataset, companions: Mapping[str, xr.Dataset | None], notes
         observed = float("nan")
         if "coarser" in kept and "slow" in kept:
             extra = time * (rho["coarser"] - rho["coarse"])  # coarser's longer step (q = 1)
-            observed = richardson.space_order(difference, kept["coarser"][name].values, coarse, extra_time=extra)
+            observed = richardson.space_order(difference, series(kept["coarser"], name), coarse, extra_time=extra)
         order, seen = richardson.believed(observed, richardson.FORMAL.get(scheme, 1.0))
         space = difference / (2.0**order - 1.0)
         error = np.abs(space) + np.abs(time)
         attrs = {"space_order": order, "space_order_source": "observed" if seen else "assumed",
-                 "time_order": richardson.TIME_ORDER, "space_error_final": float(np.abs(space[-1])),
-                 "time_error_final": float(np.abs(time[-1])) if "slow" in kept else float("nan")}
+                 "time_order": richardson.TIME_ORDER}
         if np.isfinite(observed) and not seen:
             attrs["comment"] = (f"observed spatial order {observed:.3g} is below {richardson.LOWEST:g}: not in the "
                                 f"asymptotic range, the scheme's order {order:g} assumed")
@@ -124,7 +130,7 @@ def estimate(run: xr.Dataset, companions: Mapping[str, xr.Dataset | None], notes
 
 def _variable(run: xr.Dataset, name: str, values: np.ndarray, extra: dict) -> xr.DataArray:
     """Q_error on the run's time axis, in Q's units."""
-    source = run[name].attrs
+    source = run[name].attrs if name in run else observables.get(name).attrs(run)
     attrs = {"units": source.get("units", "1"),
              "long_name": f"estimated discretisation error of the {source.get('long_name', name)}", **extra}
     return xr.DataArray(values, dims=("time",), coords={"time": run["time"]}, attrs=attrs)

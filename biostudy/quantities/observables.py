@@ -34,7 +34,9 @@ dead_end_reach        µm     how deep phi >= 0.5 reaches into a dead end beyond
 
 The last six are measured on the substratum the run's dataset records (attributes
 `substratum_face`, `substratum_threshold`, `substratum_connected`, `substratum_estimator`:
-the scene's ``[substratum]``) by `biostudy.quantities.substratum`; they change
+the scene's ``[substratum]``) by `biostudy.quantities.substratum`; a scene without a
+substratum (a floating biofilm, one resting on several faces alike) has none of them, and
+its dataset says why in `comstat_left_out` (`inputs.substratum_face`); they change
 continuously with the parameters (sub-cell level sets), so they are the ones to
 fit; with ``estimator = "voxel"`` they are COMSTAT's voxel counts instead
 (`biostudy.quantities.comstat`).  A dataset written before they existed lacks
@@ -56,6 +58,7 @@ import xarray as xr
 from solver.series import PER_THICKNESS, SERIES, VOLUME, Series, cell_volume
 
 from ..inputs.resources import BLOCK_BYTES
+from ..inputs.substratum_face import LEFT_OUT
 from . import comstat, dead_ends, measures, substratum
 from .saturation import SATURATION
 
@@ -199,6 +202,8 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     if observable.applies is not None and not observable.applies(ds):
         raise ValueError(f"{name}: the run has none to measure (see biostudy/quantities/observables.py)")
     unrecorded = [a for a in observable.needs_attrs if a not in ds.attrs]
+    if unrecorded and LEFT_OUT in ds.attrs:
+        raise ValueError(f"{name}: {ds.attrs[LEFT_OUT]}")
     if unrecorded:
         raise ValueError(f"{name} needs the attribute {', '.join(unrecorded)} (the scene's [substratum]), which "
                          "the dataset does not record (written before substratum observables existed: run it again)")
@@ -263,6 +268,24 @@ def available(ds: xr.Dataset, observable: Observable) -> bool:
     """Whether the dataset has what the observable is computed from (and the run what it measures)."""
     return all(v in ds for v in observable.needs) and all(a in ds.attrs for a in observable.needs_attrs) and \
         (observable.applies is None or observable.applies(ds))
+
+
+def as_measured(ds: xr.Dataset, now: dict) -> xr.Dataset:
+    """A run's dataset as a scene measures it now (`now`: its `substratum_attrs`): the substratum's attributes the
+    scene gives, those it no longer gives (a face, the reason there is none) removed, and the stored observables
+    that depend on them dropped where they changed (computed again from the fields; nothing is simulated again)."""
+    if remeasured(ds.attrs, now):
+        ds = ds.drop_vars([o.name for o in REGISTRY.values() if o.needs_attrs and o.name in ds])
+    ds.attrs = {**{k: v for k, v in ds.attrs.items() if k not in MEASURED_ON}, **now}
+    return ds
+
+
+MEASURED_ON = (*SUBSTRATUM_ATTRS, LEFT_OUT, "substratum_connected", "substratum_estimator")  # a dataset's substratum
+
+
+def remeasured(attrs: dict, now: dict) -> bool:
+    """Whether a dataset of `attrs` was measured on another substratum than `now` says (`as_measured`)."""
+    return any(str(attrs.get(name)) != str(now.get(name)) for name in MEASURED_ON if name in attrs or name in now)
 
 
 def value(ds: xr.Dataset, name: str, index: int = -1) -> float:

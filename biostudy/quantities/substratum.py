@@ -214,8 +214,8 @@ def level_set(field: np.ndarray, h: float, threshold: float = THRESHOLD) -> Leve
     if not (padded >= threshold).any():
         empty = np.zeros((0, field.ndim))
         return LevelSet(empty, np.zeros(0), np.zeros(0), np.zeros(0), n[0] * h)
-    if field.ndim == 3:
-        verts, faces, _, _ = marching_cubes(padded, threshold)  # index units
+    if field.ndim == 3:  # skimage works in float32 (up to 3.4e38): a larger phi would make its vertices NaN
+        verts, faces, _, _ = marching_cubes(np.clip(padded, -FLOAT32_SAFE, FLOAT32_SAFE), threshold)  # index units
         corners = _on_edges(verts, padded, threshold)[faces]  # (triangles, 3, 3)
         # skimage winds the triangles with the biofilm (values above the level) on the side of this cross product
         vector = -0.5 * np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -236,9 +236,13 @@ def level_set(field: np.ndarray, h: float, threshold: float = THRESHOLD) -> Leve
     return LevelSet(heights, weight, size, normal, n[0] * h)
 
 
+FLOAT32_SAFE = 1e30  # marching cubes sees phi clipped to this: its edges and crossings are the same in float32
+
+
 def _on_edges(verts: np.ndarray, padded: np.ndarray, threshold: float) -> np.ndarray:
     """Marching cubes' vertices in double precision (skimage returns float32, whose rounding would be noise in a
-    finite-difference Jacobian): each lies on a grid edge, at the linear crossing recomputed from the field."""
+    finite-difference Jacobian): each lies on a grid edge, at the linear crossing recomputed from the field
+    (unclipped: a huge phi beside a small one puts the crossing right beside the small one)."""
     p = verts.astype(float)
     nearest = np.rint(p)
     axis = np.argmax(np.abs(p - nearest), axis=1)  # the edge's direction: the one coordinate between nodes

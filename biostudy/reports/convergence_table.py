@@ -91,4 +91,6 @@ def table_text(ds: xr.Dataset) -> str:
     if notes:
         lines += ["", "Levels solving a different model:", ""]
         lines += [f"- {k.removeprefix('different_model_').replace('_', ' level ')}: {v}" for k, v in notes]
+    if "recommendation" in ds.attrs:
+        lines += ["", str(ds.attrs["recommendation"]).strip()]
     return "\n".join(lines) + "\n"

@@ -76,6 +76,18 @@ class Recommendation:
         return {"recommended": {"set": self.settings, "predicted_error": self.predicted_error,
                                 "predicted_cost_s": self.predicted_cost_s}}
 
+    def attrs(self, observable: str) -> dict:
+        """What convergence.nc records of it (`recorded` reads it back as `as_json`)."""
+        out = {"target_error": self.target, "target_observable": observable, "recommendation": self.text()}
+        if self.settings:
+            out.update({"recommended_grid_shape": np.asarray(self.settings["grid.shape"], dtype=np.int64),
+                        "recommended_grid_spacing": float(self.settings["grid.spacing"]),
+                        "recommended_time_steps": int(self.settings["time.steps"]),
+                        "recommended_predicted_error": self.predicted_error,
+                        "recommended_predicted_cost_s": self.predicted_cost_s})
+        return out
+
+
     def text(self) -> str:
         """The recommendation for convergence.md and the command's summary."""
         if self.fit is None:
@@ -92,6 +104,20 @@ class Recommendation:
         lines.append(f"Cheapest run predicted to reach a relative error of {self.target:g}: `{sets}` (predicted error "
                      f"{self.predicted_error:.3g}, set-up and time loop {self.predicted_cost_s:.3g} CPU s).")
         return "\n".join(lines) + "\n"
+
+
+def recorded(attrs: dict) -> dict:
+    """{"recommended": {"set": {...}, "predicted_error": ..., "predicted_cost_s": ...}} from convergence.nc's
+    attributes (None and the reason where none was found; {} where none was asked for)."""
+    if "target_error" not in attrs:
+        return {}
+    if "recommended_time_steps" not in attrs:
+        return {"recommended": None, "reason": str(attrs.get("recommendation", "")).strip()}
+    settings = {"grid.shape": [int(n) for n in np.atleast_1d(attrs["recommended_grid_shape"])],
+                "grid.spacing": float(attrs["recommended_grid_spacing"]),
+                "time.steps": int(attrs["recommended_time_steps"])}
+    return {"recommended": {"set": settings, "predicted_error": float(attrs["recommended_predicted_error"]),
+                            "predicted_cost_s": float(attrs["recommended_predicted_cost_s"])}}
 
 
 def _toml(value) -> str:

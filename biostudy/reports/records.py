@@ -77,4 +77,7 @@ def dataset_record(ds: xr.Dataset) -> dict:
     coordinates = {str(c): ds[c].values for c in ds.coords}
     variables = {str(v): {"dims": list(map(str, ds[v].dims)), "units": str(ds[v].attrs.get("units", "")),
                           "values": ds[v].values} for v in ds.data_vars}
-    return {"kind": "dataset", "attributes": dict(ds.attrs), "coordinates": coordinates, "variables": variables}
+    from .error_model import recorded  # lazily: scipy's optimiser only for a convergence's recommendation
+
+    return {"kind": "dataset", "attributes": dict(ds.attrs), "coordinates": coordinates, "variables": variables,
+            **recorded(ds.attrs)}

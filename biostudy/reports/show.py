@@ -13,13 +13,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from rich.console import Group
+from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
 from solver.problem import parameter_infos
 
 from ..data import real_time
+from ..data.incomplete import INCOMPLETE
 from ..formatting import number, units_text
+from ..inputs.substratum_face import LEFT_OUT
 from ..quantities.saturation import SATURATION, saturated
 
 if TYPE_CHECKING:
@@ -125,6 +128,19 @@ def _value(values: np.ndarray, index: int, attrs: dict) -> str:
     return text + " (top: saturated)" if saturated(values[index], attrs.get(SATURATION)) else text
 
 
+def _cost(attrs: dict) -> str:
+    """Wall time, steps taken, bisected and shortened to the Courant limit, and the largest Courant number."""
+    text = f"wall time {number(attrs.get('wall_time'))} s"
+    if "steps_taken" not in attrs:
+        return text
+    text += f", steps {attrs['steps_taken']} taken, {attrs.get('steps_bisected', '-')} bisected"
+    if "steps_substepped" in attrs:
+        text += f", {attrs['steps_substepped']} shortened to the scheme's limit"
+    if "courant_max" in attrs:
+        text += f", largest Courant number {number(attrs['courant_max'], 3)}"
+    return text
+
+
 def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np.ndarray, dict]]) -> Group:
     """One run from its attributes, output times and observables (name, values over time, their attributes)."""
     name, description = scene_title(attrs)
@@ -132,10 +148,11 @@ def summary_of(attrs: dict, times: np.ndarray | None, series: list[tuple[str, np
     rows = _header(attrs)
     if status != "done":
         rows.append(("status", f"[red]{status}[/red]: {attrs.get('message', '')}"))
+    elif attrs.get(INCOMPLETE):
+        rows.append(("status", f"[red]incomplete[/red]: {escape(str(attrs[INCOMPLETE]))}"))
     rows += [
-        ("run", f"wall time {number(attrs.get('wall_time'))} s, steps {attrs.get('steps_taken', '-')} taken, "
-                f"{attrs.get('steps_bisected', '-')} bisected" if "steps_taken" in attrs
-         else f"wall time {number(attrs.get('wall_time'))} s"),
+        ("run", _cost(attrs)),
+        ("COMSTAT", escape(str(attrs.get(LEFT_OUT, "")))),
         ("created", str(attrs.get("created", ""))),
         ("software", _software(attrs)),
     ]

@@ -3,27 +3,34 @@
 Every case of a stability catalogue (`biostudy.plans.catalogue`) gets a verdict:
 
 * completed: the dataset as written is read back (`examine`): no NaN in open
-  cells; 0 <= c <= 1; alpha >= 0; 0 <= phi <= the bound the k_alpha alpha
-  source allows over the whole run, 1 + sum_j k_alpha max(alpha(t_j+1))
-  (t_j+1 - t_j) over the outputs (alpha never decreases, so this bounds the
-  source's integral); p finite where the mechanics was solved;
+  cells; 0 <= c <= 1; alpha >= 0; phi and alpha within what the model allows
+  them to reach from the first output's largest values and k_alpha alone
+  (`solver.transport.bounds.model_bound`: P0 cosh(k_alpha t) + A0
+  sinh(k_alpha t), t one step later, since the scheme's alpha may lead the
+  model's by a step), not from the run's own alpha; p finite where the
+  mechanics was solved;
 * refused: the mechanics stopped the run with its diagnosis (det F <= 0,
   Newton not converged after its safeguards): acceptable, that is what the
   diagnosis is for;
+* stopped: the expansion feedback ran away (`solver.errors.Runaway`: the
+  fields outgrew what the solver resolves) and the run stopped with its
+  diagnosis: acceptable, likewise;
 * failed: anything else: a transport case that did not complete, a bound
   broken, a NaN, an exception that is not the solver's diagnosis.
-`ok` is 1 for completed-within-bounds and refused, 0 for failed.
+`ok` is 1 for completed-within-bounds, refused and stopped, 0 for failed.
 
 What the read-back can and cannot see: the solver itself checks c and phi
 against their bounds after every step and projects round-off (within
 `solver.transport.bounds.ROUNDOFF`) onto them, failing the step beyond that; so the
 written c and phi lie within each step's bounds by construction, and the
-read-back confirms the file, not the numerics.  It does check what no single
-step does (phi against the source's bound over the whole run, alpha, p, NaN
-in what was written).  How close the raw solutions came to a bound is
+read-back confirms the file, not the numerics.  It does check the fields
+against the model's bounds independently of the solver's own steps, alpha,
+p and NaN in what was written.  How close the raw solutions came to a bound is
 recorded per run by the solver (`projected_c_count`, `projected_c_largest`,
 `projected_phi_count`, `projected_phi_largest`) and reported here: a largest
-correction close to ROUNDOFF means a case drifts toward a bound.
+correction close to ROUNDOFF means a case drifts toward a bound.  Each row
+also says how many steps the clock shortened to the scheme's limit and the
+largest Courant number it took (`steps_substepped`, `courant_max`).
 """
 from __future__ import annotations
 
@@ -35,7 +42,7 @@ import xarray as xr
 from solver.counters import MEANINGS
 from solver.output import FIELDS, cf_attrs, on_output_times
 from solver.problem import parameter_infos
-from solver.transport.bounds import ROUNDOFF
+from solver.transport.bounds import ROUNDOFF, model_bound
 
 from ..data import case_files, reading
 from ..execution.jobs import Job
@@ -47,10 +54,7 @@ def examine(ds: xr.Dataset) -> dict:
     ds = on_output_times(ds)
     open_cells = ~ds["obstacle"].values.astype(bool)
     fields = {name: ds[name].values[:, open_cells] for name in ("phi", "c", "alpha")}
-    times = ds["time"].values
-    k_alpha = float(ds.attrs["k_alpha"])
-    alpha_max = np.nanmax(fields["alpha"], axis=1)
-    bound = 1.0 + np.concatenate([[0.0], np.cumsum(k_alpha * alpha_max[1:] * np.diff(times))])
+    bound, alpha_bound = model_bounds(ds, fields["phi"][0], fields["alpha"][0])
     facts = {
         "nonfinite": int(sum(np.count_nonzero(~np.isfinite(v)) for v in fields.values())),
         "phi_min": float(np.nanmin(fields["phi"])), "phi_max": float(np.nanmax(fields["phi"])),
@@ -66,9 +70,11 @@ def examine(ds: xr.Dataset) -> dict:
         broken.append(f"c in [{facts['c_min']:.3g}, {facts['c_max']:.3g}]")
     if facts["alpha_min"] < -ROUNDOFF:
         broken.append(f"alpha min {facts['alpha_min']:.3g}")
-    phi_max = np.nanmax(fields["phi"], axis=1)
+    phi_max, alpha_max = np.nanmax(fields["phi"], axis=1), np.nanmax(fields["alpha"], axis=1)
     if facts["phi_min"] < -ROUNDOFF or np.any(phi_max > bound * (1 + ROUNDOFF) + ROUNDOFF):
         broken.append(f"phi in [{facts['phi_min']:.3g}, {facts['phi_max']:.6g}], bound {facts['phi_bound']:.6g}")
+    if np.any(alpha_max > alpha_bound * (1 + ROUNDOFF) + ROUNDOFF):
+        broken.append(f"alpha up to {float(np.nanmax(alpha_max)):.6g}, bound {float(alpha_bound[-1]):.6g}")
     if "p" in ds:
         solved = ds["newton_iterations"].values >= 0
         p = ds["p"].values[solved][:, open_cells]
@@ -76,6 +82,20 @@ def examine(ds: xr.Dataset) -> dict:
             broken.append("p not finite where the mechanics was solved")
     facts["broken"] = "; ".join(broken)
     return facts
+
+
+def model_bounds(ds: xr.Dataset, phi0: np.ndarray, alpha0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per output, the largest phi and alpha the model allows from the first output's largest values and k_alpha
+    (`model_bound`), one step later: the clock's nominal step, or with error-controlled steps the longest the
+    scheme takes, 1/k_alpha (`solver.transport.courant`)."""
+    times = ds["time"].values
+    k_alpha = float(ds.attrs["k_alpha"])
+    fixed = not float(ds.attrs.get("time_tolerance", 0.0))
+    step = float(ds.attrs["t_end"]) / float(ds.attrs["steps_nominal"]) if fixed else 1.0 / max(k_alpha, 1e-300)
+    lead = min(step, 1.0 / k_alpha) if k_alpha > 0 else 0.0
+    start = (float(np.nanmax(phi0)), max(float(np.nanmax(alpha0)), 0.0))
+    pairs = [model_bound(*start, k_alpha, t - times[0] + lead) for t in times]
+    return np.array([p for p, _ in pairs]), np.array([a for _, a in pairs])
 
 
 def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
@@ -96,7 +116,7 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
             row.update({k: v for k, v in facts.items() if k != "broken"})
             row.update(wall_time=float(ds.attrs["wall_time"]), steps_taken=int(ds.attrs["steps_taken"]),
                        steps_bisected=int(ds.attrs["steps_bisected"]), steps_rejected=int(ds.attrs["steps_rejected"]),
-                       **{name: float(ds.attrs.get(name, np.nan)) for name in PROJECTED})
+                       **{name: float(ds.attrs.get(name, np.nan)) for name in (*PROJECTED, *CLOCK)})
             if facts["broken"]:
                 row.update(verdict="failed", ok=0, message=f"bounds broken: {facts['broken']}")
             else:
@@ -106,6 +126,8 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
             row.update(wall_time=float(record.get("wall_time", np.nan)))
             if mechanics and error == "MechanicsError":
                 row.update(verdict="refused", ok=1, message=message)
+            elif error == "Runaway":
+                row.update(verdict="stopped", ok=1, message=message)
             else:
                 row.update(verdict="failed", ok=0, message=f"{error or 'error'}: {message}")
         else:
@@ -115,17 +137,19 @@ def verdicts(jobs: list[Job], out_dir: Path) -> xr.Dataset:
 
 
 PROJECTED = ("projected_c_count", "projected_c_largest", "projected_phi_count", "projected_phi_largest")
-NUMBERS = {"ok": ("1", "1 = completed within bounds or refused by the mechanics with a diagnosis"),
+CLOCK = ("steps_substepped", "courant_max")
+NUMBERS = {"ok": ("1", "1 = completed within bounds, refused by the mechanics or stopped with a diagnosis"),
            "wall_time": ("s", "wall time"),
-           **{name: ("1", MEANINGS[name]) for name in ("steps_taken", "steps_bisected", "steps_rejected")},
+           **{name: ("1", MEANINGS[name]) for name in ("steps_taken", "steps_bisected", "steps_rejected", *CLOCK)},
            **{f"{field}_{end}": ("1", f"{word} {FIELDS[field][1]}") for field in ("phi", "c")
               for end, word in (("min", "smallest"), ("max", "largest"))},
-           "phi_bound": ("1", "upper bound of phi from the k_alpha alpha source"),
+           "phi_bound": ("1", "upper bound of phi the model allows by the last output (k_alpha, initial fields)"),
            "alpha_min": ("1", f"smallest {FIELDS['alpha'][1]}"),
            "nonfinite": ("1", "non-finite values in open cells"),
            "newton_max": ("1", "most Newton iterations of a mechanics solve"),
            **{name: ("1", MEANINGS[name]) for name in PROJECTED}}
-LABELS = {"verdict": "completed, refused (mechanics diagnosis) or failed", "message": "diagnosis or check result",
+LABELS = {"verdict": "completed, refused (mechanics diagnosis), stopped (runaway diagnosis) or failed",
+          "message": "diagnosis or check result",
           "why": "what the case stresses"}
 COORDS = {"cells": ("1", "grid cells"), "steps_nominal": ("1", "nominal steps"),
           "mechanics": ("1", "1 = the mechanics was solved")}
@@ -152,14 +176,15 @@ def _dataset(rows: list[dict]) -> xr.Dataset:
 def table_text(ds: xr.Dataset) -> str:
     """Markdown table: one row per case; "projected" is how many values of c and phi the solver moved onto
     a bound, and the largest such correction."""
-    head = ["case", "what it stresses", "cells", "verdict", "steps", "bisected", "wall s", "phi range", "c range",
-            "projected c", "projected phi", "diagnosis"]
+    head = ["case", "what it stresses", "cells", "verdict", "steps", "bisected", "substepped", "Courant max", "wall s",
+            "phi range", "c range", "projected c", "projected phi", "diagnosis"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for i in range(ds.sizes["case"]):
         row = ds.isel(case=i)
         lines.append("| " + " | ".join([
             str(row.case.values), str(row.why.values), f"{int(row.cells)}", str(row.verdict.values),
-            number(row.steps_taken, 9), number(row.steps_bisected, 9), number(row.wall_time, 3),
+            number(row.steps_taken, 9), number(row.steps_bisected, 9), number(row.steps_substepped, 9),
+            number(row.courant_max, 2), number(row.wall_time, 3),
             f"[{number(row.phi_min, 3)}, {number(row.phi_max, 4)}]",
             f"[{number(row.c_min, 3)}, {number(row.c_max, 3)}]",
             *(_projected(row, name) for name in ("c", "phi")),

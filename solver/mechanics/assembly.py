@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..parallel import SERIAL, Team
 from . import material, stencil
 from .mesh import Box, StructuredMesh
 from .settings import DEFAULT
@@ -55,8 +56,10 @@ class Evaluation:
 class Assembler:
     """Assembles on a fixed pattern; `constrained` marks dofs held at zero."""
 
-    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = DEFAULT.chunk):
+    def __init__(self, mesh: StructuredMesh, constrained: np.ndarray, chunk: int = DEFAULT.chunk,
+                 team: Team = SERIAL):
         self.mesh = mesh
+        self.team = team  # the threads of the tangent's products
         self.d = d = mesh.ndim
         self.ref = ref = mesh.reference
         nloc = ref.gradients.shape[1]
@@ -227,7 +230,7 @@ class Assembler:
     def _matrix(self, blocks: np.ndarray) -> Stencil:
         mesh = self.mesh
         blocks = blocks.reshape((-1,) + blocks.shape[-3:])
-        held = Stencil(blocks, mesh.grid.nodes_shape, mesh.grid_to_mesh_node, mesh.nodes, self.linked)
+        held = Stencil(blocks, mesh.grid.nodes_shape, mesh.grid_to_mesh_node, mesh.nodes, self.linked, self.team)
         stencil.hold(blocks, stencil.grid3(mesh.grid.nodes_shape), held.offsets, mesh.grid_to_mesh_node,
                      self.constrained)
         return held

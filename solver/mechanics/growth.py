@@ -23,6 +23,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..errors import MechanicsError, describe_cell
+from ..parallel import SERIAL, Team
 from ..problem import Grid, MechanicsSetup, Parameters
 from . import constraints, material, preconditioners
 from .assembly import Assembler
@@ -30,6 +31,7 @@ from .constraints import boundary_held, pin_rigid_modes, rigid_modes
 from .linear import TangentSolver
 from .loading import Attempts, Refused, step_load
 from .mesh import StructuredMesh
+from .newton import nearly_incompressible
 from .pressure import PressureRecovery
 from .settings import DEFAULT, Settings
 
@@ -50,7 +52,7 @@ class GrowthMechanics:
     """Finite-strain growth mechanics on the transport grid (paper 2.1, 2.3.1, 3)."""
 
     def __init__(self, grid: Grid, params: Parameters, setup: MechanicsSetup, obstacle: np.ndarray | None = None,
-                 settings: Settings = DEFAULT):
+                 settings: Settings = DEFAULT, team: Team = SERIAL):
         self.grid, self.params, self.setup, self.settings = grid, params, setup, settings
         self.mesh = mesh = StructuredMesh(grid, obstacle)
         if mesh.n_elements == 0:
@@ -59,7 +61,7 @@ class GrowthMechanics:
         # the reported u is pinned at the domain's corner; the solve pins where the biofilm is stiff
         self.constrained, self.pins = pin_rigid_modes(mesh, self.held)
         self.gauge_pins, self.pieces = self.pins, constraints.pieces(mesh)
-        self.assembler = Assembler(mesh, self.constrained, settings.chunk)
+        self.assembler = Assembler(mesh, self.constrained, settings.chunk, team)  # its tangents' products on `team`
         modes = rigid_modes((mesh.node_coordinates() - mesh.node_coordinates().mean(axis=0)) / mesh.h)
         self.linear = TangentSolver(preconditioners.choose(setup.linear_solver, mesh.n_dofs, mesh, self.constrained,
                                                            modes, settings), settings)
@@ -137,8 +139,9 @@ class GrowthMechanics:
                 outcome = step_load(system, linear, self.u.copy(), reference, self.setup.newton_tolerance,
                                     self.setup.max_newton_iterations, self.settings, attempts)
             except Refused as refusal:
+                growth = float(np.max(np.abs(alpha1 - alpha0), initial=0.0))
                 raise self._refusal(time, refusal, attempts, linear.iterations - krylov0,
-                                    linear.builds - builds0) from None
+                                    linear.builds - builds0, growth) from None
             u, evaluation = outcome.u, outcome.evaluation
         self._check_inversion(time, evaluation)
         self.u, self.phi, self.alpha = u, phi1, alpha1
@@ -190,8 +193,8 @@ class GrowthMechanics:
             raise MechanicsError(when, f"det F = {evaluation.min_det[worst]:.3g} <= 0 (element inverted)",
                                  self._cell(worst))
 
-    def _refusal(self, when: float, refusal: Refused, attempts: Attempts, krylov: int,
-                 builds: int) -> MechanicsError:
+    def _refusal(self, when: float, refusal: Refused, attempts: Attempts, krylov: int, builds: int,
+                 growth: float) -> MechanicsError:
         """The diagnosis: cause, worst cell, how far the load got and what was tried."""
         outcome = refusal.outcome
         worst, cause = 0, "no Newton step was tried"
@@ -208,6 +211,7 @@ class GrowthMechanics:
         summary = (f"{refusal.why}; reached {refusal.reached:.3g} of the way from the last converged state "
                    f"(next try {refusal.target:.3g}); tried {attempts.summary()}, {krylov} Krylov iterations "
                    f"and {builds} preconditioner builds ({self.linear.name})")
+        summary += nearly_incompressible(self.params.nu, self.params.kappa, self.params.mu, growth)
         tried = {"load_steps": len(attempts.steps), "newton": attempts.newton, "krylov": krylov, "builds": builds}
         return MechanicsError(when, f"{cause}; {summary}", self._cell(worst), tried)
 

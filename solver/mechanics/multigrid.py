@@ -112,7 +112,7 @@ class Multigrid:
             diagonal = blocks[coarse.nodes, 0].reshape(-1, d * d)[:, ::d + 1]  # coarse dofs whose support is
             empty = np.nonzero(diagonal == 0)  # all constrained: a unit diagonal
             blocks[coarse.nodes[empty[0]], 0, empty[1], empty[1]] = 1.0
-            A = Stencil(blocks, coarse.nodes_shape, coarse.node_of, coarse.nodes)
+            A = Stencil(blocks, coarse.nodes_shape, coarse.node_of, coarse.nodes, team=A.team)
         self.coarse_solve = superlu(A.tobsr())
 
     def detach(self):

@@ -53,6 +53,24 @@ class NewtonOutcome:
     spent: bool = False  # stopped because the snapshot's linear-solver budget is spent
 
 
+TABLE_2_NU = 0.49  # the paper's Poisson ratio: kappa = 49.7 mu
+
+
+def nearly_incompressible(nu: float, kappa: float, mu: float, growth: float) -> str:
+    """What a refused solve adds when its material is nearer incompressible than Table 2's (nu > 0.49): the
+    growth increment `growth` (largest change of alpha in the solve) is a volumetric prestress 3 kappa growth,
+    which beside mu makes the tangent indefinite and ill-conditioned at once (loading.py), beyond what the Krylov
+    solves get past; '' otherwise."""
+    if nu <= TABLE_2_NU:
+        return ""
+    table_2 = 2 * (1 + TABLE_2_NU) / (3 * (1 - 2 * TABLE_2_NU))
+    return (f"; the nearly incompressible limit under growth is the cause: nu = {nu:g} makes the bulk modulus kappa "
+            f"= {kappa / mu:.3g} mu (Table 2's nu = {TABLE_2_NU:g}: {table_2:.3g} mu), and growing alpha by up to "
+            f"{growth:.3g} in this solve is a volumetric prestress 3 kappa d(alpha) = "
+            f"{3 * kappa * growth / mu:.3g} mu: use params.nu <= {TABLE_2_NU:g}, or grow less per solve (more outputs, "
+            f"mechanics.every = 1; docs/mechanics.md, \"Nearly incompressible growth\")")
+
+
 def energy_norm(matrix, v: np.ndarray) -> float:
     """sqrt|v.K v|: the increment measure (|v K v| in case K is indefinite far from equilibrium)."""
     return float(np.sqrt(abs(v @ (matrix @ v))))

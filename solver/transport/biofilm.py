@@ -36,36 +36,53 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..counters import Counters
+from ..parallel import SERIAL, Team
+from ..parallel.rows import blocks, split
 from ..problem import Numerics, Parameters
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
-from .kernels import advection_into, central_differences, face_gradient, face_velocity
-from .linear import jacobi_bicgstab
+from .kernels import (
+    ROWS,
+    advection_into,
+    biofilm_rows,
+    biofilm_sources,
+    central_differences,
+    clear,
+    face_gradient,
+    face_velocity,
+    row_offsets,
+)
+from .krylov import jacobi_bicgstab
 
 
 class Velocity:
     """Face-normal growth velocity w (µm/T*) per axis from the nutrient field."""
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, gradient_floor: float,
-                 held_faces: list[tuple[str, np.ndarray, float]] = ()):
+                 held_faces: list[tuple[str, np.ndarray, float]] = (), team: Team = SERIAL):
         self.fv = fv
+        self.team = team
         self.r, self.k = params.r, params.k
         self.floor = gradient_floor
-        self.neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
-        self.below = np.stack([below for below, _ in self.neighbours]).astype(np.int64)
-        self.above = np.stack([above for _, above in self.neighbours]).astype(np.int64)
+        neighbours = [fv.neighbours(axis) for axis in range(fv.grid.ndim)]
+        kind = fv.faces[0].cells.dtype if fv.faces else np.int64
+        self.below = np.stack([below for below, _ in neighbours]).astype(kind)  # (ndim, n)
+        self.above = np.stack([above for _, above in neighbours]).astype(kind)
         self.held_faces = []  # Dirichlet faces of the nutrient: (axis, cells beside it, their inner neighbours,
         for face, cells, value in held_faces:  # +1 on a lower face / -1 on an upper one, held value)
             axis = "xyz".index(face[0])
-            below, above = self.neighbours[axis]
+            below, above = neighbours[axis]
             lower = face[1] == "-"
             self.held_faces.append((axis, cells, above[cells] if lower else below[cells], 1.0 if lower else -1.0,
                                     value))
 
     def central_differences(self, q: np.ndarray) -> np.ndarray:
         """Cell gradient of q, (ndim, n); a missing neighbour takes the cell's own value (zero flux)."""
-        return central_differences(q, self.below, self.above, 2.0 * self.fv.grid.spacing)
+        out = np.empty(self.below.shape)
+        below, above, h2 = self.below, self.above, 2.0 * self.fv.grid.spacing
+        split(self.team, self.fv.n, lambda a, b: central_differences(out, q, below, above, h2, a, b))
+        return out
 
     def cell_gradient(self, c: np.ndarray) -> np.ndarray:
         """Cell gradient of the nutrient, (ndim, n): central differences, and beside a held nutrient face the
@@ -91,71 +108,82 @@ class Velocity:
         normal = [np.empty(f.lower.size) for f in fv.faces]
         magnitude = [np.empty(f.lower.size) for f in fv.faces]
         for f, dn, m in zip(fv.faces, normal, magnitude):
-            face_gradient(dn, m, c, f.lower, f.upper, f.axis, cell_grad, h)
+            split(self.team, dn.size, lambda a, b, f=f, dn=dn, m=m: face_gradient(dn, m, c, f.lower, f.upper, f.axis,
+                                                                                   cell_grad, h, a, b))
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0
         floor = self.floor * largest
-        velocities = [face_velocity(c, f.lower, f.upper, dn, m, self.r, self.k, floor)
-                      for f, dn, m in zip(fv.faces, normal, magnitude)]
+        velocities = [np.empty(f.lower.size) for f in fv.faces]
+        for f, w, dn, m in zip(fv.faces, velocities, normal, magnitude):
+            split(self.team, w.size, lambda a, b, f=f, w=w, dn=dn, m=m: face_velocity(w, c, f.lower, f.upper, dn, m,
+                                                                                       self.r, self.k, floor, a, b))
         return velocities, cell_grad, floor
 
 
-class _Pattern:
-    """Fixed CSR sparsity of the biofilm matrix and where each face's entries live in it."""
+def pattern(laplacian: sp.csr_matrix) -> sp.csr_matrix:
+    """The biofilm matrix's sparsity: the Laplacian's and every diagonal, columns sorted, data zero.  TVD's far
+    upwind cell is a face neighbour of the upwind one: its entries are in it too (`Biofilm` checks)."""
+    n = laplacian.shape[0]
+    found = sp.csr_matrix((np.ones(laplacian.nnz), laplacian.indices, laplacian.indptr), shape=laplacian.shape)
+    found = sp.csr_matrix(found + sp.identity(n, format="csr"))
+    found.sort_indices()
+    found.data[:] = 0.0
+    return found
 
-    def __init__(self, fv: FiniteVolumeGrid, laplacian: sp.csr_matrix, tvd: bool):
-        n = fv.n
-        rows, cols = [laplacian.tocoo().row, np.arange(n)], [laplacian.tocoo().col, np.arange(n)]
-        if tvd:
-            for f in fv.faces:
-                for cell, out in ((f.lower, f.lower_out), (f.upper, f.upper_out)):
-                    ok = out >= 0
-                    rows += [cell[ok], out[ok]]
-                    cols += [out[ok], cell[ok]]
-        r, c = np.concatenate(rows), np.concatenate(cols)
-        pattern = sp.csr_matrix((np.zeros(r.size), (r, c)), shape=(n, n))
-        pattern.sum_duplicates()
-        pattern.sort_indices()
-        self.matrix = pattern
-        self.keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(pattern.indptr)) * n + pattern.indices
-        self.n = n
-        self.diagonal = self.position(np.arange(n), np.arange(n))
-        lap = laplacian.tocoo()
-        self.laplacian_positions = self.position(lap.row, lap.col)
-        self.laplacian_values = lap.data
 
-    def position(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
-        """Index into the CSR data array of entries (row, col), which must be in the pattern."""
-        return np.searchsorted(self.keys, np.asarray(row, np.int64) * self.n + col)
+def diffusion(laplacian: sp.csr_matrix, beta: float) -> tuple[float, np.ndarray]:
+    """-beta lap as the biofilm matrix holds it: one value off the diagonal (every off-diagonal entry of the
+    Laplacian is the same, a face's coefficient over the cell volume) and one per row on it (0 where a walled-in
+    cell has none), each as np.bincount placed it before (0 + value)."""
+    rows = np.repeat(np.arange(laplacian.shape[0]), np.diff(laplacian.indptr))
+    on = rows == laplacian.indices
+    values = np.unique(laplacian.data[~on])
+    if values.size > 1:
+        raise ValueError("the Laplacian's off-diagonal entries differ: not a uniform grid's")
+    own = np.zeros(laplacian.shape[0])
+    own[rows[on]] = 0.0 + -beta * laplacian.data[on]
+    return (0.0 + -beta * float(values[0]) if values.size else 0.0), own
+
+
+def offsets(pattern: sp.csr_matrix, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """Where the entries (rows[k], columns[k]) are in their rows of `pattern` (from the row's start), as uint8."""
+    found = row_offsets(pattern.indptr, pattern.indices, np.asarray(rows, np.int64), np.asarray(columns, np.int64))
+    if found.size and found.min() < 0:
+        raise ValueError("an entry of the biofilm's advection is not in its matrix's pattern")
+    return found.astype(np.uint8)
 
 
 class Biofilm:
     """Implicit Euler step of Eq. 34 on the active cells, matrix filled in place."""
 
-    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics, held_faces=()):
+    def __init__(self, fv: FiniteVolumeGrid, params: Parameters, numerics: Numerics, held_faces=(),
+                 team: Team = SERIAL):
         self.fv = fv
+        self.team = team
         self.params = params
         self.tvd = numerics.advection == "tvd"
         self.tolerance = numerics.biofilm_tolerance
-        self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces)
+        laplacian = fv.laplacian
+        self.matrix = pattern(laplacian)  # the phi matrix, its data rewritten every step
+        self.velocity = Velocity(fv, params, numerics.gradient_floor, held_faces, team)
         if numerics.growth_velocity == "front" and params.r > 0:  # no growth: no front to move
-            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band)
-        self.pattern = _Pattern(fv, fv.laplacian, self.tvd)
-        p = self.pattern
-        self.diffusion = np.bincount(p.laplacian_positions, weights=-params.beta * p.laplacian_values,
-                                     minlength=p.keys.size)
-        self.faces, self.face_positions = [], []  # per axis: (4, m) cells and (6, m) CSR data positions
+            self.velocity = FrontVelocity(fv, self.velocity, numerics.front_band, team,
+                                          (self.matrix.indptr, self.matrix.indices))
+        n, indptr = fv.n, self.matrix.indptr
+        self.diagonal = (indptr[:-1] + offsets(self.matrix, np.arange(n), np.arange(n))).astype(np.int64)
+        self.neighbour, self.own = diffusion(laplacian, params.beta)
+        self.faces, self.offsets = [], []  # per axis: (4, m) cells (the grid's) and (6, m) offsets in their rows
         for f in fv.faces:
-            same = lambda cell: p.position(cell, cell)
             out_lower = np.where(f.lower_out >= 0, f.lower_out, f.lower)
             out_upper = np.where(f.upper_out >= 0, f.upper_out, f.upper)
-            self.faces.append(np.stack([f.lower, f.upper, f.lower_out, f.upper_out]).astype(np.int64))
-            self.face_positions.append(np.stack([
-                same(f.lower), same(f.upper), p.position(f.upper, f.lower), p.position(f.lower, f.upper),
-                p.position(f.lower, out_lower), p.position(f.upper, out_upper)]).astype(np.int64))
-        self.matrix = sp.csr_matrix((np.zeros(p.keys.size), p.matrix.indices, p.matrix.indptr),
-                                    shape=p.matrix.shape)  # the phi matrix, its data rewritten every step
+            self.faces.append(f.cells)
+            self.offsets.append(np.stack([
+                offsets(self.matrix, row, column) for row, column in ((f.lower, f.lower), (f.upper, f.upper),
+                                                                      (f.upper, f.lower), (f.lower, f.upper),
+                                                                      (f.lower, out_lower), (f.upper, out_upper))]))
+        self.rows = blocks(fv.n, team)  # the team's blocks of rows, and per axis the faces that touch each
+        self.face_ranges = fv.face_ranges(self.rows)
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
@@ -165,22 +193,47 @@ class Biofilm:
 
     def advection(self, w: list[np.ndarray], phi: np.ndarray) -> np.ndarray:
         """CSR data of the advection operator (per unit volume) for face velocities w (kernels.advection_into)."""
-        data = np.zeros(self.pattern.keys.size)
-        for faces, positions, wf in zip(self.faces, self.face_positions, w):
-            advection_into(data, faces, positions, np.asarray(wf, dtype=float), phi, self.fv.grid.spacing, self.tvd)
+        data = np.zeros(self.matrix.nnz)
+        for faces, offsets_, wf in zip(self.faces, self.offsets, w):
+            advection_into(data, faces, offsets_, self.matrix.indptr, np.asarray(wf, dtype=float), phi,
+                           self.fv.grid.spacing, self.tvd)
         return data
+
+    def positions(self, axis: int) -> np.ndarray:
+        """(6, m) where each face's six entries of one axis are in the matrix's data (`kernels.advection_into`)."""
+        return self.matrix.indptr[self.faces[axis][ROWS]] + self.offsets[axis]
 
     def step(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray], dt: float) -> np.ndarray:
         """phi^{n+1} from phi^n, alpha^n and face velocities (from c^n); raises StepFailure."""
-        source = self.params.k_alpha * alpha
-        matrix = self.matrix
-        data = matrix.data
-        np.add(self.diffusion, self.advection(w, phi), out=data)
-        data[self.pattern.diagonal] += 1.0 / dt
-        rhs = np.maximum(phi / dt + source, 0.0)  # a sink (alpha < 0, Table 1's expansion) takes at most what is there
-        new, its = jacobi_bicgstab(matrix, rhs, phi, self.tolerance, data[self.pattern.diagonal])
+        rhs, diagonal, upper = self.assemble(phi, alpha, w, dt)
+        new, its = jacobi_bicgstab(self.matrix, rhs, phi, self.tolerance, diagonal, team=self.team)
         self.iterations += its
-        return self._checked(new, upper=float(np.max(phi + dt * source, initial=0.0)))
+        return self._checked(new, upper=upper)
+
+    def assemble(self, phi: np.ndarray, alpha: np.ndarray, w: list[np.ndarray],
+                 dt: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """The step's matrix (into `self.matrix`: diffusion + advection + 1/dt on the diagonal), its right-hand
+        side max(phi/dt + k_alpha alpha, 0), its diagonal and the maximum principle's upper bound max(phi + dt k_alpha
+        alpha): block of rows by block of rows on the team, each entry summed as when made at once."""
+        matrix, rows, faces = self.matrix, self.rows, self.face_ranges
+        data, indptr, h = matrix.data, matrix.indptr, self.fv.grid.spacing
+        w = [np.asarray(wf, dtype=float) for wf in w]
+        rhs, diagonal, largest = np.empty(self.fv.n), np.empty(self.fv.n), np.zeros(rows.size - 1)
+        reciprocal, k_alpha = 1.0 / dt, self.params.k_alpha
+
+        def block(p: int) -> None:
+            if p + 1 >= rows.size:
+                return
+            start, stop = int(rows[p]), int(rows[p + 1])
+            clear(data, indptr[start], indptr[stop])
+            for axis, wf in enumerate(w):
+                advection_into(data, self.faces[axis], self.offsets[axis], indptr, wf, phi, h, self.tvd,
+                               faces[axis][p, 0], faces[axis][p, 1], start, stop)
+            biofilm_rows(data, indptr, self.diagonal, self.neighbour, self.own, reciprocal, diagonal, start, stop)
+            largest[p] = biofilm_sources(rhs, phi, alpha, k_alpha, dt, start, stop)
+
+        self.team.run(block) if rows.size > 2 else block(0)
+        return rhs, diagonal, float(np.max(largest))
 
     def _checked(self, phi: np.ndarray, upper: float) -> np.ndarray:
         """NaN and maximum-principle check; round-off within ROUNDOFF is projected onto the bounds."""

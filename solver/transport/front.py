@@ -50,6 +50,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
+from ..parallel import SERIAL, Team
+from ..parallel.rows import blocks, split
 from .finite_volume import FiniteVolumeGrid
 from .kernels import extended_faces, front_crossings, nearest_rows, subgraph, within_reach
 
@@ -59,15 +61,17 @@ LEVEL = 0.5  # the front: phi = 1/2
 class FrontVelocity:
     """Face velocities (µm/T*) per axis from c and phi: pointwise far from the front, extended near it."""
 
-    def __init__(self, fv: FiniteVolumeGrid, pointwise, band: float = 3.0):
+    def __init__(self, fv: FiniteVolumeGrid, pointwise, band: float = 3.0, team: Team = SERIAL,
+                 adjacency: tuple[np.ndarray, np.ndarray] | None = None):
         self.fv = fv
+        self.team = team
+        self.rows = blocks(fv.n, team)  # the team's blocks of cells, and per axis the faces that touch each
+        self.face_ranges = fv.face_ranges(self.rows)
         self.pointwise = pointwise  # a biofilm.Velocity: r, k, floor, cell gradients
         self.band = band
-        lower = np.concatenate([f.lower for f in fv.faces])
-        upper = np.concatenate([f.upper for f in fv.faces])
-        weight = np.full(2 * lower.size, fv.grid.spacing)
-        self.adjacency = sp.csr_matrix((weight, (np.concatenate([lower, upper]), np.concatenate([upper, lower]))),
-                                       shape=(fv.n, fv.n))  # open cells sharing a face, distance h
+        if adjacency is None:  # open cells sharing a face (each at distance h): the Laplacian's pattern
+            adjacency = fv.laplacian.indptr, fv.laplacian.indices
+        self.adjacency = adjacency  # (indptr, indices) of a CSR pattern whose off-diagonal entries are those cells
 
     def __call__(self, c: np.ndarray, phi: np.ndarray) -> list[np.ndarray]:
         w, gradient, floor = self.pointwise.field(c)
@@ -78,7 +82,11 @@ class FrontVelocity:
             return w
         nearest = self._nearest(front, phi >= LEVEL)
         # a face beside a covered cell: the mean of its cells' normal components (one of them where only one is)
-        return [extended_faces(wf, f.lower, f.upper, f.axis, nearest, vectors) for f, wf in zip(self.fv.faces, w)]
+        extended = [np.empty(wf.size) for wf in w]
+        for f, wf, out in zip(self.fv.faces, w, extended):
+            split(self.team, wf.size, lambda a, b, f=f, wf=wf, out=out: extended_faces(
+                out, wf, f.lower, f.upper, f.axis, nearest, vectors, a, b))
+        return extended
 
     def _front(self, c: np.ndarray, phi: np.ndarray, gradient: np.ndarray, floor: float):
         """The vector F N per front cell (rows of `vectors`) and the front cells' active indices, with the
@@ -88,9 +96,16 @@ class FrontVelocity:
         grad_phi = velocity.central_differences(phi)
         sums = np.zeros((fv.n, fv.grid.ndim))
         count = np.zeros(fv.n, np.int64)
-        for f in fv.faces:
-            front_crossings(sums, count, f.lower, f.upper, f.axis, c, phi, gradient, grad_phi, LEVEL,
-                            fv.grid.spacing, velocity.r, velocity.k, floor)
+        rows, faces = self.rows, self.face_ranges
+
+        def block(p: int) -> None:  # the crossings owned by a block's cells, axis after axis as at once
+            if p + 1 < rows.size:
+                for f, ranges in zip(fv.faces, faces):
+                    front_crossings(sums, count, f.lower, f.upper, f.axis, c, phi, gradient, grad_phi, LEVEL,
+                                    fv.grid.spacing, velocity.r, velocity.k, floor, ranges[p, 0], ranges[p, 1],
+                                    rows[p], rows[p + 1])
+
+        self.team.run(block) if rows.size > 2 else block(0)
         front = np.flatnonzero(count)
         return sums[front] / count[front, None], front
 
@@ -104,10 +119,11 @@ class FrontVelocity:
         candidates = np.flatnonzero(keep)
         local = np.full(fv.n, -1, np.int32)
         local[candidates] = np.arange(candidates.size, dtype=np.int32)
-        a = self.adjacency  # its rows and columns of the candidates: adjacency[candidates][:, candidates]
-        indices, data = np.empty(a.nnz, np.int32), np.empty(a.nnz)
-        indptr = subgraph(a.indptr, a.indices, a.data, keep, local, indices, data)
-        graph = sp.csr_matrix((data[:indptr[-1]], indices[:indptr[-1]], indptr), shape=(candidates.size,) * 2)
+        indptr, indices = self.adjacency  # its rows and columns of the candidates: adjacency[candidates][:, candidates]
+        kept = np.empty(indices.size, np.int32)
+        indptr = subgraph(indptr, indices, keep, local, kept)
+        graph = sp.csr_matrix((np.full(indptr[-1], fv.grid.spacing), kept[:indptr[-1]], indptr),
+                              shape=(candidates.size,) * 2)
         distance, _, source = dijkstra(graph, directed=True, indices=local[front], min_only=True,
                                        return_predecessors=True)
         return nearest_rows(fv.n, front, candidates, dense, distance, source,

@@ -23,21 +23,30 @@ jit = numba.njit(cache=True, nogil=True)
 
 
 @jit
-def advection_into(out: np.ndarray, faces: np.ndarray, positions: np.ndarray, w: np.ndarray, phi: np.ndarray,
-                   h: float, tvd: bool) -> None:
+def advection_into(out: np.ndarray, faces: np.ndarray, offsets: np.ndarray, indptr: np.ndarray, w: np.ndarray,
+                   phi: np.ndarray, h: float, tvd: bool, first: int = 0, last: int = -1, row_start: int = 0,
+                   row_stop: int = -1) -> None:
     """Add the advection operator's CSR data (biofilm.py, positive-coefficient form) for one axis to `out`.
 
-    faces: (4, m) lower, upper, lower_out, upper_out (-1: none); positions: (6, m) data positions of
-    (lower, lower), (upper, upper), (upper, lower), (lower, upper), (lower, lower_out), (upper, upper_out).
+    faces: (4, m) lower, upper, lower_out, upper_out (-1: none); offsets: (6, m) where in their rows (from
+    the row's start, `indptr`) the entries (lower, lower), (upper, upper), (upper, lower), (lower, upper),
+    (lower, lower_out), (upper, upper_out) are stored (`position`).
     Entries are added in the order of the numpy form (inflow diagonal, inflow off-diagonal, outflow
-    diagonal, outflow off-diagonal, each over all faces), so that the sums round alike."""
-    m = w.size
+    diagonal, outflow off-diagonal, each over all faces), so that the sums round alike.
+
+    A block of a team's (`Biofilm.advection_rows`): only the faces first .. last - 1 (all: -1), and of their
+    entries only those of rows row_start .. row_stop - 1 (all: -1); an entry's sum sees the same terms in the
+    same order as when every face is done at once."""
+    last = w.size if last < 0 else last
+    row_stop = phi.size if row_stop < 0 else row_stop
+    m = last - first
     inflow = np.empty(m)
     outflow = np.zeros(m)
-    for f in range(m):
+    for k in range(m):
+        f = first + k
         a = abs(w[f]) / h
         if not tvd:
-            inflow[f] = a
+            inflow[k] = a
             continue
         forward = w[f] > 0
         up, down, far = (faces[0, f], faces[1, f], faces[2, f]) if forward else (faces[1, f], faces[0, f],
@@ -49,26 +58,60 @@ def advection_into(out: np.ndarray, faces: np.ndarray, positions: np.ndarray, w:
             psi, psi_over_r = 2.0 * num / total, 2.0 * den / total
         else:
             psi, psi_over_r = 0.0, 0.0
-        inflow[f] = a * (1.0 - 0.5 * psi)
-        outflow[f] = a * 0.5 * psi_over_r
-    for f in range(m):  # row `down` gets inflow * (phi_down - phi_up)
-        out[positions[1, f] if w[f] > 0 else positions[0, f]] += inflow[f]
-    for f in range(m):
-        out[positions[2, f] if w[f] > 0 else positions[3, f]] -= inflow[f]
-    if tvd:  # row `up` gets outflow * (phi_up - phi_far)
-        for f in range(m):
-            out[positions[0, f] if w[f] > 0 else positions[1, f]] += outflow[f]
-        for f in range(m):
-            out[positions[4, f] if w[f] > 0 else positions[5, f]] -= outflow[f]
+        inflow[k] = a * (1.0 - 0.5 * psi)
+        outflow[k] = a * 0.5 * psi_over_r
+    # row `down` gets inflow * (phi_down - phi_up), row `up` outflow * (phi_up - phi_far): all of one kind of entry
+    # over the faces before the next kind, as the numpy form added them
+    _add(out, faces, offsets, indptr, w, inflow, 1.0, 1, 1, 0, first, row_start, row_stop)
+    _add(out, faces, offsets, indptr, w, inflow, -1.0, 1, 2, 3, first, row_start, row_stop)
+    if tvd:
+        _add(out, faces, offsets, indptr, w, outflow, 1.0, 0, 0, 1, first, row_start, row_stop)
+        _add(out, faces, offsets, indptr, w, outflow, -1.0, 0, 4, 5, first, row_start, row_stop)
+
+
+@jit
+def _add(out, faces, offsets, indptr, w, values, sign, row, forward, backward, first, row_start, row_stop):
+    """out += sign * values[k] at face first + k's entry `forward` (w > 0) or `backward` (its mirror), for the faces
+    whose row (cell `row` of the face, 0 lower, 1 upper, mirrored likewise) is one of row_start .. row_stop - 1."""
+    for k in range(values.size):
+        f = first + k
+        if row_start <= faces[row if w[f] > 0 else 1 - row, f] < row_stop:
+            if sign > 0:
+                out[position(faces, offsets, indptr, forward if w[f] > 0 else backward, f)] += values[k]
+            else:
+                out[position(faces, offsets, indptr, forward if w[f] > 0 else backward, f)] -= values[k]
+
+
+ROWS = np.array([0, 1, 1, 0, 0, 1])  # the row (lower 0, upper 1) of each of a face's six entries (`advection_into`)
+
+
+@jit
+def position(faces: np.ndarray, offsets: np.ndarray, indptr: np.ndarray, entry: int, f: int) -> int:
+    """Where face f's entry `entry` (0 .. 5, `advection_into`) is in the CSR data: its row's start and offset."""
+    return indptr[faces[ROWS[entry], f]] + offsets[entry, f]
+
+
+@jit
+def row_offsets(indptr: np.ndarray, indices: np.ndarray, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """For each (rows[k], columns[k]) the offset of its entry from its row's start in a CSR pattern (rows of at most
+    255 entries); -1 for an entry the pattern does not have."""
+    found = np.full(rows.size, -1, np.int64)
+    for k in range(rows.size):
+        start = indptr[rows[k]]
+        for j in range(start, indptr[rows[k] + 1]):
+            if indices[j] == columns[k]:
+                found[k] = j - start
+                break
+    return found
 
 
 @jit
 def face_gradient(normal: np.ndarray, magnitude: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                  axis: int, cell_gradient: np.ndarray, h: float) -> None:
-    """Per face of one axis, into `normal` and `magnitude`: the normal derivative (c_upper - c_lower)/h and
-    |grad c| with the tangential components from the mean of the two cells' central differences
-    (`cell_gradient`: (ndim, n))."""
-    for f in range(lower.size):
+                  axis: int, cell_gradient: np.ndarray, h: float, start: int, stop: int) -> None:
+    """Per face start .. stop - 1 of one axis, into `normal` and `magnitude`: the normal derivative
+    (c_upper - c_lower)/h and |grad c| with the tangential components from the mean of the two cells' central
+    differences (`cell_gradient`: (ndim, n))."""
+    for f in range(start, stop):
         a, b = lower[f], upper[f]
         dn = (c[b] - c[a]) / h
         squared = dn * dn
@@ -81,30 +124,31 @@ def face_gradient(normal: np.ndarray, magnitude: np.ndarray, c: np.ndarray, lowe
 
 
 @jit
-def face_velocity(c: np.ndarray, lower: np.ndarray, upper: np.ndarray, normal: np.ndarray, magnitude: np.ndarray,
-                  r: float, k: float, floor: float) -> np.ndarray:
-    """w = r c_f/(k + c_f) (dc/dn) / max(|grad c|, floor) per face, c_f the mean of the two cells."""
-    m = lower.size
-    w = np.empty(m)
-    for f in range(m):
+def face_velocity(w: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.ndarray, normal: np.ndarray,
+                  magnitude: np.ndarray, r: float, k: float, floor: float, start: int, stop: int) -> None:
+    """Into w, per face start .. stop - 1: r c_f/(k + c_f) (dc/dn) / max(|grad c|, floor), c_f the mean of the two
+    cells."""
+    for f in range(start, stop):
         cf = 0.5 * (c[lower[f]] + c[upper[f]])
         w[f] = r * cf / (k + cf) * normal[f] / max(magnitude[f], floor)
-    return w
 
 
 @jit
 def front_crossings(sums: np.ndarray, count: np.ndarray, lower: np.ndarray, upper: np.ndarray, axis: int,
                     c: np.ndarray, phi: np.ndarray, grad_c: np.ndarray, grad_phi: np.ndarray, level: float,
-                    h: float, r: float, k: float, floor: float) -> None:
+                    h: float, r: float, k: float, floor: float, first: int, last: int, row_start: int,
+                    row_stop: int) -> None:
     """For every face of one axis that the phi = `level` front crosses: the vector F N at the crossing
     (front.py, step 1), added to `sums` (n, ndim) of the crossing's nearer cell, and that cell's `count`.
 
     grad_c, grad_phi: (ndim, n) cell gradients; F N is interpolated linearly between the two cells, with
-    the face-normal component of grad phi from the two cells."""
+    the face-normal component of grad phi from the two cells.  A team's block: faces first .. last - 1, and
+    of them only those whose nearer cell is one of rows row_start .. row_stop - 1 (each cell's sums add the
+    same terms in the same order as when every face is done at once)."""
     ndim = grad_c.shape[0]
     g_phi = np.empty(ndim)
     g_c = np.empty(ndim)
-    for f in range(lower.size):
+    for f in range(first, last):
         a, b = lower[f], upper[f]
         if (phi[a] >= level) == (phi[b] >= level):
             continue
@@ -122,26 +166,26 @@ def front_crossings(sums: np.ndarray, count: np.ndarray, lower: np.ndarray, uppe
         along = 0.0
         for i in range(ndim):
             along += (-g_phi[i] / norm_phi) * (g_c[i] / norm_c)
-        speed = r * c_x / (k + c_x) * along
         owner = a if theta < 0.5 else b
+        if not row_start <= owner < row_stop:
+            continue
+        speed = r * c_x / (k + c_x) * along
         for i in range(ndim):
             sums[owner, i] += speed * (-g_phi[i] / norm_phi)
         count[owner] += 1
 
 
 @jit
-def extended_faces(w: np.ndarray, lower: np.ndarray, upper: np.ndarray, axis: int, nearest: np.ndarray,
-                   vectors: np.ndarray) -> np.ndarray:
-    """Face velocities of one axis: the mean of the two cells' extended vectors' `axis` components (a cell's
-    vector: row nearest[cell] of `vectors`) where both cells are covered by the extension (nearest >= 0), the
-    one covered cell's where only one is, else `w`."""
-    out = np.empty(lower.size)
-    for f in range(lower.size):
+def extended_faces(out: np.ndarray, w: np.ndarray, lower: np.ndarray, upper: np.ndarray, axis: int,
+                   nearest: np.ndarray, vectors: np.ndarray, start: int, stop: int) -> None:
+    """Into out, face velocities of one axis (faces start .. stop - 1): the mean of the two cells' extended
+    vectors' `axis` components (a cell's vector: row nearest[cell] of `vectors`) where both cells are covered by
+    the extension (nearest >= 0), the one covered cell's where only one is, else `w`."""
+    for f in range(start, stop):
         a, b = nearest[lower[f]], nearest[upper[f]]
         va = vectors[a, axis] if a >= 0 else 0.0
         vb = vectors[b, axis] if b >= 0 else 0.0
         out[f] = 0.5 * (va + vb) if a >= 0 and b >= 0 else (va + vb if a >= 0 or b >= 0 else w[f])
-    return out
 
 
 @jit
@@ -160,34 +204,32 @@ def nearest_rows(n: int, front: np.ndarray, candidates: np.ndarray, dense: np.nd
 
 
 @jit
-def subgraph(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, keep: np.ndarray, local: np.ndarray,
-             new_indices: np.ndarray, new_data: np.ndarray) -> np.ndarray:
-    """CSR of graph[keep][:, keep] for a graph in CSR (rows and columns of the kept vertices, in their order;
-    `local` maps a kept vertex to its new index), the same matrix as scipy's fancy indexing: returns its indptr
-    and fills the first indptr[-1] entries of `new_indices` and `new_data` (at least as long as `indices`)."""
+def subgraph(indptr: np.ndarray, indices: np.ndarray, keep: np.ndarray, local: np.ndarray,
+             new_indices: np.ndarray) -> np.ndarray:
+    """The pattern of graph[keep][:, keep] for a graph's CSR pattern without its diagonal (rows and columns of the kept
+    vertices, in their order; `local` maps a kept vertex to its new index), the same as scipy's fancy indexing:
+    returns its indptr and fills the first indptr[-1] entries of `new_indices` (at least as long as `indices`)."""
     rows = np.flatnonzero(keep)
     new_indptr = np.zeros(rows.size + 1, np.int32)
     out = 0
     for i in range(rows.size):
         row = rows[i]
         for j in range(indptr[row], indptr[row + 1]):
-            if keep[indices[j]]:
+            if keep[indices[j]] and indices[j] != row:
                 new_indices[out] = local[indices[j]]
-                new_data[out] = data[j]
                 out += 1
         new_indptr[i + 1] = out
     return new_indptr
 
 
 @jit
-def central_differences(q: np.ndarray, below: np.ndarray, above: np.ndarray, h2: float) -> np.ndarray:
-    """(ndim, n): per axis (q[above] - q[below]) / h2 for every cell (`below`, `above`: (ndim, n) neighbours)."""
-    ndim, n = below.shape
-    out = np.empty((ndim, n))
-    for k in range(ndim):
-        for i in range(n):
+def central_differences(out: np.ndarray, q: np.ndarray, below: np.ndarray, above: np.ndarray, h2: float,
+                        start: int, stop: int) -> None:
+    """Into out (ndim, n): per axis (q[above] - q[below]) / h2 for cells start .. stop - 1 (`below`, `above`:
+    (ndim, n) neighbours)."""
+    for k in range(below.shape[0]):
+        for i in range(start, stop):
             out[k, i] = (q[above[k, i]] - q[below[k, i]]) / h2
-    return out
 
 
 @jit
@@ -223,3 +265,42 @@ def within_reach(start: np.ndarray, shape: np.ndarray, reach: int) -> np.ndarray
                         queue[tail] = other
                         tail += 1
     return steps >= 0
+
+
+@jit
+def clear(data: np.ndarray, start: int, stop: int) -> None:
+    """data[start:stop] = 0."""
+    for k in range(start, stop):
+        data[k] = 0.0
+
+
+@jit
+def biofilm_rows(data: np.ndarray, indptr: np.ndarray, diagonal: np.ndarray, neighbour: float, own: np.ndarray,
+                 reciprocal: float, diagonal_out: np.ndarray, start: int, stop: int) -> None:
+    """The biofilm matrix's data of rows start .. stop - 1 from their advection data (in `data`): diffusion +
+    advection, then 1/dt (`reciprocal`) added on the diagonal, whose values go to `diagonal_out` too.  The
+    diffusion -beta lap is `neighbour` off the diagonal (the Laplacian's off-diagonal entries are all alike)
+    and own[i] on row i's diagonal (`diagonal`: its positions)."""
+    for i in range(start, stop):
+        d = diagonal[i]
+        for k in range(indptr[i], indptr[i + 1]):
+            data[k] = (own[i] if k == d else neighbour) + data[k]
+        data[d] += reciprocal
+        diagonal_out[i] = data[d]
+
+
+@jit
+def biofilm_sources(rhs: np.ndarray, phi: np.ndarray, alpha: np.ndarray, k_alpha: float, dt: float, start: int,
+                    stop: int) -> float:
+    """rhs = max(phi / dt + k_alpha alpha, 0) for cells start .. stop - 1 (a sink, alpha < 0 in Table 1's expansion,
+    takes at most what is there; NaN kept, as by np.maximum); returns the largest phi + dt k_alpha alpha among them
+    (NaN if one is), at least 0: the maximum principle's bound of the step."""
+    largest = 0.0
+    for i in range(start, stop):
+        source = k_alpha * alpha[i]
+        value = phi[i] / dt + source
+        rhs[i] = value if value >= 0.0 or value != value else 0.0
+        bound = phi[i] + dt * source
+        if largest == largest and (bound > largest or bound != bound):  # a NaN is kept, as by np.max
+            largest = bound
+    return largest

@@ -13,24 +13,25 @@
   It passes through the first coarse level unsmoothed (see `VCycle`), and the
   hierarchy is built with `STRENGTH` down to at most `COARSEST` rows.  Each
   choice is measured before and after in docs/transport.md ("The means").
-* `jacobi_bicgstab`: the biofilm matrix is dominated by 1/dt, so a diagonal
-  preconditioner is enough (2-5 iterations at the nominal step).
 * `KeptDiagonal`: a matrix that changes only on its diagonal, kept in CSR and
   its diagonal rewritten in place instead of a new CSR matrix built per step.
 
-Both solvers judge convergence by the true residual |b - A x| <= tolerance |b|,
-not by the Krylov method's recursive one (which can fall far below the true
-residual, or report a "breakdown" when the initial guess is already exact).
+The Krylov loops themselves (CG here, the biofilm's BiCGSTAB) are in `krylov.py`.
+On a `Team` of threads the cycle's sweeps are pipelined (`parallel.sweeps`) and its
+products split in blocks of rows (`parallel.rows`): the same numbers as on one.
 """
 from __future__ import annotations
 
 import numpy as np
 import pyamg
 import scipy.sparse as sp
-from pyamg.amg_core import gauss_seidel
 
 from ..counters import Counters
 from ..errors import StepFailure
+from ..parallel import SERIAL, Team
+from ..parallel.rows import add_product, product, residual, split, with_diagonal
+from ..parallel.sweeps import Sweeps
+from .krylov import not_converged, pcg, within
 
 # The hierarchy's choices, each measured at 40^3 on a recorded run (benchmarks/nutrient.py, docs/transport.md):
 COARSEST = 200  # rows of the level solved by its pseudo-inverse (pyamg's default 50 leaves one level more)
@@ -40,12 +41,16 @@ STRENGTH = ("classical", {"theta": 0.1})  # pyamg's default 0.25 coarsens the de
 class ReusedAMG:
     """CG with an AMG V-cycle preconditioner whose hierarchy is rebuilt only when it has gone stale."""
 
-    def __init__(self, tolerance: float, max_iterations: int = 500, growth: float = 1.6, floor: int = 12):
+    def __init__(self, tolerance: float, max_iterations: int = 500, growth: float = 1.6, floor: int = 12,
+                 team: Team = SERIAL, places: tuple[np.ndarray, np.ndarray] | None = None):
         self.tolerance = tolerance
+        self.team = team
+        self.places = places  # (layer, lane) of every row on the grid: the sweeps' pipeline (VCycle)
         self.max_iterations = max_iterations
         self.growth = growth  # rebuild when iterations exceed growth * (iterations right after the last rebuild)
         self.floor = floor
         self.cycle: VCycle | None = None
+        self.prepared = False  # a hierarchy built ahead (`prepare`) for the next solve, which counts as its first
         self.fresh_iterations = 1
         self.rebuilds = 0
         self.iterations = 0  # total CG iterations, for the cost report
@@ -55,14 +60,21 @@ class ReusedAMG:
                 f"{prefix}_amg_rebuilds": self.rebuilds}
 
     def _rebuild(self, matrix: sp.csr_matrix):
-        self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=COARSEST, strength=STRENGTH))
+        self.cycle = VCycle(pyamg.ruge_stuben_solver(matrix, max_coarse=COARSEST, strength=STRENGTH),
+                            team=self.team, places=self.places)
         self.rebuilds += 1
+
+    def prepare(self, matrix: sp.csr_matrix) -> None:
+        """Build the hierarchy of the next solve's matrix now (the same matrix: the solve is then as it would have
+        been), while less else is held: its set-up needs the most memory of a run's start (docs/transport.md)."""
+        self._rebuild(matrix)
+        self.prepared = True
 
     def _cg(self, matrix, rhs, x0):
         x = np.zeros_like(rhs) if x0 is None else np.array(x0, dtype=float)
         with np.errstate(over="ignore", invalid="ignore"):  # overflow shows up in the residual check
             x, its, residual, info = pcg(matrix, rhs, x, lambda r: self.cycle(matrix, r),
-                                         self.tolerance * np.linalg.norm(rhs), self.max_iterations)
+                                         self.tolerance * np.linalg.norm(rhs), self.max_iterations, self.team)
         self.iterations += its
         return x, residual, its, info
 
@@ -71,8 +83,10 @@ class ReusedAMG:
         if not np.any(rhs):
             return np.zeros_like(rhs)
         target = self.tolerance * float(np.linalg.norm(rhs))
-        if self.cycle is None:
-            self._rebuild(matrix)
+        if self.cycle is None or self.prepared:
+            if not self.prepared:
+                self._rebuild(matrix)
+            self.prepared = False
             x, residual, its, info = self._cg(matrix, rhs, x0)
             self.fresh_iterations = its
         else:
@@ -97,19 +111,27 @@ class VCycle:
     goes through them, its interpolation the product of theirs (P_01 P_12 ...), its restriction the
     transpose.  Ruge-Stueben's first coarse level of a 7-point (5-point) operator is the red-black half of
     the cells with 18 (8) neighbours each, more nonzeros than the finest level in 3-D; its sweeps were a
-    third of a cycle and bought no iteration (docs/transport.md), so it is passed through by default."""
+    third of a cycle and bought no iteration (docs/transport.md), so it is passed through by default.
 
-    def __init__(self, hierarchy, passed: tuple[int, ...] = (1,)):
+    `places` (layer, lane) of the finest rows on the grid let a team pipeline the sweeps; a coarse level's
+    rows are the C-points of the level above, in its order (Ruge-Stueben's), and take their places."""
+
+    def __init__(self, hierarchy, passed: tuple[int, ...] = (1,), team: Team = SERIAL,
+                 places: tuple[np.ndarray, np.ndarray] | None = None):
         levels = hierarchy.levels
-        self.operators, self.prolongations = [], []
+        self.team = team
+        self.operators, self.prolongations, self.sweeps = [], [], []
         index = 0
         while index < len(levels) - 1:
             prolongation = sp.csr_matrix(levels[index].P)
             self.operators.append(sp.csr_matrix(levels[index].A))
+            self.sweeps.append(Sweeps(self.operators[-1], *(places or (None, None)), team))
             index += 1
+            places = coarse_places(levels[index - 1], places)
             while index in passed and index < len(levels) - 1:
                 prolongation = sp.csr_matrix(prolongation @ levels[index].P)
                 index += 1
+                places = coarse_places(levels[index - 1], places)
             self.prolongations.append(prolongation)
         self.restrictions = [sp.csr_matrix(p.T) for p in self.prolongations]
         self.coarsest = np.linalg.pinv(np.asarray(levels[-1].A.toarray()))
@@ -123,153 +145,52 @@ class VCycle:
             return self.coarsest @ rhs
         if index > 0:
             matrix = self.operators[index]
-        n = matrix.shape[0]
+        team, sweeps = self.team, self.sweeps[index]
         x = np.zeros_like(rhs)
-        gauss_seidel(matrix.indptr, matrix.indices, matrix.data, x, rhs, 0, n, 1)
-        coarse = self.restrictions[index] @ (rhs - matrix @ x)
-        x += self.prolongations[index] @ self._level(index + 1, matrix, coarse)
-        gauss_seidel(matrix.indptr, matrix.indices, matrix.data, x, rhs, n - 1, -1, -1)
+        sweeps.forward(matrix, x, rhs)
+        coarse = product(team, self.restrictions[index], residual(team, matrix, x, rhs))
+        add_product(team, self.prolongations[index], self._level(index + 1, matrix, coarse), x)
+        sweeps.backward(matrix, x, rhs)
         return x
 
 
-def pcg(matrix, rhs: np.ndarray, x: np.ndarray, precondition, target: float,
-        max_iterations: int) -> tuple[np.ndarray, int, float, int]:
-    """Preconditioned conjugate gradients from `x` (updated in place) until the recursive residual is at most
-    `target`; returns (x, iterations, the true residual's norm |rhs - matrix x|, info), which the caller
-    judges (a recursion that has drifted below the true residual stops with a true residual above target);
-    info is 0 when the recursive residual met target, 1 when out of iterations, -1 on a breakdown.
-    A starting x whose residual exceeds |rhs| is replaced by 0: from there CG could not reduce the true
-    residual to target relative to |rhs| in double precision (measured: d = 1, g = 1e10, one step dt = 1)."""
-    r = rhs - matrix @ x
-    size = float(np.linalg.norm(r))
-    if size > np.linalg.norm(rhs):  # a start worse than none (a giant step's stale guess): start from 0
-        x[:] = 0.0
-        r, size = rhs.copy(), float(np.linalg.norm(rhs))
-    if size <= target:
-        return x, 0, size, 0
-    z = precondition(r)
-    p = z.copy()
-    rz = r @ z
-    for iteration in range(1, max_iterations + 1):
-        q = matrix @ p
-        curvature = p @ q
-        if not curvature > 0:  # breakdown (or NaN): not converged
-            return x, iteration, size if np.isfinite(size) else np.inf, -1
-        step = rz / curvature
-        x += step * p
-        r -= step * q
-        size = float(np.linalg.norm(r))
-        if size <= target:
-            return x, iteration, float(np.linalg.norm(rhs - matrix @ x)), 0
-        z = precondition(r)
-        rz, previous = r @ z, rz
-        p *= rz / previous
-        p += z
-    return x, max_iterations, size, 1
-
-
-def within(residual: float, target: float) -> bool:
-    """A residual norm at most `target`, and finite (an overflow never converges)."""
-    return bool(np.isfinite(residual) and residual <= target)
+def coarse_places(level, places: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The (layer, lane) of the next level's rows: those of the C-points of `level` (a pyamg level with its
+    C/F `splitting`), provided its interpolation injects them in order (Ruge-Stueben's does); else None."""
+    if places is None or getattr(level, "splitting", None) is None:
+        return None
+    coarse = np.flatnonzero(level.splitting)
+    injected = sp.csr_matrix(level.P)[coarse]
+    if coarse.size != level.P.shape[1] or (injected != sp.identity(coarse.size, format="csr")).nnz:
+        return None
+    return places[0][coarse], places[1][coarse]
 
 
 class KeptDiagonal:
-    """A CSR matrix `base + diag(d)` for a changing d, its data rewritten in place on base's pattern.
+    """A CSR matrix `base + diag(d)` for a changing d, its diagonal rewritten in place on base's pattern.
 
     The nutrient matrix K + gamma diag(phi) changes only on its diagonal; building it as a sum of
-    sparse matrices every step was a CSR allocation and merge (measured: 2.6 ms per step at 40^3)."""
+    sparse matrices every step was a CSR allocation and merge (measured: 2.6 ms per step at 40^3).  Only
+    base's diagonal is kept beside the matrix; `owned`: base (canonical CSR) is given over and becomes the
+    matrix, its diagonal rewritten (no copy of its arrays: memory per cell)."""
 
-    def __init__(self, base: sp.csr_matrix):
-        base = sp.csr_matrix(base, copy=True)
-        base.sum_duplicates()
-        base.sort_indices()
+    def __init__(self, base: sp.csr_matrix, team: Team = SERIAL, owned: bool = False):
+        self.team = team
+        if not (owned and sp.issparse(base) and base.format == "csr" and base.has_canonical_format):
+            base = sp.csr_matrix(base, copy=True)
+            base.sum_duplicates()
+            base.sort_indices()
         rows = np.repeat(np.arange(base.shape[0]), np.diff(base.indptr))
         self.diagonal = np.flatnonzero(rows == base.indices)
         if self.diagonal.size != base.shape[0]:
             raise ValueError("KeptDiagonal needs every diagonal entry stored in the base matrix")
-        self.base = base.data.copy()
+        self.base = base.data[self.diagonal]  # its off-diagonal entries stay as they are in the matrix
         self.matrix = base
 
     def __call__(self, diagonal: np.ndarray) -> sp.csr_matrix:
-        """The matrix with diag(`diagonal`) added (the same object every call: its data is overwritten)."""
-        data = self.matrix.data
-        data[:] = self.base
-        data[self.diagonal] += diagonal
-        return self.matrix
-
-
-def not_converged(method: str, matrix, x, rhs, tolerance: float, info: int, iterations: int,
-                  max_iterations: int) -> str:
-    """Why a solve failed the true-residual check, in words: `info` is 0 when the method met its own
-    (recursive) residual, > 0 when it ran out of iterations, < 0 on a breakdown."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        relative = np.linalg.norm(rhs - matrix @ x) / np.linalg.norm(rhs)
-    if not np.isfinite(relative):
-        return f"{method} did not converge: the solution overflowed after {iterations} iterations"
-    residual = f"the true residual |b - A x| = {relative:.2g} |b| is above the tolerance {tolerance:.2g}"
-    if info == 0:
-        return (f"{method} did not converge: it stopped after {iterations} iterations on its own recursive "
-                f"residual, but {residual}")
-    if info > 0:
-        return f"{method} did not converge in {max_iterations} iterations: {residual}"
-    return f"{method} did not converge: it broke down after {iterations} iterations (info {info}); {residual}"
-
-
-def jacobi_bicgstab(matrix: sp.csr_matrix, rhs: np.ndarray, x0: np.ndarray, tolerance: float,
-                    diagonal: np.ndarray, max_iterations: int = 1000) -> tuple[np.ndarray, int]:
-    """BiCGSTAB with a Jacobi preconditioner from x0; returns (x, iterations) or raises StepFailure.
-
-    It stops when its recursive residual is at most tolerance |rhs|; converged if the true residual
-    |rhs - matrix x| is too.  Counted in iterations begun (one that converged after its first half counts)."""
-    if not np.any(rhs):
-        return np.zeros_like(rhs), 0
-    target = tolerance * float(np.linalg.norm(rhs))
-    inverse = 1.0 / diagonal
-    x = np.array(x0, dtype=float)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # overflow ends as a breakdown
-        x, iterations, info = _bicgstab(matrix, rhs, x, inverse, target, max_iterations)
-        size = float(np.linalg.norm(rhs - matrix @ x))
-    if info != 0 or not within(size, target):
-        raise StepFailure(not_converged("biofilm BiCGSTAB", matrix, x, rhs, tolerance, info, iterations,
-                                        max_iterations))
-    return x, iterations
-
-
-def _bicgstab(matrix, rhs, x, inverse, target, max_iterations) -> tuple[np.ndarray, int, int]:
-    """Jacobi-preconditioned BiCGSTAB (van der Vorst) on x in place: (x, iterations, info) with info 0 when the
-    recursive residual is at most `target`, 1 when out of iterations, -1 on a breakdown."""
-    r = rhs - matrix @ x
-    if np.linalg.norm(r) <= target:
-        return x, 0, 0
-    shadow = r.copy()
-    rho = alpha = omega = 1.0
-    v = np.zeros_like(r)
-    p = np.zeros_like(r)
-    for iteration in range(1, max_iterations + 1):
-        rho, previous = shadow @ r, rho
-        if rho == 0.0 or not np.isfinite(rho):
-            return x, iteration, -1
-        p = r + (rho / previous) * (alpha / omega) * (p - omega * v)
-        p_hat = inverse * p
-        v = matrix @ p_hat
-        along = shadow @ v
-        if along == 0.0 or not np.isfinite(along):
-            return x, iteration, -1
-        alpha = rho / along
-        s = r - alpha * v
-        if np.linalg.norm(s) <= target:
-            x += alpha * p_hat
-            return x, iteration, 0
-        s_hat = inverse * s
-        t = matrix @ s_hat
-        tt = t @ t
-        if tt == 0.0 or not np.isfinite(tt):
-            return x, iteration, -1
-        omega = (t @ s) / tt
-        x += alpha * p_hat + omega * s_hat
-        r = s - omega * t
-        if np.linalg.norm(r) <= target:
-            return x, iteration, 0
-        if omega == 0.0:
-            return x, iteration, -1
-    return x, max_iterations, 1
+        """The matrix with diag(`diagonal`) added (the same object every call: its diagonal is overwritten, what
+        ``data[:] = base; data[positions] += diagonal`` made)."""
+        matrix, base, positions = self.matrix, self.base, self.diagonal
+        diagonal = np.ascontiguousarray(diagonal, dtype=float)
+        split(self.team, matrix.shape[0], lambda a, b: with_diagonal(matrix.data, base, positions, diagonal, a, b))
+        return matrix

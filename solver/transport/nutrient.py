@@ -38,6 +38,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..counters import Counters
 from ..errors import StepFailure
+from ..parallel import SERIAL, Team
 from ..problem import Consumption, Parameters
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
@@ -51,7 +52,7 @@ class Nutrient:
 
     def __init__(self, fv: FiniteVolumeGrid, params: Parameters, consumption: Consumption,
                  held: np.ndarray, value: np.ndarray, tolerance: float = 1e-10,
-                 faces: tuple[tuple[str, float], ...] = ()):
+                 faces: tuple[tuple[str, float], ...] = (), team: Team = SERIAL):
         self.fv = fv
         self.consumption = consumption
         self.gamma = params.g / params.d
@@ -69,10 +70,11 @@ class Nutrient:
         self.upper = max([0.0, *held_value[held_cells], *(v for _, _, v in self.faces)])
         self.c_held = held_value
         lap_free = laplacian[self.free]
-        self.stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
+        stiffness = sp.csr_matrix(-lap_free[:, self.free] + sp.diags(face_coefficient[self.free]))  # K, SPD
         self.rhs = lap_free[:, np.flatnonzero(held)] @ held_value[held] + face_inflow[self.free]  # b: inflow
-        self.matrix = KeptDiagonal(self.stiffness)  # K + gamma diag(phi), rewritten in place per solve
-        self.amg = ReusedAMG(tolerance)
+        del lap_free
+        self.matrix = KeptDiagonal(stiffness, team, owned=True)  # K + gamma diag(phi), rewritten in place per solve
+        self.amg = ReusedAMG(tolerance, team=team, places=fv.places(self.free))
         self.active_set = np.zeros(self.free.size, bool)  # zero-order: cells where c = 0
         self.active_set_iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
@@ -82,6 +84,11 @@ class Nutrient:
                 "nutrient_active_set_iterations": self.active_set_iterations,
                 **self.projection.counters("c")}
 
+    @property
+    def stiffness(self) -> sp.csr_matrix:
+        """K: the kept matrix with no demand on its diagonal (until the next solve rewrites it)."""
+        return self.matrix(np.zeros(self.free.size))
+
     @staticmethod
     def _unreachable(laplacian: sp.csr_matrix, sources: np.ndarray) -> np.ndarray:
         """Cells in connected regions that contain no source cell."""
@@ -89,6 +96,13 @@ class Nutrient:
         fed = np.zeros(count, bool)
         fed[label[sources]] = True
         return ~fed[label]
+
+    def prepare(self, phi: np.ndarray) -> None:
+        """Build the hierarchy of the solve for `phi` (the first one of a run) ahead of it, where that solve would
+        build it (first-order consumption, some inflow; quasi-steady: the transient's first solve has the mass on
+        its diagonal)."""
+        if self.free.size and self.consumption == "first-order" and np.any(self.rhs) and self.amg.cycle is None:
+            self.amg.prepare(self.matrix(self.gamma * phi[self.free]))
 
     def solve(self, phi: np.ndarray, guess: np.ndarray | None = None, before: np.ndarray | None = None,
               dt: float = 0.0) -> np.ndarray:
