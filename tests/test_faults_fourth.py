@@ -254,7 +254,7 @@ def test_calibrate_on_more_workers_than_fit_is_refused_before_anything_runs(tmp_
                        '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n')
     monkeypatch.setenv("BIOSTUDY_MEMORY", "700 MB")  # one simulation (~320 MB) fits, two do, four do not
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
-    monkeypatch.setattr(backends, "solve", _refuse)
+    monkeypatch.setattr(backends, "perform", _refuse)  # a case run here (its worker's whole work)
     monkeypatch.setattr(pool.LocalPool, "__init__", _refuse)
     line = one_line(invoke("calibrate", path, "-o", tmp_path / "out", "--workers", "4", "-q"), 2)
     assert "4 simulations at once (--workers 4) need ~" in line and "700 MB available (BIOSTUDY_MEMORY=700 MB); " \
