@@ -25,7 +25,9 @@ g x r (4 cases: 2 x 2; 36 cases: 6 x 6).
    timed) written from the case files, in this process (`combine.write_study`).  Bar: seconds, not minutes.
 
 "other processes" counts the CPU seconds the rest of the machine took meanwhile: a speed-up measured while they ran
-is not the sweep's own.  Asserts nothing.
+is not the sweep's own.  With workers it includes the workers' own: they are children of multiprocessing's fork
+server, which no one waits for, so their CPU time is nobody's child time here (subtract the cases' own wall time for a
+rough figure of the rest).  Asserts nothing.
 """
 from __future__ import annotations
 
