@@ -167,7 +167,7 @@ def test_show_says_a_slurm_allocation_binds_and_a_run_beyond_it_is_refused(machi
     """`SLURM_MEM_PER_NODE=1500 biostudy show big.toml`: ~1.57 GB available, said with its source, and that a
     run would be refused; run refuses it."""
     monkeypatch.setenv("SLURM_MEM_PER_NODE", "1500")
-    big = write_toml("big.toml", tiny_scene.read_text().replace("shape = [16, 16]", "shape = [1000, 1000]"))
+    big = write_toml("big.toml", tiny_scene.read_text().replace("shape = [16, 16]", "shape = [1500, 1500]"))
     shown = CliRunner().invoke(app, ["show", str(big)])
     assert shown.exit_code == 0, shown.output
     assert "~1.57 GB of memory available (SLURM_MEM_PER_NODE=1500 (MB); cgroup v2 /job_7: ~1.6 GB; the machine" \

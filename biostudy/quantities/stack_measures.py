@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import BadInput, InvalidAt
+from ..errors import BadInput
 from ..inputs.stacks import Frames, region
 from ..inputs.substratum_face import resting_face
 from . import comstat
@@ -43,11 +43,11 @@ def substratum(voxels: np.ndarray, face: str | None) -> str:
             raise BadInput(f"{face!r} is not a face of a {voxels.ndim}-D stack ({', '.join(faces)})", None,
                            "substratum")
         return face
-    try:
-        return resting_face(voxels, held=())
-    except InvalidAt as error:  # a tie: the biofilm rests on two faces alike
-        tied = error.problem.split(": name the substratum")[0]
-        raise BadInput(f"{tied}: give the substratum (its face: x-, x+, ..., z+)", None, "substratum") from None
+    found = resting_face(voxels, held=())
+    if found.face is None:  # a tie, or a biofilm touching no face: say why as for a scene, and what to give
+        why = found.why_none.split(" left out: ", 1)[-1].split("; name the substratum")[0]
+        raise BadInput(f"{why}: give the substratum (its face: {', '.join(faces)})", None, "substratum")
+    return found.face
 
 
 def frame_observables(voxels: np.ndarray, voxel: tuple[float, ...], face: str, connected: bool) -> dict[str, float]:
