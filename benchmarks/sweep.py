@@ -1,70 +1,100 @@
-"""What a sweep costs beyond its simulations, and how it scales on local processes: prints tables.
+"""What a study costs beyond its simulations, and what workers gain (issue 35, item 1): prints tables.
 
-    python benchmarks/sweep.py                      # defaults below, ~1 min on 2 quiet cores
-    python benchmarks/sweep.py --only speedup --steps 1600
+    python benchmarks/sweep.py                          # every part, ~6 min on 2 quiet cores
+    python benchmarks/sweep.py --only service --repeats 3
+    python benchmarks/sweep.py --only speedup --repeats 3
+    python benchmarks/sweep.py --only calibration
+    python benchmarks/sweep.py --only combine --cases 1000
 
-1. Overhead per case: a serial sweep of small directional cases (12³, 21
-   outputs); its wall time minus the simulations' own wall time (the
-   solver's `wall_time` attribute), split into validating the study,
-   compiling and fingerprinting each case, writing each case file (stamp,
-   netCDF, fsync, rename) and combining study.nc.  Target: <= 0.5 s per case.
-2. Speed-up: a 4-case sweep of the bundled 2-D directional scene at 48²
-   (1600 steps, no mechanics: a few seconds per case on a quiet core)
-   serially in this process and on 2 local worker processes
-   (`--workers 2`, process start-up included), then the same as commands
-   (`biostudy sweep`, serial and `--workers 2`: what a user waits for, the
-   process's own start included).  Target: >= 1.8x on 2 cores.
-   "simulation per case" shows what two simulations at once cost each other
-   (shared memory bandwidth), apart from the start-up of the workers; "pool
-   start-up" is the time from a cold start of the fork server to two workers
-   answering; "other processes" counts CPU seconds the rest of the machine
-   took meanwhile (on a shared machine a speed-up measured while they ran is
-   not the sweep's own).
+Every sweep and calibration runs as a user runs it: a fresh `biostudy` process (`python -m biostudy ... -q`), its
+start included, into a fresh directory; a figure of several repeats is their median.  The cases are small 2-D ones:
+the bundled directional2d scene at 40 x 40 cells (h = 0.5 µm), 100 steps to T* = 0.1, 11 outputs, upwind, over
+g x r (4 cases: 2 x 2; 36 cases: 6 x 6).
 
-Asserts nothing.
+1. service: the service's own cost per case: a serial sweep's wall time beyond the cases' own (the sum of the
+   simulations' wall times that study.nc records), differenced between the 36-case and the 4-case study so that
+   the process's start and the first case's imports cancel: ((W36 - S36) - (W4 - S4)) / 32.  Bar: <= 0.1 s.
+   The same in CPU seconds (the process's own beyond those of its simulations, counted around `solver.simulate`),
+   which a busy machine skews less; and the CPU seconds of the sweep's own process on 2 workers (what it does
+   beyond scheduling).
+2. speedup: the 36-case study serially and with `--workers 2` (the workers' start included).  Bar: >= 1.7x.
+3. calibration: `biostudy calibrate calibrate-agar` (least squares from 4 starts with profiles) serially and with
+   `--workers 2`: wall time, simulations, and whether the estimates, standard errors and profile intervals are
+   identical.  Bar: >= 1.6x, identical.
+4. combine: study.nc of `--cases` cases (40 x 40, 11 outputs, 2 steps each: the sweep that makes them is not
+   timed) written from the case files, in this process (`combine.write_study`).  Bar: seconds, not minutes.
+
+"other processes" counts the CPU seconds the rest of the machine took meanwhile: a speed-up measured while they ran
+is not the sweep's own.  With workers it includes the workers' own: they are children of multiprocessing's fork
+server, which no one waits for, so their CPU time is nobody's child time here (subtract the cases' own wall time for a
+rough figure of the rest).  Asserts nothing.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("FIPY_SOLVERS", "scipy")  # before FiPy is first imported
+import psutil
 
-import psutil  # noqa: E402
-import xarray as xr  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+VALUES = {4: ([1e8, 1e9], [50.0, 200.0]),
+          36: ([1e7, 3e7, 1e8, 3e8, 1e9, 3e9], [50.0, 70.0, 100.0, 140.0, 200.0, 280.0])}
+SETTINGS = {"grid.shape": "[40, 40]", "grid.spacing": "0.5", "time.steps": "100", "time.t_end": "0.1",
+            "time.outputs": "11", "numerics.advection": '"upwind"'}
+# The command with the sweep process's own CPU seconds (not its workers') printed last on stderr.
+MEASURED = """\
+import json, os, resource, sys, time
+os.environ.setdefault("FIPY_SOLVERS", "scipy")
+import solver
+from biostudy.cli import app
 
-from biostudy.commands.sweep import run_study  # noqa: E402
-from biostudy.data import case_files, combine, reading, writing  # noqa: E402
-from biostudy.execution.jobs import Execution, fingerprint  # noqa: E402
-from biostudy.inputs import bundled  # noqa: E402
-from biostudy.plans.study import load_study  # noqa: E402
+simulate, spent = solver.simulate, [0.0]
 
 
-def sweep(plan, out, **execution):
-    """A study's sweep into `out` as `biostudy sweep` runs it (`execution`: workers, retry_failed, ...)."""
-    return run_study(plan, out, Execution(**execution))
+def timed(*args, **kwargs):
+    began = time.process_time()
+    try:
+        return simulate(*args, **kwargs)
+    finally:
+        spent[0] += time.process_time() - began
 
 
-def write_study(directory: Path, name: str, scene_overrides: dict, values: list[float],
-                scene: str = "directional") -> Path:
-    """A study of a bundled scene sweeping r, with fixed overrides (mechanics off, upwind)."""
-    shutil.copy(bundled.resolve(scene), directory / f"{scene}.toml")
-    fixed = "\n".join(f'"{k}" = {v}' for k, v in scene_overrides.items())
-    path = directory / f"{name}.toml"
-    path.write_text(f'scene = "{scene}.toml"\n[set]\n"mechanics.enabled" = false\n"numerics.advection" = "upwind"\n'
-                    f'{fixed}\n[sweep]\nr = {values}\n')
+if __name__ == "__main__":
+    solver.simulate = timed  # the simulations run in this process (serially) are counted apart
+    try:
+        app(sys.argv[1:])
+    finally:
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        print("cpu-self " + json.dumps([usage.ru_utime + usage.ru_stime, spent[0]]), file=sys.stderr)
+"""
+
+
+def load_average() -> str:
+    return ", ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def write_study(directory: Path, cases: int, settings: dict = SETTINGS) -> Path:
+    from biostudy.inputs import bundled
+
+    shutil.copy(bundled.resolve("directional2d"), directory / "directional2d.toml")
+    g, r = VALUES[cases] if cases in VALUES else ([1e8], [50.0 + 0.25 * i for i in range(cases)])
+    fixed = "\n".join(f'"{key}" = {value}' for key, value in settings.items())
+    path = directory / f"study{cases}.toml"
+    path.write_text(f'name = "study{cases}"\nscene = "directional2d.toml"\n[set]\n{fixed}\n'
+                    f'[sweep]\nmode = "grid"\n"params.g" = {g}\n"params.r" = {r}\n')
     return path
 
 
 class Others:
-    """CPU seconds that processes other than this one and its children used during a block: on a
-    shared machine, a speed-up measured while they ran is not the sweep's own."""
+    """CPU seconds that processes other than this one and its children used during a block."""
 
     def __enter__(self):
         self.start = self._now()
@@ -79,7 +109,7 @@ class Others:
         mine = os.times()
         system = busy.user + busy.system + busy.nice + getattr(busy, "irq", 0) + getattr(busy, "softirq", 0)
         own = mine.user + mine.system + mine.children_user + mine.children_system
-        for process in psutil.Process().children(recursive=True):  # e.g. the fork server and its workers
+        for process in psutil.Process().children(recursive=True):
             try:
                 t = process.cpu_times()
                 own += t.user + t.system + t.children_user + t.children_system
@@ -88,105 +118,121 @@ class Others:
         return system - own
 
 
-def simulated_seconds(out: Path) -> float:
-    total = 0.0
-    for path in (out / "cases").glob("*.nc"):
-        with xr.open_dataset(path) as ds:
-            total += float(ds.attrs["wall_time"])
-    return total
-
-
-def overhead(directory: Path, cases: int) -> list[tuple[str, float]]:
-    values = [50.0 + 10 * i for i in range(cases)]
-    study = write_study(directory, "overhead", {"grid.shape": "[12, 12, 12]", "grid.spacing": 20 / 12,
-                                                "time.steps": 100, "time.outputs": 21,
-                                                "nutrient.0.lower": "[16.0, 16.0, 16.0]"}, values)
+def command(directory: Path, *args: str) -> dict:
+    """One `biostudy` command as a fresh process: its wall time, its own CPU seconds, other processes' CPU."""
+    script = directory / "measured.py"
+    script.write_text(MEASURED)
     began = time.perf_counter()
-    plan = load_study(study)
-    validate = time.perf_counter() - began
-    out = directory / "overhead-out"
-    began = time.perf_counter()
-    sweep(plan, out)
-    total = time.perf_counter() - began + validate
-    simulated = simulated_seconds(out)
-
-    # the parts, timed again one by one on the finished cases
-    began = time.perf_counter()
-    for case in plan.cases:
-        fingerprint(plan.scenes[case.id].problem())
-    compile_ = time.perf_counter() - began
-    began = time.perf_counter()
-    for case in plan.cases:
-        path = case_files.case_file(out, case.id)
-        ds = reading.open_dataset(path)
-        writing.write_atomic(ds, path)
-    write = time.perf_counter() - began
-    began = time.perf_counter()
-    combine.write_study(plan, out)
-    combined = time.perf_counter() - began
-    n = len(plan.cases)
-    return [("cases", n), ("sweep wall time (s)", total), ("simulations' own wall time (s)", simulated),
-            ("overhead per case (s)", (total - simulated) / n),
-            ("  validate the study, per case (s)", validate / n),
-            ("  compile + fingerprint, per case (s)", compile_ / n),
-            ("  write one case file, per case (s)", write / n),
-            ("  combine study.nc, per case (s)", combined / n)]
+    with Others() as others:
+        done = subprocess.run([sys.executable, str(script), *args, "-q"], capture_output=True, text=True)
+    wall = time.perf_counter() - began
+    if done.returncode:
+        raise SystemExit(f"{' '.join(args)} failed:\n{done.stderr}")
+    cpu, simulating = json.loads(next(line for line in done.stderr.splitlines() if line.startswith("cpu-self "))[9:])
+    return {"wall": wall, "cpu": cpu, "cpu_simulating": simulating, "others": others.seconds}
 
 
-POOL_START = """
-import os, time
-os.environ["FIPY_SOLVERS"] = "scipy"
-from biostudy.execution import pool as local
-if __name__ == "__main__":
-    began = time.perf_counter()
-    pool = local.LocalPool(2)
-    pool.submit("a", None)  # solve(None) fails at once in the worker: a round trip
-    pool.submit("b", None)
-    while pool.busy:
-        pool.finished()
-    print(time.perf_counter() - began)
-    pool.close(True)
-"""
+def simulated(out: Path) -> float:
+    """The sum of the cases' own wall times (the solver's), as study.nc records them."""
+    import xarray as xr
+
+    with xr.open_dataset(out / "study.nc") as ds:
+        return float(ds["wall_time"].sum())
 
 
-def pool_start(directory: Path) -> float:
-    """Seconds from nothing to two local workers answering (fork server cold start with its imports, two forks),
-    in a fresh process."""
-    script = directory / "pool_start.py"
-    script.write_text(POOL_START)
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, check=True)
-    return float(done.stdout.strip())
+def sweeps(directory: Path, cases: int, workers: int | None, repeats: int) -> list[dict]:
+    study = write_study(directory, cases)
+    runs = []
+    for repeat in range(repeats):
+        out = directory / f"out-{cases}-{workers}-{repeat}"
+        run = command(directory, "sweep", str(study), "-o", str(out), *(["--workers", str(workers)] if workers else []))
+        run["simulated"] = simulated(out)
+        shutil.rmtree(out)
+        runs.append(run)
+    return runs
 
 
-def speedup(directory: Path, steps: int) -> list[tuple[str, float]]:
-    study = write_study(directory, "speedup", {"grid.shape": "[48, 48]", "grid.spacing": 20 / 48, "time.steps": steps,
-                                               "time.outputs": 11}, [50.0, 80.0, 120.0, 160.0], "directional2d")
-    plan = load_study(study)
-    rows = [("pool start-up (s)", pool_start(directory))]
-    times = {}
-    for label, workers in (("serial", None), ("2 local workers", 2)):
-        out = directory / f"speedup-{workers}"
-        began, cpu = time.perf_counter(), time.process_time()
-        with Others() as others:
-            sweep(plan, out, workers=workers)
-        times[label] = time.perf_counter() - began
-        rows.append((f"{label}: sweep wall time (s)", times[label]))
-        rows.append((f"{label}: simulation per case (s)", simulated_seconds(out) / len(plan.cases)))
-        rows.append((f"{label}: CPU s of this process (with workers: writing, combining)",
-                     time.process_time() - cpu))
-        rows.append((f"{label}: CPU s used by other processes", others.seconds))
-    rows.append(("speed-up", times["serial"] / times["2 local workers"]))
-    for label, workers in (("serial", []), ("2 local workers", ["--workers", "2"])):  # as a user runs it
-        began = time.perf_counter()
-        with Others() as others:
-            subprocess.run([sys.executable, "-m", "biostudy", "sweep", str(study), "-o",
-                            str(directory / f"command-{len(workers)}"), "-q", *workers], check=True,
-                           stderr=subprocess.DEVNULL)
-        times[label] = time.perf_counter() - began
-        rows.append((f"`biostudy sweep`, {label}: wall time (s)", times[label]))
-        rows.append((f"`biostudy sweep`, {label}: CPU s used by other processes", others.seconds))
-    rows.append(("`biostudy sweep`: speed-up", times["serial"] / times["2 local workers"]))
+def median(runs: list[dict], key: str) -> float:
+    return statistics.median(run[key] for run in runs)
+
+
+def service(directory: Path, repeats: int) -> list[tuple[str, float]]:
+    four, many = sweeps(directory, 4, None, repeats), sweeps(directory, 36, None, repeats)
+    per_case = [((b["wall"] - b["simulated"]) - (a["wall"] - a["simulated"])) / 32 for a, b in zip(four, many)]
+    per_case_cpu = [((b["cpu"] - b["cpu_simulating"]) - (a["cpu"] - a["cpu_simulating"])) / 32
+                    for a, b in zip(four, many)]
+    on_two = sweeps(directory, 36, 2, repeats)
+    return [("4 cases, serial: wall time (s)", median(four, "wall")),
+            ("4 cases, serial: the cases' own wall time (s)", median(four, "simulated")),
+            ("36 cases, serial: wall time (s)", median(many, "wall")),
+            ("36 cases, serial: the cases' own wall time (s)", median(many, "simulated")),
+            ("service's own cost per case (s)  [bar <= 0.1]", statistics.median(per_case)),
+            ("  the same in CPU s (the process's beyond its simulations')", statistics.median(per_case_cpu)),
+            ("36 cases, 2 workers: CPU s of the sweep's own process", median(on_two, "cpu")),
+            ("36 cases, 2 workers: ... of which per case (s), beyond the 4-case run's",
+             (median(on_two, "cpu") - median(sweeps(directory, 4, 2, repeats), "cpu")) / 32),
+            ("CPU s used by other processes meanwhile (36 cases serial)", median(many, "others"))]
+
+
+def speedup(directory: Path, repeats: int) -> list[tuple[str, float]]:
+    rows = []
+    walls = {}
+    for label, workers in (("serial", None), ("2 workers", 2)):
+        runs = sweeps(directory, 36, workers, repeats)
+        walls[label] = median(runs, "wall")
+        rows += [(f"36 cases, {label}: wall time (s)", walls[label]),
+                 (f"36 cases, {label}: the cases' own wall time (s)", median(runs, "simulated")),
+                 (f"36 cases, {label}: CPU s of the sweep's own process", median(runs, "cpu")),
+                 (f"36 cases, {label}: CPU s used by other processes", median(runs, "others"))]
+    rows.append(("speed-up on 2 workers  [bar >= 1.7]", walls["serial"] / walls["2 workers"]))
     return rows
+
+
+ESTIMATES = ("estimate", "standard_error", "lower", "upper", "profile_")
+
+
+def calibration(directory: Path, repeats: int) -> list[tuple[str, float]]:
+    import numpy as np
+    import xarray as xr
+
+    rows, walls, found = [], {}, {}
+    for label, workers in (("serial", None), ("2 workers", 2)):
+        runs = []
+        for repeat in range(repeats):
+            out = directory / f"calibration-{workers}-{repeat}"
+            runs.append(command(directory, "calibrate", "calibrate-agar", "-o", str(out),
+                                *(["--workers", str(workers)] if workers else [])))
+            with xr.open_dataset(out / "calibration.nc") as ds:
+                found[label] = {name: ds[name].values.copy() for name in ds.data_vars
+                                if any(name.startswith(e) for e in ESTIMATES)}
+                runs[-1]["simulations"] = float(ds.attrs.get("simulations", np.nan))
+            shutil.rmtree(out)
+        walls[label] = median(runs, "wall")
+        rows += [(f"calibrate-agar, {label}: wall time (s)", walls[label]),
+                 (f"calibrate-agar, {label}: simulations", median(runs, "simulations")),
+                 (f"calibrate-agar, {label}: CPU s of its own process", median(runs, "cpu")),
+                 (f"calibrate-agar, {label}: CPU s used by other processes", median(runs, "others"))]
+    same = found["serial"].keys() == found["2 workers"].keys() and all(
+        np.array_equal(found["serial"][k], found["2 workers"][k], equal_nan=True) for k in found["serial"])
+    rows += [("speed-up on 2 workers  [bar >= 1.6]", walls["serial"] / walls["2 workers"]),
+             ("estimates, errors and intervals identical (1 yes, 0 no)", float(same and bool(found["serial"])))]
+    return rows
+
+
+def combine(directory: Path, cases: int) -> list[tuple[str, float]]:
+    from biostudy.data import combine as combining
+    from biostudy.plans.study import load_study
+
+    study = write_study(directory, cases, {**SETTINGS, "time.steps": "2", "time.t_end": "0.002"})
+    out = directory / "combine"
+    command(directory, "sweep", str(study), "-o", str(out), "--workers", "2")
+    plan = load_study(study)
+    began, cpu = time.perf_counter(), time.process_time()
+    combining.write_study(plan, out)
+    wall = time.perf_counter() - began
+    return [("cases", cases), ("study.nc written: wall time (s)", wall),
+            ("study.nc written: CPU s", time.process_time() - cpu), ("per case (ms)", 1000 * wall / cases),
+            ("study.nc (MB)", (out / "study.nc").stat().st_size / 1e6)]
 
 
 def table(title: str, rows: list[tuple[str, float]]) -> str:
@@ -198,20 +244,28 @@ def table(title: str, rows: list[tuple[str, float]]) -> str:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", type=int, default=8, help="cases of the overhead sweep")
-    parser.add_argument("--steps", type=int, default=1600, help="steps per case of the speed-up sweep (2-D 48²)")
-    parser.add_argument("--only", choices=("overhead", "speedup"), help="one of the two tables")
+    parser.add_argument("--only", choices=("service", "speedup", "calibration", "combine"), action="append")
+    parser.add_argument("--repeats", type=int, default=1, help="runs of each sweep or calibration (the median)")
+    parser.add_argument("--cases", type=int, default=1000, help="cases of the combine part")
     args = parser.parse_args()
-    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores "
-          "(anything else running skews the speed-up)\n")
+    parts = args.only or ["service", "speedup", "calibration", "combine"]
+    os.environ.setdefault("FIPY_SOLVERS", "scipy")
+    print(f"load average before: {load_average()} on {os.cpu_count()} cores (anything else running skews the "
+          f"figures); python benchmarks/sweep.py {' '.join(sys.argv[1:])}\n")
     with tempfile.TemporaryDirectory() as tmp:
         directory = Path(tmp)
-        if args.only != "speedup":
-            print(table("overhead (12³, 100 steps, 21 outputs, serial)", overhead(directory, args.cases)))
-            print()
-        if args.only != "overhead":
-            print(table(f"speed-up (2-D 48², {args.steps} steps, 4 cases)", speedup(directory, args.steps)))
-    print(f"\nload average after: {os.getloadavg()[0]:.2f}")
+        for part in parts:
+            title = {"service": "service's own cost (40 x 40, 100 steps, serial)",
+                     "speedup": "36 cases on 2 workers (40 x 40, 100 steps)",
+                     "calibration": "calibrate-agar on 2 workers",
+                     "combine": f"study.nc of {args.cases} cases"}[part]
+            rows = {"service": lambda: service(directory, args.repeats),
+                    "speedup": lambda: speedup(directory, args.repeats),
+                    "calibration": lambda: calibration(directory, args.repeats),
+                    "combine": lambda: combine(directory, args.cases)}[part]()
+            print(table(title, rows))
+            print(f"(load average now: {load_average()})\n", flush=True)
+    print(json.dumps({"load_average_after": load_average()}))
 
 
 if __name__ == "__main__":

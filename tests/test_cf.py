@@ -3,7 +3,6 @@ pint registry, xarray's open_mfdataset on a study's case files, the netCDF layou
 compression, history).  Tiny runs: a 10 x 9 x 8 and a 16² scene with mechanics, a 2 x 2 grid study and a zip study."""
 from __future__ import annotations
 
-import contextlib
 import json
 import re
 import textwrap
@@ -246,7 +245,7 @@ def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):
 def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
     """A case file read as one run (show, plot, export) is squeezed; an old run's steps_bisections is
     steps_bisected; combine reads both."""
-    from biostudy.data import combine, netcdf, reading, writing
+    from biostudy.data import combine, netcdf, reading, study_cases, writing
     from biostudy.plans.study import load_study
 
     case = reading.open_dataset(made / "grid" / "cases" / "g=1e+08_r=50.nc")
@@ -256,10 +255,9 @@ def test_files_written_before_read_with_todays_names_and_layout(made, tmp_path):
     plan = load_study(made / "grid.toml")
     for path in (made / "grid" / "cases").glob("*.nc"):  # as a sweep before issue 11 wrote them
         with xr.open_dataset(path) as ds:
-            before = combine._as_run(ds.load(), {}).rename(steps_bisected="steps_bisections")
+            before = study_cases.as_run(ds.load(), {}).rename(steps_bisected="steps_bisections")
         before.attrs.pop(netcdf.CASE_DIMENSIONS)
         writing.write_atomic(before, tmp_path / "cases" / path.name)
-    with contextlib.ExitStack() as opened:
-        study = combine.combine(plan, tmp_path, opened).load()
+    study = combine.combine(plan, tmp_path).load()
     assert study.steps_bisected.dims == ("g", "r", "time") and (study.status == "done").all()
     xr.testing.assert_equal(study.phi, xr.load_dataset(made / "grid" / "study.nc").phi)

@@ -31,8 +31,8 @@ import solver
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
 from biostudy.data import case_files, netcdf_io, provenance, reading, writing
-from biostudy.execution import backends, ownership, pool
 from biostudy.execution import jobs as runner
+from biostudy.execution import ownership, pool, worker
 from biostudy.execution.jobs import Execution
 from biostudy.inputs import resources
 from biostudy.plans.study import load_study
@@ -80,7 +80,7 @@ def no_simulation(monkeypatch):
         raise AssertionError("simulated although the output was refused")
 
     monkeypatch.setattr(solver, "simulate", refuse)
-    monkeypatch.setattr(backends, "solve", refuse)
+    monkeypatch.setattr(worker, "solve", refuse)
 
 
 

@@ -25,7 +25,7 @@ from typer.testing import CliRunner
 import solver
 from biostudy.cli import app
 from biostudy.data import netcdf_io
-from biostudy.execution import jobs
+from biostudy.execution import worker
 from biostudy.inputs import resources
 
 cli = CliRunner()
@@ -175,17 +175,18 @@ def test_an_interrupt_raised_inside_a_finaliser_still_ends_the_command(tiny_scen
 def test_an_interrupt_while_a_finished_simulation_is_recorded_waits_for_its_case_file(tiny_study, tmp_path,
                                                                                      monkeypatch, sent, status):
     """An interruption between a simulation's end and its case file threw the simulation away: here it lands as
-    the first case's file is about to be written; the file is written, then the sweep ends (no other case)."""
-    record = jobs._record
+    the first case's simulation has ended and its dataset is about to be finished and written (by its worker, here
+    the sweep's own process); the file is written, then the sweep ends (no other case)."""
+    finished = worker.finished
     recorded = []
 
-    def signalled(job, *args):
-        recorded.append(job.id)
+    def signalled(task, simulated):
+        recorded.append(task.record.attrs["case_id"])
         if len(recorded) == 1:
             signal.raise_signal(sent)
-        return record(job, *args)
+        return finished(task, simulated)
 
-    monkeypatch.setattr(jobs, "_record", signalled)
+    monkeypatch.setattr(worker, "finished", signalled)
     result = invoke("sweep", tiny_study, "-o", tmp_path / "out", "-q")
     assert result.exit_code == status, result.output
     assert result.stderr.strip() == INTERRUPTED
@@ -253,7 +254,7 @@ def test_calibrate_on_more_workers_than_fit_is_refused_before_anything_runs(tmp_
                        '[estimate]\nr = [50.0, 150.0]\n[method]\nstarts = 1\nprofiles = false\n')
     monkeypatch.setenv("BIOSTUDY_MEMORY", "700 MB")  # one simulation (~320 MB) fits, two do, four do not
     monkeypatch.setattr(pool, "warm_up", lambda: None)  # no fork server outlives this test
-    monkeypatch.setattr(backends, "solve", _refuse)
+    monkeypatch.setattr(backends, "perform", _refuse)  # a case run here (its worker's whole work)
     monkeypatch.setattr(pool.LocalPool, "__init__", _refuse)
     line = one_line(invoke("calibrate", path, "-o", tmp_path / "out", "--workers", "4", "-q"), 2)
     assert "4 simulations at once (--workers 4) need ~" in line and "700 MB available (BIOSTUDY_MEMORY=700 MB); " \

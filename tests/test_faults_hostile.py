@@ -33,7 +33,7 @@ from biostudy.cli import app
 from biostudy.commands.analyze import current
 from biostudy.commands.sweep import run_study
 from biostudy.data import case_files, combine, netcdf_io, reading
-from biostudy.execution import backends, dask, pool
+from biostudy.execution import dask, pool, worker
 from biostudy.execution.jobs import Execution
 from biostudy.inputs import files
 from biostudy.plans.study import load_study
@@ -451,14 +451,14 @@ def test_a_disk_full_during_a_runs_write_is_one_line(finished, small_disk, monke
 
 def test_a_disk_full_during_a_case_or_study_nc_is_one_line_and_keeps_the_cases(finished, small_disk, monkeypatch):
     disk, fill = small_disk
-    solve = backends.solve
+    solve = worker.solve
     solved = []
 
     def second_fills(problem):
         solved.append(problem)
         return (solve(problem), fill() if len(solved) == 2 else None)[0]
 
-    monkeypatch.setattr(backends, "solve", second_fills)
+    monkeypatch.setattr(worker, "solve", second_fills)
     line = one_line(invoke("sweep", finished["study"], "-o", disk / "a", "-q"), 1)
     second = case_files.case_file(disk / "a", "g=1e+08_r=100")
     assert line == (f"error: cannot write {second}: {_full(disk)}; the cases recorded before are kept, run the same "
@@ -467,9 +467,9 @@ def test_a_disk_full_during_a_case_or_study_nc_is_one_line_and_keeps_the_cases(f
     assert netcdf_io.intact(disk / "a" / "cases" / "g=1e+08_r=50.nc")
     (disk / "filler").unlink()
     shutil.rmtree(disk / "a")
-    monkeypatch.setattr(backends, "solve", solve)
-    stack = combine.combine
-    monkeypatch.setattr(combine, "combine", lambda *args: (stack(*args), fill())[0])
+    monkeypatch.setattr(worker, "solve", solve)
+    stack = combine._combined  # the study combined (its fields to come), then the disk fills
+    monkeypatch.setattr(combine, "_combined", lambda *args: (stack(*args), fill())[0])
     line = one_line(invoke("sweep", finished["study"], "-o", disk / "b", "-q"), 1)
     assert line == (f"error: cannot write {disk / 'b' / 'study.nc'}: {_full(disk)}; the case files in "
                     f"{disk / 'b' / 'cases'} are kept: run the same command again to write study.nc (nothing is "

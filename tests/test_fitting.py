@@ -132,14 +132,23 @@ def test_soon_points_join_a_round_only_when_workers_would_wait():
         answers = yield Ask([np.zeros(2)], [np.ones(2), np.full(2, 2.0)])
         return len(answers)
 
-    for workers, taken in ((1, 1), (2, 1), (3, 3)):
+    for workers, taken in ((1, 1), (2, 2), (3, 3)):  # 2: the point and the first soon one, no worker waits
         assert rounds.run({"f": fit()}, lambda points: [0.0] * len(points), workers=workers)["f"] == taken
+    seen = []
+
+    def evaluate(points):
+        seen.append(len(points))
+        return [0.0] * len(points)
+
+    fits = {name: fit() for name in "abc"}  # three fits on 2 workers: the second wave's idle worker takes one
+    assert rounds.run(fits, evaluate, workers=2) == {"a": 2, "b": 1, "c": 1} and seen == [4]
 
 
-def test_more_workers_do_not_change_the_path():
+@pytest.mark.parametrize("workers", [2, 3, 16])
+def test_more_workers_do_not_change_the_path(workers):
     data = linear_data(4)
     serial = least_squares(np.array([[0.2, 0.7]]), objective(residuals_of(data)))
-    wide = least_squares(np.array([[0.2, 0.7]]), objective(residuals_of(data), workers=16))
+    wide = least_squares(np.array([[0.2, 0.7]]), objective(residuals_of(data), workers=workers))
     np.testing.assert_array_equal(serial.best.x, wide.best.x)
     for a, b in zip(serial.profiles, wide.profiles):
         np.testing.assert_array_equal(a.u, b.u)

@@ -14,13 +14,15 @@ from multiprocessing import forkserver
 import numpy as np
 import psutil
 import pytest
+import xarray as xr
 from test_sweep import _wait_for as wait_for
 from typer.testing import CliRunner
 
 import solver
 from biostudy.cli import app
 from biostudy.commands import sweep
-from biostudy.execution import pool
+from biostudy.data.finish import Record
+from biostudy.execution import pool, worker
 
 cli = CliRunner()
 
@@ -54,6 +56,11 @@ def _tiny_problem() -> solver.Problem:
                           output_times=[0, 0.01], name="tiny")
 
 
+def _tiny_task(path=None) -> worker.Task:
+    """The tiny problem as a worker's task: its case file at `path` (None: its bytes come back)."""
+    return worker.Task(_tiny_problem(), Record("", "", ""), None if path is None else str(path))
+
+
 def _fork_server() -> int:
     return forkserver._forkserver._forkserver_pid
 
@@ -73,7 +80,7 @@ def test_a_fork_server_killed_while_it_starts_a_worker_costs_no_case(monkeypatch
 
     monkeypatch.setattr(forkserver, "read_signed", killed_first)
     try:
-        workers.submit("a", _tiny_problem())
+        workers.submit("a", _tiny_task())
         [(case, outcome)] = workers.finished()
     finally:
         workers.close(False)
@@ -81,19 +88,19 @@ def test_a_fork_server_killed_while_it_starts_a_worker_costs_no_case(monkeypatch
 
 
 @pytest.mark.slow
-def test_a_fork_server_killed_while_its_worker_computes_costs_no_case():
+def test_a_fork_server_killed_while_its_worker_computes_costs_no_case(tmp_path):
     pool.warm_up()
     workers = pool.LocalPool(1)
     try:
-        workers.submit("a", _tiny_problem())
+        workers.submit("a", _tiny_task())
         assert [c for c, o in workers.finished()] == ["a"]  # a worker is there, idle
         server = psutil.Process(_fork_server())
         server.kill()
         wait_for(lambda: server.status() == psutil.STATUS_ZOMBIE, 60)  # dead; multiprocessing reaps it
-        workers.submit("b", _tiny_problem())  # the worker the dead server started computes on
+        workers.submit("b", _tiny_task(tmp_path / "b.nc"))  # the worker the dead server started computes on
         [(case, outcome)] = workers.finished()
-        assert (case, outcome.status) == ("b", "done"), outcome.message
-        assert np.isfinite(outcome.dataset.phi.values).all()
+        assert (case, outcome.status, outcome.written) == ("b", "done", True), outcome.message
+        assert np.isfinite(xr.load_dataset(tmp_path / "b.nc").phi.values).all()
     finally:
         workers.close(False)
 
@@ -119,9 +126,9 @@ def test_a_sigterm_to_every_process_of_a_job_fails_no_case():
     pool.warm_up()
     workers = pool.LocalPool(1)
     try:
-        workers.submit("a", _tiny_problem())
+        workers.submit("a", _tiny_task())
         assert [o.status for c, o in workers.finished()] == ["done"]  # the worker has started
-        workers.submit("b", _tiny_problem())
+        workers.submit("b", _tiny_task())
         workers.workers[0].process.terminate()  # SIGTERM
         [(case, outcome)] = workers.finished()
         assert (case, outcome.status) == ("b", "done"), outcome.message

@@ -2,7 +2,9 @@
 
 Every point is one job per condition (`execution.jobs.run_jobs`): a case file under DIR/cases/ named by its
 condition and parameter values, reused by its fingerprint, so a re-run or a resumed calibration never repeats one;
-a batch of points is one call of `run_jobs`, which hands its new jobs to the workers or the Dask cluster at once.  A
+a batch of points is one call of `run_jobs`, which hands its new jobs to the workers or the Dask cluster at once.
+The observables a job's rows measure come back in its worker's record (`worker.Outcome.series`); only a reused
+case file is read, for those observables alone.  A
 failed simulation, or an observable that is NaN where it is measured, is recorded and answered with None (a penalty
 in the fit).  Rows whose σ is estimated are divided by a fixed scale instead of σ (`noise`; the
 objective's likelihood profiles σ out).  `Evaluator.noise` is the observables' own resolution in residual units,
@@ -16,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import case_files, reading
+from ..data import case_files, netcdf, netcdf_io
 from ..execution.backends import Kept
 from ..execution.jobs import Execution, Job, run_jobs
 from ..fitting.objective import Objective
@@ -62,8 +64,10 @@ class Evaluator:
         own = [p for p in self.plan.parameters if condition in p.conditions]
         job_id = "_".join([label(condition), *(f"{p.label}={id_text(values[p.name])}" for p in own)])
         scene = self.plan.scene_at(condition, values)
+        measured = tuple(dict.fromkeys(self.plan.measurements[i].observable for i in self.rows[condition]))
         return Job(job_id, scene, self.plan.scene_file, overrides_text(self.plan.overrides(condition, values)),
-                   {"case_id": job_id, "calibration_file": str(self.plan.file.resolve()), "condition": condition})
+                   {"case_id": job_id, "calibration_file": str(self.plan.file.resolve()), "condition": condition},
+                   measure=measured)
 
     def evaluate(self, points: list[np.ndarray]) -> list[np.ndarray | None]:
         """The weighted residuals (model - measurement) / sigma at every point; None where a simulation failed."""
@@ -80,7 +84,7 @@ class Evaluator:
                 self.raised.setdefault(name, {}).update(cases)
             began = time.perf_counter()
             for job in new.values():
-                self.models[job.id] = self._model(job, report.failed.get(job.id))
+                self.models[job.id] = self._model(job, report.failed.get(job.id), report.series.get(job.id))
             self.seconds_reading += time.perf_counter() - began
         out = []
         for jobs in wanted:
@@ -101,19 +105,16 @@ class Evaluator:
                 model[self.rows[condition]] = values
         return model
 
-    def _model(self, job: Job, failure: str | None) -> np.ndarray | None:
-        """A finished simulation's observables at its condition's measurements; None (and why, in `failed`)
-        for a failed one or an observable that is NaN there."""
+    def _model(self, job: Job, failure: str | None, series: dict | None) -> np.ndarray | None:
+        """A finished simulation's observables at its condition's measurements (`series`: its worker's record, or
+        None: read from its reused case file); None (and why, in `failed`) for a failed one or an observable that
+        is NaN there."""
         if failure is not None:
             self.failed[job.id] = failure
             return None
-        ds = reading.open_dataset(case_files.case_file(self.directory, job.id))
-        ds = observables.as_measured(ds, job.scene.substratum_attrs())  # as the scene says now
-        condition = str(job.attrs["condition"])
-        rows = self.rows[condition]
-        series = {name: observables.evaluate(ds, name).values
-                  for name in dict.fromkeys(self.plan.measurements[i].observable for i in rows)}
-        times = ds["time"].values
+        series = series if series is not None else self._recorded(job)
+        rows = self.rows[str(job.attrs["condition"])]
+        times = series["time"]
         values = []
         for i in rows:
             index = int(np.argmin(np.abs(times - self.plan.times[i])))
@@ -124,6 +125,16 @@ class Evaluator:
                 return None
             values.append(value)
         return np.array(values)
+
+    def _recorded(self, job: Job) -> dict[str, np.ndarray]:
+        """The time and the observables `job.measure` of its reused case file: those it holds, measured on the
+        substratum its scene says now (else computed from its fields, as they are then)."""
+        with netcdf_io.open_dataset(case_files.case_file(self.directory, job.id)) as opened:
+            ds = observables.as_measured(netcdf.as_run(opened), job.scene.substratum_attrs())
+            series = {"time": ds["time"].values}
+            for name in job.measure:
+                series[name] = (ds[name] if name in ds else observables.evaluate(ds, name)).values
+        return series
 
     def noise(self) -> np.ndarray:
         """Per measurement, the smallest model change that is not noise, in residual units: one cell for an

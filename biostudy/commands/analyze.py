@@ -8,7 +8,6 @@ written into the directory its sweep owns.
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import tomllib
 from pathlib import Path
@@ -56,8 +55,7 @@ def current(source: Path) -> xr.Dataset:
                if path.exists() and not netcdf_io.intact(path)]
     if damaged:
         raise BadInput.every(damaged)
-    with contextlib.ExitStack() as opened:
-        return combine.combine(plan, source.parent, opened).load()
+    return combine.combine(plan, source.parent).load()
 
 
 def _common(attrs: dict, study: bool, study_file: str) -> list[str]:

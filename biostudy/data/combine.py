@@ -14,31 +14,24 @@ not change over time and is the same in every case (the masks `obstacle` and
 swept) is there once, without the study's dimensions.  The attributes are the
 study file, its base scene and the attributes every finished case shares.
 
-Each case file is written in the layout it has in the study (`CaseLayout`):
-its swept values as coordinates along the study's dimensions, of length 1
-(grid: one per swept key; zip and sampled: `case`, with the values on it), its
-status, message, wall time and steps as variables, so that
-``xr.open_mfdataset("DIR/cases/*.nc")`` rebuilds the study without a
-``preprocess`` (docs/results.md).
+Each case file is written in the layout it has in the study (`case_files.CaseLayout`, made here:
+`case_layouts`; grid: one dimension per swept key; zip and sampled: `case`, with the values on it).
 """
 from __future__ import annotations
 
-import contextlib
 import json
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 
-from solver.counters import MEANINGS
 from solver.output import cf_units
 
 from ..inputs.keys import dimension, id_text
 from ..inputs.scene import key_info, overrides_text
-from ..quantities import observables
-from . import case_files, netcdf, netcdf_io, provenance, writing
+from . import case_files, netcdf, provenance, study_cases, writing
+from .case_files import CASE_ATTRS, CaseLayout, case_scalars, static
 
 if TYPE_CHECKING:
     from ..plans.cases import Plan
@@ -46,8 +39,6 @@ if TYPE_CHECKING:
 # Per-case attributes that are not shared by a study (they stay in cases/*.nc).
 PER_CASE = {"case_id", "status", "message", "error", "created", "scene", "overrides", "fingerprint", "title",
             "wall_time", "steps_taken", "steps_bisected", "steps_rejected", "history", netcdf.CASE_DIMENSIONS}
-CASE_VARIABLES = ("status", "message", "wall_time", "steps_taken", "case_id")  # per case, in study.nc and case files
-CASE_ATTRS = {"long_name": "case id (file under cases/)", "units": "1"}
 
 
 def _coordinate(key: str, values: list) -> tuple[np.ndarray, dict]:
@@ -69,12 +60,14 @@ def _coordinate(key: str, values: list) -> tuple[np.ndarray, dict]:
 def _shared_variables(datasets: list[xr.Dataset]) -> list[str]:
     """Variables every finished case has on identical coordinates (so they stack into study.nc)."""
     first = datasets[0]
+    axes = [d for d in first.dims if d in first.coords]
+    same = [{d for d in axes if d in ds.coords and np.array_equal(ds[d].values, first[d].values)}
+            for ds in datasets[1:]]  # the coordinates each case has as the first has them
     shared = []
-    for name in first.data_vars:
-        var = first[name]
-        if all(name in ds.data_vars and ds[name].dims == var.dims and ds[name].shape == var.shape
-               and all(np.array_equal(ds[d].values, first[d].values) for d in var.dims if d in first.coords)
-               for ds in datasets[1:]):
+    for name, var in first.data_vars.items():
+        if all(name in ds.data_vars and ds.variables[name].dims == var.dims and ds.variables[name].shape == var.shape
+               and all(d in equal for d in var.dims if d in first.coords)
+               for ds, equal in zip(datasets[1:], same)):
             shared.append(name)
     return shared
 
@@ -88,11 +81,6 @@ def _floats(ds: xr.Dataset) -> xr.Dataset:
         return var
 
     return ds.assign({n: floating(ds[n]) for n in ds.data_vars if not np.issubdtype(ds[n].dtype, np.floating)})
-
-
-def _static(var: xr.DataArray) -> bool:
-    """Not a function of time: masks, parameters."""
-    return not {"time", "time_mechanics"} & set(var.dims)
 
 
 def _statics_shared(plan: Plan) -> bool:
@@ -111,31 +99,6 @@ def _study_coordinates(plan: Plan) -> tuple[list[str], dict]:
     coords = {"case": ("case", np.array([c.id for c in plan.cases], dtype=object), CASE_ATTRS)}
     coords.update({dimension(k): ("case", *_coordinate(k, [c.values[k] for c in plan.cases])) for k in keys})
     return ["case"], coords
-
-
-@dataclass(frozen=True)
-class CaseLayout:
-    """A case's place in its study, as its case file records it: the study's coordinates at this case (length
-    1 along each study dimension) and whether the static variables are shared by every case."""
-
-    dims: tuple[str, ...]
-    coords: dict  # name -> (dims, values of length 1, attrs)
-    statics_shared: bool
-
-    def apply(self, ds: xr.Dataset) -> xr.Dataset:
-        """A run's dataset (or a failure record) in this layout: every variable that varies between cases,
-        and the case's status, message, wall time, steps and id, gain the study dimensions; a swept
-        parameter is a coordinate instead of a variable."""
-        attrs = ds.attrs
-        ds = ds.drop_vars([n for n in self.coords if n in ds.data_vars])
-        scalars = _scalars(str(attrs.get("status", "done")), str(attrs.get("message", "")), attrs)
-        scalars["case_id"] = ((), np.array(str(attrs.get("case_id", "")), dtype=object), CASE_ATTRS)
-        ds = ds.assign(scalars)
-        kept = [n for n in ds.data_vars if _static(ds[n]) and n not in scalars and self.statics_shared]
-        ds = ds.assign({n: ds[n].expand_dims(list(self.dims)) for n in ds.data_vars if n not in kept})
-        ds = ds.assign_coords(self.coords)
-        ds.attrs = {**attrs, netcdf.CASE_DIMENSIONS: ", ".join(self.dims)}
-        return ds
 
 
 def with_overrides(ds: xr.Dataset, pairs: dict) -> xr.Dataset:
@@ -165,14 +128,6 @@ def case_layouts(plan: Plan) -> dict[str, CaseLayout]:
     return layouts
 
 
-def _as_run(ds: xr.Dataset, coords: dict) -> xr.Dataset:
-    """A case file as its run wrote it: without the study's coordinates and the per-case variables (nor a
-    swept parameter as a variable, as a case file written without its layout has it)."""
-    dims = [d.strip() for d in str(ds.attrs.get(netcdf.CASE_DIMENSIONS, "")).split(",") if d.strip()]
-    ds = netcdf.renamed(ds).isel({d: 0 for d in dims if d in ds.dims}, drop=True)
-    return ds.drop_vars([n for n in (*CASE_VARIABLES, *coords) if n in ds.variables])
-
-
 def _nest(items: list, sizes: list[int]) -> list:
     """Flat list (last index fastest) -> nested lists of the given sizes."""
     if len(sizes) == 1:
@@ -181,44 +136,51 @@ def _nest(items: list, sizes: list[int]) -> list:
     return [_nest(items[i * step:(i + 1) * step], sizes[1:]) for i in range(sizes[0])]
 
 
-def _scalars(status: str, message: str, attrs: dict) -> dict:
-    def number(key):
-        return float(attrs.get(key, np.nan))
-
-    return {
-        "status": ((), np.array(status, dtype=object), {"long_name": "outcome of the case: done, failed "
-                                                                    "or missing (not run)", "units": "1"}),
-        "message": ((), np.array(message, dtype=object), {"long_name": "why the case failed", "units": "1"}),
-        "wall_time": ((), number("wall_time"), {"long_name": "wall time of the simulation", "units": "s"}),
-        "steps_taken": ((), number("steps_taken"), {"long_name": MEANINGS["steps_taken"], "units": "1"}),
-    }
-
-
 def write_study(plan: Plan, out_dir: str | Path) -> Path:
-    """Combine the case files under DIR/cases/ into DIR/study.nc (atomically), case by case in memory."""
-    with contextlib.ExitStack() as opened:
-        return writing.write_atomic(combine(plan, out_dir, opened), Path(out_dir) / "study.nc")
+    """Combine the case files under DIR/cases/ into DIR/study.nc (atomically); the fields stacked along the study
+    are written case by case, each case file opened once for them (not through dask: its store of thousands of
+    lazy reads costs time that grows with their square)."""
+    combined, cases = _combined(plan, out_dir)
+    dims, _ = _study_coordinates(plan)
+    stacked = [name for name, var in combined.data_vars.items()
+               if var.chunks is not None and tuple(var.dims[:len(dims)]) == tuple(dims)]
+
+    def fill(nc) -> None:
+        for number, case in enumerate(plan.cases):
+            at = tuple(case.index) if plan.mode == "grid" else (number,)
+            found = cases[case.id]
+            values = study_cases.read_fields(found.path, {n: found.lazy[n] for n in stacked}) \
+                if found.run is not None else {}
+            for name in stacked:
+                nc.variables[name][at] = values.get(name, np.nan)
+
+    return writing.write_atomic(combined, Path(out_dir) / "study.nc", deferred=(stacked, fill))
 
 
-def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr.Dataset:
+def combine(plan: Plan, out_dir: str | Path) -> xr.Dataset:
     """study.nc: the cases stacked along one dimension per swept key (grid) or along `case` (zip).
 
-    Case files are opened lazily (dask-backed) and registered with `opened`, which closes them: a
-    sweep of many large cases is streamed into study.nc, not held in memory at once.
+    Each case file's observables, coordinates and attributes are read at once, its fields lazily
+    (`study_cases`): a sweep of many large cases is streamed into study.nc, not held in memory at once.
     """
+    return _combined(plan, out_dir)[0]
+
+
+def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, study_cases.Case]]:
     dims, coords = _study_coordinates(plan)
-    records, datasets = _read_cases(plan, out_dir, opened, coords)
-    done = list(datasets.values())
+    reader = study_cases.Reader(coords)
+    cases = {case.id: reader.read(case_files.case_file(out_dir, case.id), plan.scenes[case.id].substratum_attrs())
+             for case in plan.cases}
+    done = [case.run for case in cases.values() if case.run is not None]
     shared = _shared_variables(done) if done else []
     statics_shared = _statics_shared(plan)
-    once = [n for n in shared if _static(done[0][n]) and statics_shared]  # written once, as they are
+    once = [n for n in shared if static(done[0][n]) and statics_shared]  # written once, as they are
     shared = [n for n in shared if n not in once]
-    parts = _case_parts(plan, records, datasets, shared)
-    if plan.mode == "grid":
-        sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys]
+    parts = _case_parts(plan, cases, shared)
+    sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys] if plan.mode == "grid" else [len(parts)]
+    combined = _stacked(parts, dims, sizes)
+    if combined is None:
         combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
-    else:
-        combined = xr.concat(parts, dim="case", combine_attrs="override")
     combined = combined.assign_coords(coords).transpose(*dims, ...)
     if done:
         first = done[0]
@@ -226,43 +188,59 @@ def combine(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack) -> xr
         if statics_shared:  # the cell bounds (CF 7.1) of the grid every case shares
             combined = combined.assign_coords({n: first[n] for n in first.coords if n not in combined.coords})
     omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
-    combined.attrs = _study_attrs(plan, done, [records[c.id][0] for c in plan.cases], omitted)
-    return combined
+    combined.attrs = _study_attrs(plan, done, [cases[c.id].status for c in plan.cases], omitted)
+    return combined, cases
 
 
-def _read_cases(plan: Plan, out_dir: str | Path, opened: contextlib.ExitStack,
-                coords: dict) -> tuple[dict[str, tuple[str, str, dict]], dict[str, xr.Dataset]]:
-    """Every case's (status, message, recorded attributes), and the dataset of every finished one as its run wrote
-    it, measured as its scene measures now, with every observable its fields give (those it has are kept)."""
-    records, datasets = {}, {}
-    for case in plan.cases:
-        path = case_files.case_file(out_dir, case.id)
-        record = case_files.recorded(path) or {}
-        status = str(record.get("status", "missing"))
-        if status == "done":
-            ds = _as_run(opened.enter_context(netcdf_io.open_dataset(path, chunks={})), coords)
-            ds = observables.as_measured(ds, plan.scenes[case.id].substratum_attrs())
-            datasets[case.id] = ds.assign({k: v for k, v in observables.variables(ds).items() if k not in ds})
-        records[case.id] = (status, str(record.get("message", "")), record)
-    return records, datasets
+def _stacked(parts: list[xr.Dataset], dims: list[str], sizes: list[int]) -> xr.Dataset | None:
+    """The cases' datasets stacked along the study's dimensions (of `sizes`, the last fastest) variable by variable:
+    what `xr.combine_nested` makes of them where every case has the same variables and coordinates (None
+    elsewhere), without its alignment of every case (most of the time of combining many small cases)."""
+    first = parts[0]
+    names = list(first.data_vars)
+    if any(list(part.data_vars) != names or not _same_coordinates(part, first) for part in parts[1:]):
+        return None
+    variables = {}
+    for name in names:
+        var = first.variables[name]
+        data = _stack(_nest([part.variables[name].data for part in parts], sizes))
+        variables[name] = xr.Variable([*dims, *var.dims], data, dict(var.attrs), dict(var.encoding))
+    return xr.Dataset(variables, first.coords)
 
 
-def _case_parts(plan: Plan, records: dict[str, tuple[str, str, dict]], datasets: dict[str, xr.Dataset],
-                shared: list[str]) -> list[xr.Dataset]:
+def _same_coordinates(ds: xr.Dataset, other: xr.Dataset) -> bool:
+    return list(ds.coords) == list(other.coords) and all(
+        ds[n].dims == other[n].dims and np.array_equal(ds[n].values, other[n].values) for n in ds.coords)
+
+
+def _stack(nested: list):
+    """Nested lists of arrays (numpy or dask) as one array, a dimension per level."""
+    import dask
+
+    rows = [_stack(item) if isinstance(item, list) else item for item in nested]
+    if any(dask.is_dask_collection(row) for row in rows):
+        import dask.array as da
+
+        return da.stack(rows)
+    return np.stack(rows)
+
+
+def _case_parts(plan: Plan, cases: dict[str, study_cases.Case], shared: list[str]) -> list[xr.Dataset]:
     """One dataset per case, in the plan's order: its `shared` variables (NaN where the case did not finish) and
     its status, message, wall time, steps and id."""
-    template = _floats(next(iter(datasets.values()))[shared]) if datasets else None
+    runs = [case.run for case in cases.values() if case.run is not None]
+    template = _floats(runs[0][shared]) if runs else None
     parts = []
     for case in plan.cases:
-        status, message, record = records[case.id]
-        if case.id in datasets:
-            part = _floats(datasets[case.id][shared])
-            attrs = datasets[case.id].attrs
+        found = cases[case.id]
+        if found.run is not None:
+            part = _floats(found.run[shared])
+            attrs = found.run.attrs
         else:
             part = xr.full_like(template, np.nan) if template is not None else xr.Dataset()
-            attrs = record  # a failure record has the wall time until it failed
+            attrs = found.attrs  # a failure record has the wall time until it failed
         part.attrs = {}
-        part = part.assign(_scalars(status, message, attrs))
+        part = part.assign(case_scalars(found.status, found.message, attrs))
         part["case_id"] = ((), np.array(case.id, dtype=object), CASE_ATTRS)
         parts.append(part)
     return parts

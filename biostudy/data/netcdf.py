@@ -79,17 +79,24 @@ def called(call: str) -> Iterator[None]:
         _CALL.reset(token)
 
 
-def history(argv: list[str] | None = None) -> str:
-    """'2026-01-31T12:00:00Z: biostudy run directional -o d.nc': when, and the command line of this process
-    (CF 2.6.2; `python -m biostudy` is written as biostudy), or the Python call inside `called`."""
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+def made_by(argv: list[str] | None = None) -> str:
+    """What makes a file: 'biostudy run directional -o d.nc', the command line of this process (`python -m
+    biostudy` is written as biostudy), or the Python call inside `called`; a worker writing a case file is told
+    it by the sweep's process (`execution.worker.Task`)."""
     if argv is None and _CALL.get() is not None:
-        return f"{stamp}: {_CALL.get()}"
+        return str(_CALL.get())
     argv = list(sys.argv if argv is None else argv) or ["python"]
     program = Path(argv[0]).name
     if Path(argv[0]).parts[-2:] == ("biostudy", "__main__.py"):
         program = "biostudy"
-    return f"{stamp}: {shlex.join([program, *argv[1:]])}"
+    return shlex.join([program, *argv[1:]])
+
+
+def history(argv: list[str] | None = None) -> str:
+    """'2026-01-31T12:00:00Z: biostudy run directional -o d.nc': when, and what made the file (`made_by`; CF
+    2.6.2)."""
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return f"{stamp}: {made_by(argv)}"
 
 
 def renamed(ds: xr.Dataset) -> xr.Dataset:
@@ -124,7 +131,7 @@ def with_observables(ds: xr.Dataset) -> xr.Dataset:
     holds, and `show` reads them without computing anything (`reports.glance`)."""
     from ..quantities import observables  # lazily: scipy and xarray only where a run's dataset is made
 
-    found = observables.variables(ds)
-    ds = ds.assign({name: values for name, values in found.items() if name not in ds})
+    found = [name for name, observable in observables.REGISTRY.items() if observables.available(ds, observable)]
+    ds = ds.assign(observables.variables(ds, names=[name for name in found if name not in ds]))
     ds.attrs[OBSERVABLES] = ", ".join(found)
     return ds

@@ -25,7 +25,7 @@ import functools
 import math
 import threading
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING, Callable, Collection, Iterator
 
 import numpy as np
 
@@ -33,6 +33,8 @@ if TYPE_CHECKING:  # imported where a dataset is made: `show` of a run's file re
     import netCDF4
     import xarray as xr
     from xarray.backends import NetCDF4DataStore
+
+    Deferred = tuple[Collection[str], Callable[[netCDF4.Dataset], None]]  # see `write`
 
 HDF5 = threading.RLock()  # the HDF5 library is not thread-safe: every call into it is made under this lock
 
@@ -87,8 +89,10 @@ def open_dataset(path: str | Path, chunks: dict | None = None, one_chunk_cached:
             raise
 
 
-def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
-    """`ds` to a new netCDF4 file at `path` with the per-variable `encoding` (as `to_netcdf` takes it)."""
+def write(ds: xr.Dataset, path: str | Path, encoding: dict, deferred: Deferred | None = None) -> None:
+    """`ds` to a new netCDF4 file at `path` with the per-variable `encoding` (as `to_netcdf` takes it).
+    `deferred`: (names, fill): the lazy variables of those names are made as xarray makes them, and then written
+    by fill(the open file) instead of through dask (a study's fields, case by case: `combine.write_study`)."""
     import dask
     import netCDF4
     from xarray.backends.common import ArrayWriter
@@ -104,7 +108,13 @@ def write(ds: xr.Dataset, path: str | Path, encoding: dict) -> None:
             if writer.sources:  # lazy data (a streamed run, a study's case files): chunk by chunk, one cached
                 for variable in nc.variables.values():
                     _cache_one_chunk(variable)
+                if deferred is not None:
+                    kept = [i for i, target in enumerate(writer.targets) if target.variable_name not in deferred[0]]
+                    for name in ("sources", "targets", "regions"):
+                        setattr(writer, name, [getattr(writer, name)[i] for i in kept])
                 writer.sync()
+            if deferred is not None:
+                deferred[1](nc)
         except BaseException:
             with contextlib.suppress(Exception):  # the reason it stopped is what is told, not a failed close
                 store.close()

@@ -108,12 +108,14 @@ def write_text(path: str | Path, text: str) -> Path:
 
 
 def write_atomic(ds: xr.Dataset, path: str | Path, temporary: Path | None = None,
-                 rename: Callable[[], None] | None = None) -> Path:
+                 rename: Callable[[], None] | None = None, deferred=None) -> Path:
     """Write `ds` to `path` as netCDF4, compressed and with checksums (`netcdf.encoding`): temporary file
-    beside it, fsync, rename (`atomic`); nothing else on failure (`NotWritten`)."""
+    beside it, fsync, rename (`atomic`); nothing else on failure (`NotWritten`).  `deferred`: lazy variables
+    written by a function of their own (`netcdf_io.write`)."""
     from . import netcdf_io  # lazily: xarray only where a dataset is read or written (`show` of a run needs none)
 
-    return atomic(path, lambda into: netcdf_io.write(ds, into, netcdf.encoding(ds)), True, temporary, rename)
+    return atomic(path, lambda into: netcdf_io.write(ds, into, netcdf.encoding(ds), deferred), True, temporary,
+                  rename)
 
 
 def _fsync_directory(directory: Path) -> None:

@@ -1,35 +1,36 @@
 """Where cases run, and the one loop that hands them out: here, on local processes, or on a Dask cluster.
 
-A backend takes a case (its id and compiled `solver.Problem`) with `submit`,
-tells with `finished` which cases are over (waiting for at least one), and
+A backend takes a case (its id and `worker.Task`: the compiled problem and
+where its file goes) with `submit`, tells with `finished` which cases are over
+(waiting for at least one) and what their workers said (`worker.Outcome`), and
 ends what is still running with `close`.  `windowed` is the submit loop every
 backend shares: at most `capacity` cases in flight, each compiled just before
 it is handed out, so a sweep of a thousand large cases never holds a thousand
 problems in memory; a backend that finishes a case gets its next one before
-this process records the finished one (writing a file takes no worker's time).
+this process records the finished one.  `sees_files`: its workers write the case
+files into the sweep's directory themselves (local processes, this process);
+a Dask cluster's workers may not see it, and hand the files' bytes back.
 """
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING, Callable, Iterator, Protocol
+from typing import Callable, Iterator, Protocol
 
 from . import interrupts
-from .worker import Outcome, solve
+from .worker import Outcome, Task, perform
 
-if TYPE_CHECKING:
-    import solver
-
-Compile = Callable[[str], "solver.Problem"]
+Compile = Callable[[str], Task]
 
 
 class Backend(Protocol):
     capacity: int  # cases in flight at most
+    sees_files: bool  # its workers write into the sweep's directory (else they hand back the files' bytes)
 
     @property
     def busy(self) -> int:
         """Cases in flight."""
 
-    def submit(self, case_id: str, problem: "solver.Problem") -> None: ...
+    def submit(self, case_id: str, task: Task) -> None: ...
 
     def finished(self) -> list[tuple[str, Outcome]]:
         """(case id, Outcome) of the cases that are over; waits until there is at least one."""
@@ -39,25 +40,24 @@ class Backend(Protocol):
 
 
 class Here:
-    """Cases in this process, one after another."""
+    """Cases in this process, one after another (a serial sweep, an array task)."""
 
     capacity = 1
+    sees_files = True
 
     def __init__(self):
-        self.waiting: list[tuple[str, "solver.Problem"]] = []
+        self.waiting: list[tuple[str, Task]] = []
 
     @property
     def busy(self) -> int:
         return len(self.waiting)
 
-    def submit(self, case_id: str, problem: "solver.Problem") -> None:
-        self.waiting.append((case_id, problem))
+    def submit(self, case_id: str, task: Task) -> None:
+        self.waiting.append((case_id, task))
 
     def finished(self) -> list[tuple[str, Outcome]]:
-        case_id, problem = self.waiting.pop()
-        with interrupts.allowed():  # the simulation: an interruption ends it at once
-            outcome = solve(problem)
-        return [(case_id, outcome)]
+        case_id, task = self.waiting.pop()
+        return [(case_id, perform(task))]
 
     def close(self, completed: bool) -> None:
         self.waiting.clear()
@@ -96,14 +96,15 @@ class Kept:
     def __init__(self, backend: Backend):
         self.backend = backend
         self.capacity = backend.capacity
+        self.sees_files = backend.sees_files
         self.ended = False
 
     @property
     def busy(self) -> int:
         return self.backend.busy
 
-    def submit(self, case_id: str, problem: "solver.Problem") -> None:
-        self.backend.submit(case_id, problem)
+    def submit(self, case_id: str, task: Task) -> None:
+        self.backend.submit(case_id, task)
 
     def finished(self) -> list[tuple[str, Outcome]]:
         return self.backend.finished()

@@ -4,9 +4,10 @@ A cluster is named by its scheduler's address or by the scheduler file it
 wrote (``dask scheduler --scheduler-file FILE``, how a batch job started
 inside an allocation is found: docs/clusters.md).
 
-The cluster's workers only simulate: each receives a compiled `solver.Problem`
-(plain arrays) and returns the dataset or the reason it failed; this process
-writes every file, so the workers need no shared filesystem.  Dask's nanny
+The cluster's workers do all of a case's work (`worker.perform`): each receives
+a `worker.Task` (the compiled problem, plain arrays) and hands back its
+`worker.Outcome` with the case file's bytes, which this process puts in place
+without reading them (`jobs`), so the workers need no shared filesystem.  Dask's nanny
 starts its workers with one thread per library, and a case runs on one thread
 unless its scene names more (``[numerics] threads``): the processors of a node
 are shared by worker processes that no one of them sees.  A `tls://` scheduler needs
@@ -30,15 +31,12 @@ import logging
 import socket
 import uuid
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 from ..errors import BadInput, Failed, first_line
 from ..inputs.files import read_text
 from . import interrupts
-from .worker import Outcome, solve
-
-if TYPE_CHECKING:
-    import solver
+from .worker import Outcome, Task, perform
 
 CONNECT_TIMEOUT = 10.0  # seconds to reach a Dask scheduler and hear it answer
 NOTICE_EVERY = 30.0  # seconds between two "waiting for workers" notices
@@ -163,6 +161,8 @@ class DaskCluster:
     threads (at least 4); closing cancels the cases still submitted.  note(message) hears what a user should
     know while waiting (no workers)."""
 
+    sees_files = False  # its workers may be on machines that do not see the sweep's directory
+
     def __init__(self, address: str | None, note: Callable[[str], None] = lambda message: None,
                  scheduler_file: str | Path | None = None):
         from distributed import Client
@@ -202,10 +202,12 @@ class DaskCluster:
     def busy(self) -> int:
         return len(self.running)
 
-    def submit(self, case_id: str, problem: "solver.Problem") -> None:
+    def submit(self, case_id: str, task: Task) -> None:
+        problem = task.problem
         if problem.numerics.threads is None:  # a node's processors are shared by worker processes no one of them sees
             problem = dataclasses.replace(problem, numerics=dataclasses.replace(problem.numerics, threads=1))
-        future = self.client.submit(solve, problem, key=f"biostudy-{case_id}-{self.tag}", pure=False)
+        future = self.client.submit(perform, dataclasses.replace(task, problem=problem),
+                                    key=f"biostudy-{case_id}-{self.tag}", pure=False)
         self.running[future] = case_id
 
     def _lost(self, error: BaseException) -> SchedulerLost:
@@ -248,7 +250,7 @@ class DaskCluster:
         except CancelledError as error:  # this sweep cancels nothing while it runs: the scheduler went away
             raise self._lost(error) from None
         except Exception as error:  # e.g. KilledWorker: the case took its worker down
-            return Outcome("failed", None, f"{type(error).__name__}: {error}", float("nan"))
+            return Outcome("failed", f"{type(error).__name__}: {error}", float("nan"), type(error).__name__)
 
     def close(self, completed: bool) -> None:
         try:

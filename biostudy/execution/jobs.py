@@ -5,11 +5,17 @@ a calibration's evaluation: a validated scene and where it came from.
 `run_jobs` runs those not recorded yet and records each one (its dataset or
 its failure); what is recorded is reused by its fingerprint (`identity`).
 
-Workers only simulate: they receive a compiled `solver.Problem` (plain
-arrays, no files) and send back the dataset or the reason it failed.  This
-process alone writes files, each atomically (`writing.write_atomic`), so a
-cluster needs no shared filesystem and an interruption (Ctrl-C, SIGTERM, a
-kill) never leaves a half-written file under a final name.
+This process only schedules: a worker does all of a case's work (`worker.perform`:
+the simulation, the dataset finished, its case file written atomically with
+`writing.write_atomic`) and hands back a small record (`worker.Outcome`), so
+this process never touches a case's fields.  A worker on a Dask cluster, which
+may not see this directory, hands back the file's bytes, which this process
+writes (atomically too).  Local workers and the cases run here write into the
+directory this process holds (`targets.owned`), each file under a temporary
+of its writer's process id until it is renamed: an interruption (Ctrl-C,
+SIGTERM, a kill of this process, which ends its workers) never leaves a
+half-written file under a final name, and the temporary of a worker that died
+is removed when its death is seen (or by the next sweep there).
 
 A case that fails (the solver's `SimulationError`, or any other exception
 inside the simulation) is recorded as failed and the others go on.  Local
@@ -33,8 +39,8 @@ from typing import Callable
 import solver
 from solver.output import versions
 
-from ..data import case_files, combine, netcdf_io, provenance, writing
-from ..data.finish import Record, finish
+from ..data import case_files, netcdf, netcdf_io, provenance, writing
+from ..data.finish import Record
 from ..errors import BadInput, Failed
 from ..inputs import cores, resources
 from ..inputs.scene import Scene, overrides_text
@@ -45,7 +51,7 @@ from .backends import Backend, Here, windowed
 from .dask import DaskCluster, SchedulerLost
 from .identity import fingerprint, legacy_fingerprint, matches
 from .pool import LocalPool
-from .worker import Outcome
+from .worker import Outcome, Simulated, Task, failure_record
 
 
 class SweepError(Failed):
@@ -81,6 +87,7 @@ class SweepReport:
     damaged: list[str] = field(default_factory=list)  # finished cases whose files did not read back: run again
     outdated: dict[str, str] = field(default_factory=dict)  # reused cases made by other software versions
     alerts: dict[str, dict[str, str]] = field(default_factory=dict)  # `quantities.alerts`: attribute -> case -> said
+    series: dict[str, dict] = field(default_factory=dict)  # case run -> "time" and its job's `measure` (its worker's)
 
     @property
     def ok(self) -> bool:
@@ -118,7 +125,8 @@ class Job:
     scene_file: Path
     overrides: str  # the overrides as TOML text, for the record
     attrs: dict = field(default_factory=dict)  # stamped onto the case file (case id, study file, ...)
-    layout: combine.CaseLayout | None = None  # a study's case: its place in the study, in its file
+    layout: case_files.CaseLayout | None = None  # a study's case: its place in the study, in its file
+    measure: tuple[str, ...] = ()  # observables whose series its worker hands back (`SweepReport.series`)
 
 
 NUMERIC_PACKAGES = ("numpy", "scipy", "fipy", "pyamg", "scikit-fem")  # what a result's numbers depend on
@@ -166,12 +174,22 @@ def run_jobs(jobs: list[Job], out_dir: str | Path, execution: Execution = Execut
         notify(*event)
     if backend is None or not ids:
         backend = _backend(execution, bool(ids), lambda message: notify("note", "", message))
+    made_by = netcdf.made_by()
+
+    def task(job_id: str) -> Task:
+        job = by_id[job_id]
+        path = case_files.case_file(out_dir, job_id).absolute()  # workers started before a chdir keep theirs
+        return Task(_threaded(job.scene.problem(), execution.threads), _record(job, prints[job_id]),
+                    str(path) if backend.sees_files else None, job.layout, job.measure, made_by)
+
     try:
-        compile_ = lambda job_id: _threaded(by_id[job_id].scene.problem(), execution.threads)
-        with contextlib.closing(windowed(ids, compile_, backend)) as results:
+        with contextlib.closing(windowed(ids, task, backend)) as results:
             for job_id, outcome in results:
-                report.note(job_id, _record(by_id[job_id], out_dir, outcome, prints[job_id]))
+                _recorded(by_id[job_id], out_dir, outcome, prints[job_id], made_by)
+                report.note(job_id, outcome.attrs)
                 report.ran.append(job_id)
+                if outcome.series:
+                    report.series[job_id] = outcome.series
                 if outcome.status != "done":
                     report.failed[job_id] = outcome.message
                 notify(outcome.status, job_id, outcome.message)
@@ -285,21 +303,28 @@ def plan_owner(plan: Plan, kind: str) -> ownership.Owner:
     return ownership.Owner(kind, plan.spec.name, str(plan.scene_file.resolve()), keys)
 
 
-def _record(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str) -> dict:
-    """Write one case's file: its dataset (`finish`), or the failure record; returns the file's attributes (what
-    `quantities.alerts` said of it among them).  A file that cannot be written stops the sweep (`SweepError`):
-    the cases recorded so far are kept."""
-    record = Record.of(job.scene, job.scene_file, job.overrides, **job.attrs, fingerprint=fingerprint)
-    if outcome.status == "done":
-        ds = finish(outcome.dataset, record, status="done", message="")
-    else:
-        ds = case_files.failure_record(outcome.message, outcome.seconds, job.scene.name, record.scene,
-                                       job.scene_file, job.overrides, error=outcome.error, **record.attrs)
+def _record(job: Job, fingerprint: str) -> Record:
+    """What a job's case file records of what produced it (`finish.Record`), with its fingerprint."""
+    return Record.of(job.scene, job.scene_file, job.overrides, **job.attrs, fingerprint=fingerprint)
+
+
+def _recorded(job: Job, out_dir: Path, outcome: Outcome, fingerprint: str, made_by: str) -> None:
+    """What this process does for a case its worker finished: nothing but put its file's bytes in place (a Dask
+    worker's), or write the failure's record of a worker that died without writing one (its temporary removed);
+    a case file that could not be written stops the sweep (`SweepError`): the cases recorded so far are kept."""
     path = case_files.case_file(out_dir, job.id)
     try:
-        writing.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
+        if outcome.unwritten:
+            raise writing.NotWritten(outcome.errno, outcome.unwritten)
+        if outcome.data is not None:
+            writing.atomic(path, lambda temporary: temporary.write_bytes(outcome.data), fsync=True)
+        elif not outcome.written:
+            writing.remove_temporaries(path.parent, of=path.name)  # a dead worker's half-written file
+            died = Simulated("failed", None, outcome.message, outcome.seconds, outcome.error)
+            with netcdf.called(made_by):
+                ds = failure_record(_record(job, fingerprint), job.scene.name, died)
+            writing.write_atomic(job.layout.apply(ds) if job.layout else ds, path)
     except OSError as error:  # `writing.NotWritten`: a full disk says which
         resume = "run the same command again to resume" + (" once there is room" if error.errno == errno.ENOSPC
                                                            else "")
         raise SweepError(f"{error}; the cases recorded before are kept, {resume}") from None
-    return ds.attrs

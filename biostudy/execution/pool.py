@@ -27,19 +27,16 @@ command line has imported the rest, so the two import at once.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import multiprocessing
 import multiprocessing.connection
 import os
 import signal
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from . import interrupts, worker
-from .worker import Outcome
-
-if TYPE_CHECKING:
-    import solver
+from .worker import Outcome, Task
 
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", **worker.SOLVER_ENV}
 
@@ -65,7 +62,7 @@ def _context():
     imports per worker); fresh interpreters (spawn) where there is no fork server."""
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["biostudy.execution.worker", "solver.output"])
+        context.set_forkserver_preload(["biostudy.execution.worker", *worker.IMPORTS])
         return context
     return multiprocessing.get_context("spawn")
 
@@ -84,7 +81,7 @@ def warm_up() -> None:
 @dataclass
 class _Worker:
     process: multiprocessing.Process
-    tasks: multiprocessing.connection.Connection  # problems out, outcomes back
+    tasks: multiprocessing.connection.Connection  # tasks out, outcomes back
     case_id: str | None = None  # the case it is solving
     began: float = 0.0
     orphaned: bool = False  # its fork server is gone: its sentinel says nothing, its end shows on `tasks` alone
@@ -109,6 +106,8 @@ class LocalPool:
     """Local worker processes, one case each at a time; started as cases need them, replaced when one dies.
     A `backends.Backend`: `submit` hands a case to an idle worker (a new one if none is idle), `finished`
     waits for answers and deaths, `close` ends every worker."""
+
+    sees_files = True  # a worker writes its case's file (`worker.perform`)
 
     def __init__(self, size: int):
         self.context = _context()
@@ -148,15 +147,16 @@ class LocalPool:
         self.workers.append(_Worker(process, ours))
         return self.workers[-1]
 
-    def submit(self, case_id: str, problem: "solver.Problem") -> None:
-        problem = worker.with_threads(problem, self.capacity)  # the processors here, shared by the workers
+    def submit(self, case_id: str, task: Task) -> None:
+        # the processors here, shared by the workers
+        task = dataclasses.replace(task, problem=worker.with_threads(task.problem, self.capacity))
         idle = next((w for w in self.workers if w.case_id is None), None) or self._start()
         try:
-            idle.tasks.send(problem)
+            idle.tasks.send(task)
         except (BrokenPipeError, OSError):  # it died while idle: a fresh one takes the case
             self._drop(idle)
             idle = self._start()
-            idle.tasks.send(problem)
+            idle.tasks.send(task)
         idle.case_id, idle.began = case_id, time.perf_counter()
 
     def _drop(self, gone: _Worker) -> None:
@@ -195,7 +195,7 @@ class LocalPool:
             self._drop(w)
             death = _death(w.process.exitcode) if not w.orphaned else \
                 "worker died (how is unknown: the fork server that started it had been killed)"
-            done.append((case_id, Outcome("failed", None, death, time.perf_counter() - w.began, "WorkerDied")))
+            done.append((case_id, Outcome("failed", death, time.perf_counter() - w.began, "WorkerDied")))
         return done
 
     def close(self, completed: bool) -> None:

@@ -48,6 +48,20 @@ def _room(workers: int, fits: int, ask: Ask) -> bool:
     return bool(ask.soon) and workers >= fits * (len(ask.points) + len(ask.soon))
 
 
+def _taken(asked: dict[str, Ask], workers: int) -> dict[str, list[np.ndarray]]:
+    """The points each fit of a round is evaluated at: those it needs, its `soon` ones where there is room for
+    every fit's (`_room`), and then, while the round's last simulations would leave workers waiting, the first
+    `soon` points of the fits in order (a fit is sent results for the points it asked and a first part of its
+    `soon` ones)."""
+    taken = {name: ask.points + (ask.soon if _room(workers, len(asked), ask) else []) for name, ask in asked.items()}
+    idle = -sum(map(len, taken.values())) % workers
+    for name, ask in asked.items():
+        if len(taken[name]) == len(ask.points) and idle:
+            taken[name] += ask.soon[:idle]
+            idle -= len(ask.soon[:idle])
+    return taken
+
+
 def run(fits: dict[str, Asking], evaluate: Evaluate, stop: Callable[[list[str]], set[str]] | None = None,
         workers: int = 1) -> dict[str, object]:
     """Advance every fit in rounds until each has returned; name -> what it returned (or a `Stopped`).
@@ -72,8 +86,7 @@ def run(fits: dict[str, Asking], evaluate: Evaluate, stop: Callable[[list[str]],
                 fits[name].close()
                 outcome[name] = Stopped()
             asked = {name: ask for name, ask in round_.items() if name not in stopped}
-            taken = {name: ask.points + (ask.soon if _room(workers, len(asked), ask) else [])
-                     for name, ask in asked.items()}
+            taken = _taken(asked, workers)
             results = evaluate([point for points in taken.values() for point in points]) if taken else []
             at = 0
             for name, points in taken.items():

@@ -48,6 +48,7 @@ nutrient region passes dead ends; other runs leave them out.
 from __future__ import annotations
 
 import re
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Callable
 
@@ -122,19 +123,31 @@ def _recorded(series: Series) -> Observable:
                       granularity=cell_volume if counts else None)
 
 
+# While `variables` measures a dataset, its sub-cell substratum quantities are computed together, from two level
+# sets per output (`substratum.substratum_observables`) instead of one or two per quantity: [dataset, values].
+_TOGETHER: ContextVar[list | None] = ContextVar("substratum_together", default=None)
+
+
 def _on_substratum(quantity: substratum.Quantity) -> Observable:
     """A COMSTAT observable, per output, on the substratum face, with the threshold, the connected-volume filtering
     and the estimator the dataset records (`comstat`; files written before the last two: sub-cell, unfiltered)."""
     def compute(ds: xr.Dataset) -> np.ndarray:
         face, threshold = str(ds.attrs["substratum_face"]), float(ds.attrs["substratum_threshold"])
         voxel = str(ds.attrs.get("substratum_estimator", "subcell")) == "voxel"
+        together = _TOGETHER.get()
+        if together is not None and not voxel and together[0] is ds:
+            return together[1][quantity.name]
         phi = ds["phi"].transpose("time", *(d for d in CELL_DIMS if d in ds.dims)).values
         if int(ds.attrs.get("substratum_connected", 0)):
             phi = np.array([comstat.connected(field, face, threshold) for field in phi])
         h = measures.spacing(ds)
         if voxel:
             return np.array([comstat.voxel_observables(field, h, face, threshold)[quantity.name] for field in phi])
-        return np.array([quantity.compute(field, h, face, threshold) for field in phi])
+        if together is None:
+            return np.array([quantity.compute(field, h, face, threshold) for field in phi])
+        values = [substratum.substratum_observables(field, h, face, threshold) for field in phi]
+        together[:] = [ds, {name: np.array([v[name] for v in values]) for name in substratum.QUANTITIES}]
+        return together[1][quantity.name]
 
     return Observable(quantity.name, quantity.units, quantity.long_name, compute, ("phi",), SUBSTRATUM_ATTRS)
 
@@ -205,17 +218,29 @@ def evaluate(ds: xr.Dataset, name: str) -> xr.DataArray:
     return out.unstack("_case").transpose(*extra, "time").assign_attrs(attrs)
 
 
-def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES) -> dict[str, xr.DataArray]:
-    """Every observable this run's fields give, as time series with units and long_name (for study.nc).
+def variables(ds: xr.Dataset, block_bytes: float = BLOCK_BYTES,
+              names: list[str] | None = None) -> dict[str, xr.DataArray]:
+    """Every observable this run's fields give (or those of `names`), as time series with units and long_name.
     The fields are read once, at most `block_bytes` of them at a time (`_blocks`): a run whose fields stay
     on disk (`data.spool`) is measured without holding every output."""
-    fields = ds[sorted({v for o in REGISTRY.values() for v in o.needs if v in ds})]
+    if names is None:
+        import dask  # lazily: dask only where fields are measured
+
+        with dask.config.set(scheduler="synchronous"):  # what `applies` reads of the fields is read in this thread
+            names = [n for n, o in REGISTRY.items() if available(ds, o)]
+    if not names:
+        return {}
+    token = _TOGETHER.set([None, {}])  # the substratum quantities of each dataset measured below: together
+    try:
+        return _measured(ds, names, block_bytes)
+    finally:
+        _TOGETHER.reset(token)
+
+
+def _measured(ds: xr.Dataset, names: list[str], block_bytes: float) -> dict[str, xr.DataArray]:
+    fields = ds[sorted({v for n in names for v in REGISTRY[n].needs if v in ds})]
     # lazy fields (a sweep's case files, a streamed run) are read in this thread: the HDF5 library is not
     # thread-safe, and a dataset a notebook left open may be closed by the garbage collector at any moment
-    import dask  # lazily: dask only where fields are measured
-
-    with dask.config.set(scheduler="synchronous"):  # what `applies` reads of the fields too
-        names = [n for n, o in REGISTRY.items() if available(ds, o)]
     blocks = _blocks(fields, block_bytes)
     if len(blocks) == 1:
         fields = fields.load(scheduler="synchronous")
@@ -249,12 +274,18 @@ def as_measured(ds: xr.Dataset, now: dict) -> xr.Dataset:
     """A run's dataset as a scene measures it now (`now`: its `substratum_attrs`): the substratum's attributes the
     scene gives, those it no longer gives (a face, the reason there is none) removed, and the stored observables
     that depend on them dropped where they changed (computed again from the fields; nothing is simulated again)."""
-    kept = (*SUBSTRATUM_ATTRS, LEFT_OUT, "substratum_connected", "substratum_estimator")
-    changed = any(str(ds.attrs.get(name)) != str(now.get(name)) for name in kept if name in ds.attrs or name in now)
-    if changed:
+    if remeasured(ds.attrs, now):
         ds = ds.drop_vars([o.name for o in REGISTRY.values() if o.needs_attrs and o.name in ds])
-    ds.attrs = {**{k: v for k, v in ds.attrs.items() if k not in kept}, **now}
+    ds.attrs = {**{k: v for k, v in ds.attrs.items() if k not in MEASURED_ON}, **now}
     return ds
+
+
+MEASURED_ON = (*SUBSTRATUM_ATTRS, LEFT_OUT, "substratum_connected", "substratum_estimator")  # a dataset's substratum
+
+
+def remeasured(attrs: dict, now: dict) -> bool:
+    """Whether a dataset of `attrs` was measured on another substratum than `now` says (`as_measured`)."""
+    return any(str(attrs.get(name)) != str(now.get(name)) for name in MEASURED_ON if name in attrs or name in now)
 
 
 def value(ds: xr.Dataset, name: str, index: int = -1) -> float:
