@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import xarray as xr
 from conftest import CUBE_SCENE, TINY_SCENE
+from study_files import both_ways, same_files
 from typer.testing import CliRunner
 from unit_readers import assert_every_unit_read_alike, assert_read_alike, plain
 
@@ -210,7 +211,7 @@ def test_masks_keep_their_int8_flags_and_no_study_dimensions(made):
                 assert var.flag_values.dtype == np.int8 and "_FillValue" not in var.ncattrs()
 
 
-def test_masks_that_differ_between_cases_are_stacked_with_flags_of_their_type(tmp_path, tiny_scene):
+def test_masks_that_differ_between_cases_are_stacked_with_flags_of_their_type(tmp_path, tiny_scene, monkeypatch):
     (tmp_path / "walls.toml").write_text('scene = "tiny.toml"\n[sweep]\n'
                                          '"obstacle.0.upper" = [[3.0, 16.0], [4.0, 16.0]]\n')
     result = CliRunner().invoke(app, ["sweep", str(tmp_path / "walls.toml"), "-o", str(tmp_path / "out"), "-q",
@@ -221,6 +222,10 @@ def test_masks_that_differ_between_cases_are_stacked_with_flags_of_their_type(tm
     assert study.obstacle.sum(["y", "x"]).values.tolist() == [12, 16]
     with netCDF4.Dataset(tmp_path / "out" / "study.nc") as nc:
         assert nc["obstacle"].flag_values.dtype == nc["obstacle"].dtype
+    from biostudy.plans.study import load_study
+
+    plan = load_study(tmp_path / "walls.toml", ["time.steps=4"])
+    same_files(*both_ways(plan, tmp_path / "out", monkeypatch))  # study-wide arrays: as a dataset per case
 
 
 def test_netcdf_layout_history_no_coordinate_fill_compressed_snapshots(made):

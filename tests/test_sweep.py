@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from study_files import both_ways, same_files
 from typer.testing import CliRunner
 
 from biostudy.cli import app
@@ -72,16 +73,22 @@ def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_st
     assert ds.attrs["sweep_mode"] == "grid" and "scene = \"tiny.toml\"" in ds.attrs["study"]
     shown = cli.invoke(app, ["show", str(out)])  # the sweep's directory: its study.nc
     assert shown.exit_code == 0 and "4 done, 0 failed" in shown.stdout and "g=1e+09_r=50" in shown.stdout
-    # the cases stacked variable by variable are what xarray's combine_nested makes of them
+    # the cases in study-wide arrays, stacked variable by variable, are what xarray's combine_nested makes of them
     plan = load_study(tiny_study)
+    arrays = combine.combine(plan, out).drop_attrs(deep=False)
+    monkeypatch.setattr(combine, "_arrays", lambda *args: None)
     stacked = combine.combine(plan, out).drop_attrs(deep=False)
     monkeypatch.setattr(combine, "_stacked", lambda *args: None)
     nested = combine.combine(plan, out).drop_attrs(deep=False)
-    xr.testing.assert_identical(stacked, nested)
+    for made in (arrays, stacked):
+        xr.testing.assert_identical(made, nested)
+        assert all(made[n].chunks == nested[n].chunks and made[n].encoding.keys() == nested[n].encoding.keys()
+                   and all(repr(made[n].encoding[k]) == repr(e) for k, e in nested[n].encoding.items())  # NaN fills
+                   for n in nested.variables)
     assert [stacked[n].chunks for n in stacked.data_vars] == [nested[n].chunks for n in nested.data_vars]
 
 
-def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path):
+def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path, monkeypatch):
     out = tmp_path / "out"
     plan = load_study(tiny_study)
     first = sweep(plan, out)
@@ -100,6 +107,7 @@ def test_resume_skips_finished_cases_and_cleans_temporaries(tiny_study, tmp_path
     with xr.open_dataset(out / "cases" / "g=1e+09_r=50.nc") as one:  # the fields, written case by case
         np.testing.assert_array_equal(partial.phi.sel(g=1e9, r=50).values, one.phi.values[0, 0])
     assert np.isnan(partial.phi.sel(g=1e9, r=100)).all()
+    same_files(*both_ways(plan, out, monkeypatch))  # study-wide arrays make the file a dataset per case makes
     again = sweep(load_study(tiny_study), out)
     assert again.ran == ["g=1e+09_r=100"] and len(again.skipped) == 3
     assert [p.name for p in again.removed] == [leftover]
@@ -124,7 +132,7 @@ def test_fingerprint_follows_what_changes_the_result(tiny_scene):
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflow this case is built on
-def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene, tmp_path):
+def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene, tmp_path, monkeypatch):
     study = write_toml("fail.toml", """\
         scene = "tiny.toml"
         [set]
@@ -159,8 +167,10 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(write_toml, tiny_scene,
         assert cases.status.values.tolist() == ds.status.values.tolist()
         np.testing.assert_array_equal(cases.phi_mean.values, ds.phi_mean.values)
     assert "failed" in cli.invoke(app, ["show", str(out / "cases" / "k_alpha=1e+100.nc")]).stdout
-    # re-running keeps the recorded failure; --retry-failed runs it again
     plan = load_study(study)
+    ds.close()
+    same_files(*both_ways(plan, out, monkeypatch))  # zip, a failure: as a dataset per case
+    # re-running keeps the recorded failure; --retry-failed runs it again
     assert sweep(plan, out).ran == []
     assert sweep(plan, out, retry_failed=True).ran == ["k_alpha=1e+100"]
 

@@ -30,11 +30,14 @@ from solver.output import cf_units
 
 from ..inputs.keys import dimension, id_text
 from ..inputs.scene import key_info, overrides_text
-from . import case_files, netcdf, provenance, study_cases, writing
-from .case_files import CASE_ATTRS, CaseLayout, case_scalars, static
+from . import case_files, netcdf, provenance, study_arrays, study_cases, writing
+from .case_files import CASE_ATTRS, CaseLayout, static
+from .study_arrays import nest, stack
 
 if TYPE_CHECKING:
     from ..plans.cases import Plan
+
+_arrays = study_arrays.stacked  # the common study's cases stacked without a dataset per case (None: another study)
 
 # Per-case attributes that are not shared by a study (they stay in cases/*.nc).
 PER_CASE = {"case_id", "status", "message", "error", "created", "scene", "overrides", "fingerprint", "title",
@@ -70,17 +73,6 @@ def _shared_variables(datasets: list[xr.Dataset]) -> list[str]:
                for ds, equal in zip(datasets[1:], same)):
             shared.append(name)
     return shared
-
-
-def _floats(ds: xr.Dataset) -> xr.Dataset:
-    """Integer variables as float, so a case that did not finish can be NaN (flag values follow: CF 3.5)."""
-    def floating(var: xr.DataArray) -> xr.DataArray:
-        var = var.astype(float)
-        if "flag_values" in var.attrs:
-            var.attrs["flag_values"] = np.asarray(var.attrs["flag_values"], dtype=float)
-        return var
-
-    return ds.assign({n: floating(ds[n]) for n in ds.data_vars if not np.issubdtype(ds[n].dtype, np.floating)})
 
 
 def _statics_shared(plan: Plan) -> bool:
@@ -128,14 +120,6 @@ def case_layouts(plan: Plan) -> dict[str, CaseLayout]:
     return layouts
 
 
-def _nest(items: list, sizes: list[int]) -> list:
-    """Flat list (last index fastest) -> nested lists of the given sizes."""
-    if len(sizes) == 1:
-        return items
-    step = len(items) // sizes[0]
-    return [_nest(items[i * step:(i + 1) * step], sizes[1:]) for i in range(sizes[0])]
-
-
 def write_study(plan: Plan, out_dir: str | Path) -> Path:
     """Combine the case files under DIR/cases/ into DIR/study.nc (atomically); the fields stacked along the study
     are written case by case, each case file opened once for them (not through dask: its store of thousands of
@@ -150,7 +134,7 @@ def write_study(plan: Plan, out_dir: str | Path) -> Path:
             at = tuple(case.index) if plan.mode == "grid" else (number,)
             found = cases[case.id]
             values = study_cases.read_fields(found.path, {n: found.lazy[n] for n in stacked}) \
-                if found.run is not None else {}
+                if found.path is not None else {}
             for name in stacked:
                 nc.variables[name][at] = values.get(name, np.nan)
 
@@ -171,24 +155,36 @@ def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, st
     reader = study_cases.Reader(coords)
     cases = {case.id: reader.read(case_files.case_file(out_dir, case.id), plan.scenes[case.id].substratum_attrs())
              for case in plan.cases}
-    done = [case.run for case in cases.values() if case.run is not None]
-    shared = _shared_variables(done) if done else []
     statics_shared = _statics_shared(plan)
-    once = [n for n in shared if static(done[0][n]) and statics_shared]  # written once, as they are
-    shared = [n for n in shared if n not in once]
-    parts = _case_parts(plan, cases, shared)
-    sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys] if plan.mode == "grid" else [len(parts)]
-    combined = _stacked(parts, dims, sizes)
-    if combined is None:
-        combined = xr.combine_nested(_nest(parts, sizes), concat_dim=dims, combine_attrs="override")
+    sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys] if plan.mode == "grid" else [len(plan.cases)]
+    first = reader.template.run if reader.template is not None else None
+    once = [n for n in first.data_vars if static(first[n]) and statics_shared] if first is not None else []
+    combined = _arrays(reader, list(cases.items()), dims, sizes, once)
+    if combined is None:  # cases of different layouts or coordinates: a dataset per case
+        cases = {case_id: reader.dataset(found) for case_id, found in cases.items()}
+        done = [case.run for case in cases.values() if case.run is not None]
+        shared = _shared_variables(done) if done else []
+        once = [n for n in shared if static(done[0][n]) and statics_shared]  # written once, as they are
+        shared = [n for n in shared if n not in once]
+        parts = _case_parts(plan, cases, shared)
+        combined = _stacked(parts, dims, sizes)
+        if combined is None:
+            combined = xr.combine_nested(nest(parts, sizes), concat_dim=dims, combine_attrs="override")
+        first = done[0] if done else None
+        found = [set(ds.data_vars) for ds in done]
+        done_attrs = [ds.attrs for ds in done]
+    else:
+        shared = [n for n in first.data_vars if n not in once]
+        found = [set(first.data_vars)]
+        done_attrs = [case.run.attrs if case.run is not None else {**case.attrs, **case.now}
+                      for case in cases.values() if case.status == "done"]
     combined = combined.assign_coords(coords).transpose(*dims, ...)
-    if done:
-        first = done[0]
+    if first is not None:
         combined = combined.assign({n: first[n] for n in once})
         if statics_shared:  # the cell bounds (CF 7.1) of the grid every case shares
             combined = combined.assign_coords({n: first[n] for n in first.coords if n not in combined.coords})
-    omitted = sorted({n for ds in done for n in ds.data_vars} - set(shared) - set(once))
-    combined.attrs = _study_attrs(plan, done, [cases[c.id].status for c in plan.cases], omitted)
+    omitted = sorted(set().union(*found) - set(shared) - set(once))
+    combined.attrs = _study_attrs(plan, done_attrs, [cases[c.id].status for c in plan.cases], omitted)
     return combined, cases
 
 
@@ -203,7 +199,7 @@ def _stacked(parts: list[xr.Dataset], dims: list[str], sizes: list[int]) -> xr.D
     variables = {}
     for name in names:
         var = first.variables[name]
-        data = _stack(_nest([part.variables[name].data for part in parts], sizes))
+        data = stack(nest([part.variables[name].data for part in parts], sizes))
         variables[name] = xr.Variable([*dims, *var.dims], data, dict(var.attrs), dict(var.encoding))
     return xr.Dataset(variables, first.coords)
 
@@ -213,45 +209,19 @@ def _same_coordinates(ds: xr.Dataset, other: xr.Dataset) -> bool:
         ds[n].dims == other[n].dims and np.array_equal(ds[n].values, other[n].values) for n in ds.coords)
 
 
-def _stack(nested: list):
-    """Nested lists of arrays (numpy or dask) as one array, a dimension per level."""
-    import dask
-
-    rows = [_stack(item) if isinstance(item, list) else item for item in nested]
-    if any(dask.is_dask_collection(row) for row in rows):
-        import dask.array as da
-
-        return da.stack(rows)
-    return np.stack(rows)
-
-
 def _case_parts(plan: Plan, cases: dict[str, study_cases.Case], shared: list[str]) -> list[xr.Dataset]:
-    """One dataset per case, in the plan's order: its `shared` variables (NaN where the case did not finish) and
-    its status, message, wall time, steps and id."""
+    """One dataset per case, in the plan's order (`study_arrays.part`)."""
     runs = [case.run for case in cases.values() if case.run is not None]
-    template = _floats(runs[0][shared]) if runs else None
-    parts = []
-    for case in plan.cases:
-        found = cases[case.id]
-        if found.run is not None:
-            part = _floats(found.run[shared])
-            attrs = found.run.attrs
-        else:
-            part = xr.full_like(template, np.nan) if template is not None else xr.Dataset()
-            attrs = found.attrs  # a failure record has the wall time until it failed
-        part.attrs = {}
-        part = part.assign(case_scalars(found.status, found.message, attrs))
-        part["case_id"] = ((), np.array(case.id, dtype=object), CASE_ATTRS)
-        parts.append(part)
-    return parts
+    template = study_arrays.floats(runs[0][shared]) if runs else None
+    return [study_arrays.part(cases[case.id], case.id, shared, template) for case in plan.cases]
 
 
-def _study_attrs(plan: Plan, done: list[xr.Dataset], statuses: list[str], omitted: list[str]) -> dict:
+def _study_attrs(plan: Plan, done: list[dict], statuses: list[str], omitted: list[str]) -> dict:
     """study.nc's attributes: what every finished case shares (but the swept keys), the study and its base scene,
     the counts of cases by status, the variables left in the case files, and the provenance."""
     keys = plan.keys
     swept = {dimension(k) for k in keys} | {k.split(".")[-1] for k in keys}  # e.g. g, advection, grid_shape
-    common = {k: v for k, v in _common_attrs([ds.attrs for ds in done]).items() if k not in swept}
+    common = {k: v for k, v in _common_attrs(done).items() if k not in swept}
     return provenance.with_provenance({
         **common,
         "title": f"biofilm growth study: {plan.spec.name}",

@@ -11,13 +11,16 @@ one case at a time, never all in memory.
 The first finished case is read through xarray, whose decoding it records (`Template`); a case file with the same
 variables, dimensions and types (every case of most studies) is then read through netCDF4 alone, each variable
 as stored, which is what xarray decodes it to where the template says so (`as_stored`: no scale or offset, no fill
-value but NaN in a float): the same values at a fraction of the cost.  Any other case file is read through
-xarray.  Observables a case file lacks (written before an observable existed, or measured on another substratum
-than its scene says now) are computed from its fields then (nothing is simulated again).
+value but NaN in a float): the same values at a fraction of the cost, kept as arrays (`Case.values`: the study's
+arrays are filled from them, `study_arrays`; `Reader.dataset` makes a case's dataset where one is needed).  Any
+other case file is read through xarray.  Observables a case file lacks (written before an observable existed, or
+measured on another substratum than its scene says now) are computed from its fields then (nothing is simulated
+again).
 """
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,6 +47,8 @@ class Case:
     computed: bool = False  # observables it lacked were computed from its fields
     path: Path | None = None  # its file (finished)
     lazy: dict = field(default_factory=dict)  # name -> (shape, dtype, as stored) of its lazy variables (`read_fields`)
+    values: dict | None = None  # read as the template says: its small variables' values (run None: `Reader.dataset`)
+    now: dict = field(default_factory=dict)  # the substratum attributes its scene has now (its run's, beside `attrs`)
 
 
 @dataclass
@@ -80,8 +85,7 @@ class Reader:
             if status != "done":
                 return Case(status, message, attrs)
             if self._fits(layout, attrs, now):
-                return Case(status, message, attrs, self._as_template(nc, path, attrs, now), False, path,
-                            self.template.lazy)
+                return Case(status, message, attrs, None, False, path, self.template.lazy, self._values(nc), now)
         case = read(path, self.coords, now)
         if self.template is None and case.run is not None:
             fine = set(case.run.data_vars) - set(_lazy_names(case.run))
@@ -95,22 +99,36 @@ class Reader:
         return (self.template is not None and self.template.usable and layout == self.template.layout
                 and not observables.remeasured(attrs, now))
 
-    def _as_template(self, nc, path: Path, attrs: dict, now: dict) -> xr.Dataset:
-        """A case file of the template's layout, its small variables read as stored, its fields lazy."""
+    def _values(self, nc) -> dict[str, np.ndarray]:
+        """A case file of the template's layout: its small variables and coordinates as stored, in the template's
+        types and shapes."""
         template = self.template.run
-        lazy = _lazy_names(template)
-
-        def variable(name: str) -> xr.Variable:
+        values = {}
+        for name in [*template.data_vars, *template.coords]:
+            if name in self.template.lazy:
+                continue
             var = template.variables[name]
             stored = nc.variables[SOURCE[name] if SOURCE.get(name) in nc.variables else name]
             stored.set_auto_maskandscale(False)
-            return xr.Variable(var.dims, np.asarray(stored[...], dtype=var.dtype).reshape(var.shape), var.attrs,
-                               var.encoding)
+            values[name] = np.asarray(stored[...], dtype=var.dtype).reshape(var.shape)
+        return values
 
-        small = {name: variable(name) for name in template.data_vars if name not in lazy}
+    def dataset(self, case: Case) -> Case:
+        """`case` with its run's dataset: read as the template says (`values`), made from them and the template
+        (small variables as read, fields lazy); any other case as it is."""
+        if case.values is None:
+            return case
+        template = self.template.run
+
+        def variable(name: str) -> xr.Variable:
+            var = template.variables[name]
+            return xr.Variable(var.dims, case.values[name], var.attrs, var.encoding)
+
+        small = {name: variable(name) for name in template.data_vars if name not in self.template.lazy}
         coords = {name: variable(name) for name in template.coords}
-        fields = _lazy(path, {name: template[name] for name in lazy})
-        return xr.Dataset({**small, **fields}, coords, attrs={**attrs, **now})
+        fields = lazy_fields(case.path, {name: template[name] for name in self.template.lazy})
+        run = xr.Dataset({**small, **fields}, coords, attrs={**case.attrs, **case.now})
+        return dataclasses.replace(case, run=run, values=None)
 
 
 def spatial(var: xr.DataArray | xr.Variable) -> bool:
@@ -139,7 +157,7 @@ def read(path: Path, coords: dict, now: dict) -> Case:
         computed = observables.variables(run, names=missing) if missing else {}
         lazy = _lazy_names(run)
         small = run.drop_vars(lazy).load()
-        fields = _lazy(path, {name: run[name] for name in lazy})
+        fields = lazy_fields(path, {name: run[name] for name in lazy})
     return Case(status, str(attrs.get("message", "")), attrs, small.assign(fields).assign(computed), bool(computed),
                 path, _specs({name: run[name] for name in lazy}))
 
@@ -166,7 +184,7 @@ def as_stored(var: xr.DataArray | xr.Variable) -> bool:
             and (fill is None or (var.dtype.kind == "f" and np.isnan(fill))))
 
 
-def _lazy(path: Path, variables: dict[str, xr.DataArray]) -> dict[str, xr.Variable]:
+def lazy_fields(path: Path, variables: dict[str, xr.DataArray]) -> dict[str, xr.Variable]:
     """The case file's `variables` as dask arrays: one read of them all (a case of at most `AT_ONCE` bytes), or
     one per block of at most that along each one's first dimension; Variables, their coordinates the dataset's."""
     import dask
