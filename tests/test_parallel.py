@@ -39,6 +39,17 @@ def grid_matrix(shape, seed=0):
     return matrix, fv.places(np.arange(fv.n)), rng
 
 
+def grid_levels(shape, seed):
+    """The grid's matrix and its first two Ruge-Stueben coarse levels, each with its rows' places."""
+    matrix, places, rng = grid_matrix(shape, seed=seed)
+    hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=20)
+    levels = [(matrix, places)]
+    for level in hierarchy.levels[:2]:
+        places = coarse_places(level, places)
+        levels.append((sp.csr_matrix(hierarchy.levels[len(levels)].A), places))
+    return levels, rng
+
+
 @pytest.mark.parametrize("size", [2, 3])
 def test_products_are_scipys(small_blocks, size):
     matrix, _, rng = grid_matrix((9, 8, 7))
@@ -60,12 +71,7 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
     """Forward and backward sweeps on several threads give pyamg's serial sweep bit for bit, on the grid's matrix
     (7- or 5-point, obstacles) and on its Ruge-Stueben coarse levels (denser, rows taking the places of their
     C-points)."""
-    matrix, places, rng = grid_matrix(shape, seed=size)
-    hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=20)
-    levels = [(matrix, places)]
-    for level in hierarchy.levels[:2]:
-        places = coarse_places(level, places)
-        levels.append((sp.csr_matrix(hierarchy.levels[len(levels)].A), places))
+    levels, rng = grid_levels(shape, seed=size)
     levels = [(operator, places) for operator, places in levels if operator.shape[0] >= size * rows.MIN_ROWS]
     assert len(levels) >= 2
     for operator, (layer, lane) in levels:
@@ -104,12 +110,7 @@ def test_a_lane_runs_ahead_only_as_far_as_the_couplings_allow(small_blocks, shap
     """On the grid's matrix (couplings within a layer or a lane) a lane may run through every layer before the
     lanes after it start; on the Ruge-Stueben levels (couplings across both) only as far as the nearest such
     coupling.  Either way, the sweep in the order that runs lanes farthest ahead is pyamg's, bit for bit."""
-    matrix, places, rng = grid_matrix(shape, seed=size)
-    hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=20)
-    levels = [(matrix, places)]
-    for level in hierarchy.levels[:2]:
-        places = coarse_places(level, places)
-        levels.append((sp.csr_matrix(hierarchy.levels[len(levels)].A), places))
+    levels, rng = grid_levels(shape, seed=size)
     lags = []
     for operator, (layer, lane) in levels:
         sweeps = Sweeps(operator, layer, lane, Team(size), adaptive=False)
