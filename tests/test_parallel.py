@@ -16,7 +16,7 @@ from solver import Grid, Laws, Numerics, Problem
 from solver.mechanics.stencil import Stencil, offsets
 from solver.parallel import Team, rows
 from solver.parallel.rows import add_product, product, residual
-from solver.parallel.sweeps import Sweeps, pipelined
+from solver.parallel.sweeps import Sweeps, _relax, pipelined
 from solver.problem import Parameters
 from solver.timeloop import Simulation
 from solver.transport.biofilm import Biofilm
@@ -37,6 +37,17 @@ def grid_matrix(shape, seed=0):
     fv = FiniteVolumeGrid(grid, rng.random(grid.cells_shape) < 0.1)
     matrix = sp.csr_matrix(-fv.laplacian + sp.diags(rng.random(fv.n)))
     return matrix, fv.places(np.arange(fv.n)), rng
+
+
+def grid_levels(shape, seed):
+    """The grid's matrix and its first two Ruge-Stueben coarse levels, each with its rows' places."""
+    matrix, places, rng = grid_matrix(shape, seed=seed)
+    hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=20)
+    levels = [(matrix, places)]
+    for level in hierarchy.levels[:2]:
+        places = coarse_places(level, places)
+        levels.append((sp.csr_matrix(hierarchy.levels[len(levels)].A), places))
+    return levels, rng
 
 
 @pytest.mark.parametrize("size", [2, 3])
@@ -60,12 +71,7 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
     """Forward and backward sweeps on several threads give pyamg's serial sweep bit for bit, on the grid's matrix
     (7- or 5-point, obstacles) and on its Ruge-Stueben coarse levels (denser, rows taking the places of their
     C-points)."""
-    matrix, places, rng = grid_matrix(shape, seed=size)
-    hierarchy = pyamg.ruge_stuben_solver(matrix, max_coarse=20)
-    levels = [(matrix, places)]
-    for level in hierarchy.levels[:2]:
-        places = coarse_places(level, places)
-        levels.append((sp.csr_matrix(hierarchy.levels[len(levels)].A), places))
+    levels, rng = grid_levels(shape, seed=size)
     levels = [(operator, places) for operator, places in levels if operator.shape[0] >= size * rows.MIN_ROWS]
     assert len(levels) >= 2
     for operator, (layer, lane) in levels:
@@ -77,6 +83,47 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
             (sweeps.forward if forward else sweeps.backward)(operator, x, b)
             gauss_seidel(operator.indptr, operator.indices, operator.data, expected, b, *arguments)
             assert np.array_equal(x, expected)
+
+
+def lanes_far_ahead(sweeps, matrix, x, b, forward):
+    """A sweep with its blocks in the order the pipeline's waits allow that runs each lane as far ahead of the
+    lanes after it as they let it (lane 0 first, as many layers as it may, then lane 1, ...): the order a thread
+    schedule could take at worst, made here in one thread so that it is taken every time; backward: mirrored)."""
+    count, layers, lag, starts, order = sweeps.count, sweeps.layers, sweeps.lag, sweeps.starts, sweeps.order
+    done = [0] * count
+    while min(done) < layers:
+        for t in range(count) if forward else reversed(range(count)):
+            while done[t] < layers and all(
+                    done[s] >= (done[t] + 1 if (s < t) == forward else done[t] - lag + 1)
+                    for s in range(count) if s != t):
+                g = done[t] if forward else layers - 1 - done[t]
+                block = t * layers + g
+                arguments = (starts[block], starts[block + 1], 1) if forward else (starts[block + 1] - 1,
+                                                                                    starts[block] - 1, -1)
+                _relax(matrix.indptr, matrix.indices, matrix.data, x, b, order, *arguments)
+                done[t] += 1
+
+
+@pytest.mark.parametrize("shape", [(9, 8, 7), (30, 26)])
+@pytest.mark.parametrize("size", [2, 3])
+def test_a_lane_runs_ahead_only_as_far_as_the_couplings_allow(small_blocks, shape, size):
+    """On the grid's matrix (couplings within a layer or a lane) a lane may run through every layer before the
+    lanes after it start; on the Ruge-Stueben levels (couplings across both) only as far as the nearest such
+    coupling.  Either way, the sweep in the order that runs lanes farthest ahead is pyamg's, bit for bit."""
+    levels, rng = grid_levels(shape, seed=size)
+    lags = []
+    for operator, (layer, lane) in levels:
+        sweeps = Sweeps(operator, layer, lane, Team(size), adaptive=False)
+        if sweeps.count < 2:
+            continue
+        lags.append((sweeps.lag, sweeps.layers))
+        b, start = rng.normal(size=(2, operator.shape[0]))
+        for forward, arguments in ((True, (0, operator.shape[0], 1)), (False, (operator.shape[0] - 1, -1, -1))):
+            x, expected = start.copy(), start.copy()
+            lanes_far_ahead(sweeps, operator, x, b, forward)
+            gauss_seidel(operator.indptr, operator.indices, operator.data, expected, b, *arguments)
+            assert np.array_equal(x, expected)
+    assert lags[0][0] == lags[0][1] and any(lag < layers for lag, layers in lags[1:])
 
 
 def test_the_faster_way_of_sweeping_is_kept_and_the_other_timed_again(small_blocks, monkeypatch):
@@ -98,6 +145,33 @@ def test_the_faster_way_of_sweeping_is_kept_and_the_other_timed_again(small_bloc
         sweeps.forward(matrix, np.zeros(matrix.shape[0]), np.ones(matrix.shape[0]))
     tried = [i for i, way in enumerate(ways) if way == "pipelined"]
     assert tried == [0, module.SAMPLE, 3 * module.SAMPLE]  # later each time it stays the slower
+
+
+def test_a_pipeline_timed_again_and_found_faster_is_used_from_then_on(small_blocks, monkeypatch):
+    """The probe's time replaces the way's mean: a pipeline whose first sweep was slow (a cold start, 4 s here
+    against 1 s serial) and that now takes 0.5 s is used from the sweep after its first probe on (blended into
+    the old mean with weight 0.25 it stayed the "slower" through ever rarer probes)."""
+    from solver.parallel import sweeps as module
+
+    matrix, (layer, lane), rng = grid_matrix((9, 8, 7))
+    sweeps = Sweeps(matrix, layer, lane, Team(2))
+    now = [0.0]
+    monkeypatch.setattr(module.time, "perf_counter", lambda: now[0])
+    ways = []
+
+    def way(name, seconds):
+        def sweep(*args):
+            ways.append(name)
+            now[0] += seconds
+        return sweep
+
+    monkeypatch.setattr(sweeps, "_pipelined", way("pipelined", 0.5))
+    monkeypatch.setattr(sweeps, "_serial", way("serial", 1.0))
+    sweeps.seconds[True], sweeps.seconds[False] = 4.0, 1.0
+    for _ in range(3 * module.SAMPLE):
+        sweeps.forward(matrix, np.zeros(matrix.shape[0]), np.ones(matrix.shape[0]))
+    # the first sweep is the pipeline's probe; from then on the pipeline, the serial sweep timed every SAMPLE-th
+    assert ways == ["serial" if (i + 1) % module.SAMPLE == 0 else "pipelined" for i in range(len(ways))]
 
 
 def test_a_pattern_against_the_grid_order_is_swept_serially(small_blocks):
@@ -328,14 +402,52 @@ def test_a_team_runs_independent_parts_in_turn_while_that_has_been_faster():
     from solver.parallel import team as module
 
     team = Team(2)
-    team.ratios[""] = 3.0  # at once took 3 times as long as in turn would have
     seen = []
+
+    def where(part):
+        seen.append(threading.current_thread() is threading.main_thread())
+
+    team.ratios[module.kind(where)] = 3.0  # at once took 3 times as long as in turn would have
     for _ in range(7 * module.PROBE):
-        team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()))
+        team.run(where)
     probes = [i // 2 for i, here in enumerate(seen) if not here]  # the calls whose part 1 ran on the helper
     assert probes == [module.PROBE - 1, 2 * module.PROBE - 1, 4 * module.PROBE - 1]  # later each time
-    team.ratios[""] = 3.0
+    team.ratios[module.kind(where)] = 3.0
     seen.clear()
-    team.run(lambda part: seen.append(threading.current_thread() is threading.main_thread()), together=True)
+    team.run(where, together=True)
     assert sorted(seen) == [False, True]
+    team.close()
+
+
+def test_each_kind_of_work_has_its_mean_and_a_trial_that_pays_brings_the_threads_back(monkeypatch):
+    """A kind of work whose threads did not pay does not send another kind in turn; and once a trial at once
+    pays, the parts run at once from the next call (the trial's ratio replaces the stale mean: blended into a
+    mean of 3 with weight 0.1 it would have taken several ever rarer trials)."""
+    import threading
+
+    from solver.parallel import team as module
+
+    team = Team(2)
+    seen = []
+
+    def slow(part):
+        seen.append(("slow", threading.current_thread() is threading.main_thread()))
+
+    def fast(part):
+        seen.append(("fast", threading.current_thread() is threading.main_thread()))
+
+    team.ratios[module.kind(slow)] = 3.0
+    team.run(fast)
+    team.run(slow)
+    assert sorted(seen) == [("fast", False), ("fast", True), ("slow", True), ("slow", True)]
+    assert module.kind(fast) not in team.ratios or team.ratios[module.kind(fast)] != 3.0
+    clock = iter(np.arange(0.0, 1e4, 1.0))
+    monkeypatch.setattr(module.time, "perf_counter", lambda: next(clock))  # a trial: own part 1 s, at once 2 s
+    monkeypatch.setattr(module, "SHORT", 0.0)
+    for _ in range(module.PROBE - 1):  # the calls up to the trial (it is the PROBE-th)
+        team.run(slow)
+    assert team.ratios[module.kind(slow)] == 1.0  # 2 s / (2 x 1 s): the trial's own ratio
+    seen.clear()
+    team.run(slow)  # not above 1: at once
+    assert sorted(seen) == [("slow", False), ("slow", True)]
     team.close()

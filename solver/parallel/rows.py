@@ -17,7 +17,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from .team import Team
+from .team import Team, kind
 
 MIN_ROWS = 8192  # rows per block below which a product is not split: handing a block over costs ~15 µs
 jit = numba.njit(cache=True, nogil=True)
@@ -41,7 +41,7 @@ def split(team: Team, n: int, work: Callable[[int, int], None]) -> None:
         if p + 1 < bounds.size:
             work(int(bounds[p]), int(bounds[p + 1]))
 
-    team.run(part)
+    team.run(part, site=kind(work))
 
 
 def compiled(matrix) -> bool:

@@ -6,7 +6,11 @@ dependencies computes the same numbers.  On a grid numbered x fastest (the trans
 coarse levels of its multigrid, whose rows keep the order of the fine cells they came from), the rows are
 put in blocks by their layer along the slowest axis (z in 3-D, y in 2-D) and, within a layer, into as many
 lanes along the next axis as there are threads; thread t sweeps lane t of layer 0, 1, 2, ... and starts a
-layer once every thread before it has finished that layer and every thread after it the layer before.
+layer once every thread before it has finished that layer and every thread after it the layer `lag` below,
+`lag` the fewest layers between two coupled rows of which the one in the later layer is in the earlier lane
+(`layers_ahead`).  The grid's 7- and 5-point matrices have no such pair (lag = every layer: the lanes run
+side by side, 1.5 ms against pyamg's 2.8 ms at 64^3 on 2 threads); Ruge-Stueben's coarse levels couple
+diagonal neighbours (lag 1: the lanes take turns, no faster than one thread, so they are swept serially).
 A block then comes after every block that holds an earlier row it is coupled to, provided no stored entry
 couples a row to an earlier row of a later layer or of a later lane in its own layer: `pipelined` checks
 that on the matrix's pattern (true of any matrix whose couplings are between cells near each other in grid
@@ -19,7 +23,9 @@ other work a thread waits for one that is not running (measured: 7 times slower 
 2 cores).  Either way of sweeping gives the same numbers, so the faster is chosen as the run goes: the time of
 each sweep is kept (a running mean of each way), the pipeline is used while it is the faster, and the other
 way is timed again every `SAMPLE`-th sweep (the pipeline, while it is the slower: after twice as many sweeps
-each time, up to `PATIENCE`).
+each time, up to `PATIENCE`).  Such a probe's time replaces its way's mean instead of joining it: blended in
+with weight 0.25, one slow first pipelined sweep (9.1 ms against 2.7 ms serial at 64^3, at load 1.7) would keep
+a pipeline of 1.6 ms the "slower" for some 1000 sweeps, its probes ever rarer (a 30-step run makes ~530).
 """
 from __future__ import annotations
 
@@ -65,6 +71,7 @@ class Sweeps:
             keys = np.arange(self.count * layers + 1, dtype=np.int64)
             self.starts = np.searchsorted(key[self.order], keys).astype(np.int64)
             self.layers = layers
+            self.lag = layers_ahead(pattern, layer, chunk, layers)
             self.progress = np.zeros((self.count, LINE), np.int64)
         self.seconds = {True: 0.0, False: 0.0}  # running mean of a sweep's time, pipelined or serial (0: not yet)
         self.sweeps = 0
@@ -80,8 +87,8 @@ class Sweeps:
         self._sweep(matrix, x, b, False)
 
     def _sweep(self, matrix, x, b, forward: bool) -> None:
-        if self.count == 1 or not self._same_pattern(matrix):
-            self._serial(matrix, x, b, forward)
+        if self.count == 1 or not self._same_pattern(matrix) or (self.adaptive and self.lag == 1):
+            self._serial(matrix, x, b, forward)  # lag 1: the lanes take turns, one thread's time and the handoffs
             return
         if not self.adaptive:
             self._pipelined(matrix, x, b, forward)
@@ -95,10 +102,12 @@ class Sweeps:
             pipeline = self.sweeps % SAMPLE != 0
         else:
             pipeline = self.sweeps >= self.retry[0]
+        probe = bool(timed[False] and timed[True]) and pipeline == slower  # the way not in use, timed again
         began = time.perf_counter()
         (self._pipelined if pipeline else self._serial)(matrix, x, b, forward)
         seconds = time.perf_counter() - began
-        timed[pipeline] = seconds if not timed[pipeline] else (1 - WEIGHT) * timed[pipeline] + WEIGHT * seconds
+        fresh = probe or not timed[pipeline]  # a probe replaces its way's mean: the old one is stale, and may hold
+        timed[pipeline] = seconds if fresh else (1 - WEIGHT) * timed[pipeline] + WEIGHT * seconds  # a cold start
         if pipeline and timed[False] and timed[True] > timed[False]:  # slower: try again later, later each time
             interval = min(2 * self.retry[1], PATIENCE) if slower else SAMPLE
             self.retry = (self.sweeps + interval, interval)
@@ -113,11 +122,11 @@ class Sweeps:
         kernel = _forward if forward else _backward
         indptr, indices, data, order, starts, progress = (matrix.indptr, matrix.indices, matrix.data, self.order,
                                                           self.starts, self.progress)
-        count, layers = self.count, self.layers
+        count, layers, lag = self.count, self.layers, self.lag
 
         def part(t: int) -> None:
             if t < count:
-                kernel(indptr, indices, data, x, b, order, starts, layers, progress, t, count)
+                kernel(indptr, indices, data, x, b, order, starts, layers, lag, progress, t, count)
 
         self.team.run(part, together=True)
 
@@ -146,39 +155,54 @@ def pipelined(pattern: sp.csr_matrix, layer: np.ndarray, chunk: np.ndarray, coun
     return bool(np.all((later_block == 0) | (later_block == earlier)))
 
 
-@jit
-def _relax(indptr, indices, data, x, b, i):
-    """pyamg's Gauss-Seidel update of row i (amg_core/relaxation.h), operation for operation."""
-    total = 0.0
-    diagonal = 0.0
-    for k in range(np.uint64(indptr[i]), np.uint64(indptr[i + 1])):
-        j = indices[k]
-        if j == i:
-            diagonal = data[k]
-        else:
-            total += data[k] * x[np.uint64(j)]
-    if diagonal != 0.0:
-        x[i] = (b[i] - total) / diagonal
+def layers_ahead(pattern: sp.csr_matrix, layer: np.ndarray, chunk: np.ndarray, layers: int) -> int:
+    """How many layers a lane may run ahead of the lanes after it (behind them in a backward sweep): the fewest
+    layers between two coupled rows of which the one in the later layer is in the earlier lane (`layers`: no such
+    pair, as on the 7-point and 5-point grids, whose couplings join rows of one layer or of one lane)."""
+    row = np.repeat(np.arange(pattern.shape[0], dtype=np.int64), np.diff(pattern.indptr))
+    col = pattern.indices.astype(np.int64)
+    across = layer[col] - layer[row]
+    opposite = across * (chunk[col] - chunk[row]) < 0
+    return int(np.abs(across[opposite]).min(initial=layers))
 
 
 @jit
-def _forward(indptr, indices, data, x, b, order, starts, layers, progress, t, count):
+def _relax(indptr, indices, data, x, b, order, first, stop, step):
+    """pyamg's Gauss-Seidel update (amg_core/relaxation.h), operation for operation, of the rows order[first],
+    order[first + step], ... before order[stop].  A block per call: with a call per row (not inlined) the sweep
+    took 1.8 times pyamg's."""
+    for k in range(first, stop, step):
+        i = order[k]
+        total = 0.0
+        diagonal = 0.0
+        for m in range(np.uint64(indptr[i]), np.uint64(indptr[i + 1])):
+            j = indices[m]
+            if j == i:
+                diagonal = data[m]
+            else:
+                total += data[m] * x[np.uint64(j)]
+        if diagonal != 0.0:
+            x[i] = (b[i] - total) / diagonal
+
+
+@jit
+def _forward(indptr, indices, data, x, b, order, starts, layers, lag, progress, t, count):
     """Thread t's lane, layer by layer upward: a layer once the lanes before have done it and those after the
-    layer below."""
+    layer `lag` below (`lag`: the fewest layers between coupled rows of which the later layer's is in the earlier
+    lane; with 1 the lanes take turns)."""
     for g in range(layers):
         for s in range(count):
             if s < t:
                 wait_until(progress, s, g + 1)
             elif s > t:
-                wait_until(progress, s, g)
+                wait_until(progress, s, g - lag + 1)
         block = t * layers + g
-        for k in range(starts[block], starts[block + 1]):
-            _relax(indptr, indices, data, x, b, order[k])
+        _relax(indptr, indices, data, x, b, order, starts[block], starts[block + 1], 1)
         store_release(progress[t], 0, g + 1)
 
 
 @jit
-def _backward(indptr, indices, data, x, b, order, starts, layers, progress, t, count):
+def _backward(indptr, indices, data, x, b, order, starts, layers, lag, progress, t, count):
     """Thread t's lane, layer by layer downward, rows in decreasing order: the mirror of `_forward`."""
     for done in range(layers):
         g = layers - 1 - done
@@ -186,8 +210,7 @@ def _backward(indptr, indices, data, x, b, order, starts, layers, progress, t, c
             if s > t:
                 wait_until(progress, s, done + 1)
             elif s < t:
-                wait_until(progress, s, done)
+                wait_until(progress, s, done - lag + 1)
         block = t * layers + g
-        for k in range(starts[block + 1] - 1, starts[block] - 1, -1):
-            _relax(indptr, indices, data, x, b, order[k])
+        _relax(indptr, indices, data, x, b, order, starts[block + 1] - 1, starts[block] - 1, -1)
         store_release(progress[t], 0, done + 1)
