@@ -3,6 +3,7 @@ in attributes netCDF can store; a run's dataset with the scene that produced it 
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -14,7 +15,9 @@ if TYPE_CHECKING:
     import xarray as xr  # imported where a dataset is made: `show` of a run's file needs none
 
 
+@functools.lru_cache(maxsize=None)
 def version() -> str:
+    """biostudy's installed version, read once per process (every dataset records it)."""
     import importlib.metadata  # lazily: it imports email and more, which `show` of a run's file never needs
 
     try:

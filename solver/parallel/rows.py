@@ -32,6 +32,9 @@ def blocks(n: int, team: Team) -> np.ndarray:
 
 def split(team: Team, n: int, work: Callable[[int, int], None]) -> None:
     """work(start, stop) over blocks of range(n), on the team's threads when n is large enough."""
+    if team.size == 1 or n < 2 * MIN_ROWS:  # one block (`blocks`), without making its bounds: most calls of a small run
+        work(0, n)
+        return
     bounds = blocks(n, team)
     if bounds.size == 2:
         work(0, n)
