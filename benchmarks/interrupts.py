@@ -32,38 +32,11 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCENE = """\
-name = "agar-twin"
-[grid]
-shape = [12, 16]
-[time]
-t_end = 0.2
-steps = 40
-[[nutrient]]
-shape = "face"
-face = "y-"
-[[biofilm]]
-shape = "box"
-lower = [3.0, 0.0]
-upper = [9.0, 4.0]
-[numerics]
-advection = "tvd"
-growth_velocity = "front"
-"""
-CALIBRATION = """\
-scene = "agar.toml"
-[data]
-measurements = "twin.tsv"
-time_unit = "h"
-t_ref = "20 h"
-[estimate]
-g = [1e7, 1e10, "log"]
-r = [20.0, 250.0, "log"]
-[method]
-starts = 1
-profiles = false
-seed = 0
-"""
+sys.path.insert(0, str(HERE.parent / "tests"))
+from test_calibration import CALIBRATION as PROFILED  # noqa: E402  (the tests' tiny 2-D twin)
+from test_calibration import SCENE  # noqa: E402
+
+CALIBRATION = PROFILED.replace("starts = 2", "starts = 1").replace("profiles = true", "profiles = false")
 # the calibration, each simulation that returned logged to FINISHED (one case id a line) before it is recorded
 WRAPPER = textwrap.dedent("""\
     import os, sys
