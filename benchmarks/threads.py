@@ -3,6 +3,7 @@
     python benchmarks/threads.py                                   # 64^3 without mechanics, 30 steps, 1 .. cores
     python benchmarks/threads.py --repeats 5                       # each count 5 times, in turn: medians
     python benchmarks/threads.py --sizes 32 48 --steps 4 --mechanics   # the mechanics' solves (docs/mechanics.md)
+    python benchmarks/threads.py --handoff --baseline /tmp/old      # a team's hand-over of an empty part, µs
 
 The scene: `studies/directional.toml` (paper 4.1) at n^3 cells of 20/n µm, its time step (dt = 1e-3), `--steps`
 steps, two outputs (the start and the end), mechanics off unless `--mechanics` (then solved at both outputs), the
@@ -13,6 +14,11 @@ mechanics solve at the end included), its parts per step, the mechanics' seconds
 the run's threads, and a digest of the fields at the end (phi, c, alpha; u and p with the mechanics): the same
 digest for every count is the same fields bit for bit.  The table gives the median of the repeats, the loop's
 time against one thread's and the load average at each case's start (the machine may be shared).
+`--handoff`: how long a team of two threads takes to hand an empty part to its helper and hear it done (what
+every parallel call pays on top of its work), and a vector update of the size of a 40^3 run's (x += a p, the
+half of 64 000 entries each) on two threads and on one, the best of 5 batches of 2000 calls, in a fresh process
+each for this version and, with --baseline DIR, for DIR's `solver` (`git archive <commit> | tar -x -C DIR`), in
+turn 3 times.
 Asserts nothing: tables for docs/transport.md and docs/mechanics.md.
 """
 from __future__ import annotations
@@ -57,6 +63,45 @@ print(json.dumps({"loop": loop, "parts": parts, "cpu": report["cpu_time_loop"] -
 """
 
 
+HANDOFF = """\
+import json, time
+import numpy as np
+from solver.parallel import Team
+from solver.parallel.vectors import add_scaled
+x, p = np.zeros(64000), np.ones(64000)
+def best(team, work):
+    for _ in range(200):
+        work(team)
+    found = float("inf")
+    for _ in range(5):
+        began = time.perf_counter()
+        for _ in range(2000):
+            work(team)
+        found = min(found, (time.perf_counter() - began) / 2000)
+    return 1e6 * found
+empty = lambda team: team.run(lambda part: None, together=True)
+update = lambda team: add_scaled(team, x, 0.5, p)
+two = Team(2)
+print(json.dumps({"empty": best(two, empty), "update": best(two, update), "serial": best(Team(1), update)}))
+"""
+
+
+def handoff(baseline: str | None) -> None:
+    """The hand-over table (module docstring)."""
+    versions = [("this", str(ROOT))] + ([("baseline", os.path.abspath(baseline))] if baseline else [])
+    print("| version | empty part on 2 threads, µs | x += a p (64 000 entries) on 2 threads, µs | on 1 thread, µs "
+          "| load |")
+    print("|---|---|---|---|---|")
+    for _ in range(3):
+        for name, path in versions:
+            load = os.getloadavg()[0]
+            done = subprocess.run([sys.executable, "-c", HANDOFF], capture_output=True, text=True, check=True,
+                                  cwd=ROOT.parent, env={**os.environ, "PYTHONPATH": path})
+            found = json.loads(done.stdout)
+            print(f"| {name} | {found['empty']:.1f} | {found['update']:.1f} | {found['serial']:.1f} | {load:.1f} |",
+                  flush=True)
+
+
 def overrides(n: int, steps: int, mechanics: bool, threads: int) -> list[str]:
     return [f"grid.shape=[{n},{n},{n}]", f"grid.spacing={20.0 / n!r}", f"time.steps={steps}",
             f"time.t_end={steps * 1e-3!r}", "time.outputs=2", f"mechanics.enabled={str(mechanics).lower()}",
@@ -81,7 +126,12 @@ def main() -> None:
     parser.add_argument("--threads", type=int, nargs="+", help="thread counts (default: 1 up to the processors here)")
     parser.add_argument("--repeats", type=int, default=1, help="runs of each count, in turn; the table has medians")
     parser.add_argument("--mechanics", action="store_true", help="with the mechanics, solved at both outputs")
+    parser.add_argument("--handoff", action="store_true", help="time a team's hand-over of an empty part instead")
+    parser.add_argument("--baseline", help="with --handoff: another version's directory, timed in turn")
     args = parser.parse_args()
+    if args.handoff:
+        handoff(args.baseline)
+        return
     counts = args.threads or list(range(1, len(os.sched_getaffinity(0)) + 1))
 
     print(f"directional scene, {args.steps} steps, mechanics {'on' if args.mechanics else 'off'}; "

@@ -46,6 +46,26 @@ def store_release(typingctx, array, index, value):
 
 
 @intrinsic
+def store_seq_cst(typingctx, array, index, value):
+    """array[index] = value for an int64 array, an atomic store in the single total order of sequentially
+    consistent operations (with `load_seq_cst`: of two threads that each store one flag and then load the other's,
+    at least one sees the other's store)."""
+    def codegen(context, builder, signature, args):
+        value = context.cast(builder, args[2], signature.args[2], types.int64)
+        builder.store_atomic(value, _pointer(context, builder, signature.args[0], args[0], args[1]), "seq_cst", 8)
+        return context.get_dummy_value()
+    return types.void(array, index, value), codegen
+
+
+@intrinsic
+def load_seq_cst(typingctx, array, index):
+    """array[index] of an int64 array, an atomic load in the total order of `store_seq_cst`."""
+    def codegen(context, builder, signature, args):
+        return builder.load_atomic(_pointer(context, builder, signature.args[0], *args), "seq_cst", 8)
+    return types.int64(array, index), codegen
+
+
+@intrinsic
 def relax(typingctx):
     """The processor's hint that this is a spin-wait (x86 ``pause``; nothing elsewhere)."""
     def codegen(context, builder, signature, args):
@@ -55,6 +75,39 @@ def relax(typingctx):
             builder.call(hint, [])
         return context.get_dummy_value()
     return types.void(), codegen
+
+
+@numba.njit(cache=True, nogil=True)
+def mark_and_spin(done: np.ndarray, index: int, value: int, progress: np.ndarray, least: int, spins: int) -> bool:
+    """done[index, 0] = value (release; nothing if value is 0), then spin at most `spins` times until
+    progress[index, 0] >= least; whether it got there.  One call without the GIL: the thread waiting for `done`
+    does not then wait for this one's interpreter lock as well."""
+    if value:
+        store_release(done[index], 0, value)
+    for spin in range(1, spins + 1):
+        if load_acquire(progress[index], 0) >= least:
+            return True
+        if spin % YIELD_AFTER:
+            relax()
+        else:
+            sched_yield()
+    return load_acquire(progress[index], 0) >= least
+
+
+@numba.njit(cache=True, nogil=True)
+def flag_and_look(flags: np.ndarray, index: int, progress: np.ndarray, least: int) -> bool:
+    """Raise flags[index, 0] (sequentially consistent), then whether progress[index, 0] >= least: a thread about to
+    sleep until progress is made (another thread that makes it and then looks at the flag cannot miss both)."""
+    store_seq_cst(flags[index], 0, 1)
+    return load_seq_cst(progress[index], 0) >= least
+
+
+@numba.njit(cache=True, nogil=True)
+def publish(progress: np.ndarray, index: int, value: int, flags: np.ndarray) -> bool:
+    """progress[index, 0] = value (sequentially consistent), then whether flags[index, 0] is raised: the mirror of
+    `flag_and_look`."""
+    store_seq_cst(progress[index], 0, value)
+    return load_seq_cst(flags[index], 0) != 0
 
 
 @numba.njit(cache=True, nogil=True)

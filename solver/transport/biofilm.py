@@ -39,16 +39,15 @@ from ..counters import Counters
 from ..parallel import SERIAL, Team
 from ..parallel.rows import blocks, split
 from ..problem import Numerics, Parameters
+from .assembly import face_coefficients, face_maps, matrix_rows
 from .bounds import ROUNDOFF, Projection
 from .finite_volume import FiniteVolumeGrid
 from .front import FrontVelocity
 from .kernels import (
     ROWS,
     advection_into,
-    biofilm_rows,
     biofilm_sources,
     central_differences,
-    clear,
     face_gradient,
     face_velocity,
     row_offsets,
@@ -184,6 +183,10 @@ class Biofilm:
                                                                       (f.lower, out_lower), (f.upper, out_upper))]))
         self.rows = blocks(fv.n, team)  # the team's blocks of rows, and per axis the faces that touch each
         self.face_ranges = fv.face_ranges(self.rows)
+        self.below, self.above, self.lower_entry, self.upper_entry, self.face_start = face_maps(
+            self.faces, self.matrix.indptr, self.offsets, fv.n)  # each row's faces and entries (assembly.py)
+        total = int(self.face_start[-1])
+        self.inflow, self.outflow, self.forward = np.empty(total), np.empty(total), np.empty(total, np.bool_)
         self.iterations = 0
         self.projection = Projection()  # what _checked projected onto [0, upper]
 
@@ -225,11 +228,12 @@ class Biofilm:
             if p + 1 >= rows.size:
                 return
             start, stop = int(rows[p]), int(rows[p + 1])
-            clear(data, indptr[start], indptr[stop])
             for axis, wf in enumerate(w):
-                advection_into(data, self.faces[axis], self.offsets[axis], indptr, wf, phi, h, self.tvd,
-                               faces[axis][p, 0], faces[axis][p, 1], start, stop)
-            biofilm_rows(data, indptr, self.diagonal, self.neighbour, self.own, reciprocal, diagonal, start, stop)
+                face_coefficients(self.inflow, self.outflow, self.forward, int(self.face_start[axis]),
+                                  self.faces[axis], wf, phi, h, self.tvd, faces[axis][p, 0], faces[axis][p, 1])
+            matrix_rows(data, indptr, self.diagonal, self.neighbour, self.own, reciprocal, diagonal, self.below,
+                        self.above, self.lower_entry, self.upper_entry, self.inflow, self.outflow, self.forward,
+                        self.tvd, start, stop)
             largest[p] = biofilm_sources(rhs, phi, alpha, k_alpha, dt, start, stop)
 
         self.team.run(block) if rows.size > 2 else block(0)

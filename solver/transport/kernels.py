@@ -34,9 +34,9 @@ def advection_into(out: np.ndarray, faces: np.ndarray, offsets: np.ndarray, indp
     Entries are added in the order of the numpy form (inflow diagonal, inflow off-diagonal, outflow
     diagonal, outflow off-diagonal, each over all faces), so that the sums round alike.
 
-    A block of a team's (`Biofilm.advection_rows`): only the faces first .. last - 1 (all: -1), and of their
-    entries only those of rows row_start .. row_stop - 1 (all: -1); an entry's sum sees the same terms in the
-    same order as when every face is done at once."""
+    Optionally a block: only the faces first .. last - 1 (all: -1), and of their entries only those of rows
+    row_start .. row_stop - 1 (all: -1); an entry's sum sees the same terms in the same order as when every face is
+    done at once.  (The phi step's matrix is made row by row instead, to the same bits: `assembly.py`.)"""
     last = w.size if last < 0 else last
     row_stop = phi.size if row_stop < 0 else row_stop
     m = last - first
@@ -268,28 +268,6 @@ def within_reach(start: np.ndarray, shape: np.ndarray, reach: int) -> np.ndarray
 
 
 @jit
-def clear(data: np.ndarray, start: int, stop: int) -> None:
-    """data[start:stop] = 0."""
-    for k in range(start, stop):
-        data[k] = 0.0
-
-
-@jit
-def biofilm_rows(data: np.ndarray, indptr: np.ndarray, diagonal: np.ndarray, neighbour: float, own: np.ndarray,
-                 reciprocal: float, diagonal_out: np.ndarray, start: int, stop: int) -> None:
-    """The biofilm matrix's data of rows start .. stop - 1 from their advection data (in `data`): diffusion +
-    advection, then 1/dt (`reciprocal`) added on the diagonal, whose values go to `diagonal_out` too.  The
-    diffusion -beta lap is `neighbour` off the diagonal (the Laplacian's off-diagonal entries are all alike)
-    and own[i] on row i's diagonal (`diagonal`: its positions)."""
-    for i in range(start, stop):
-        d = diagonal[i]
-        for k in range(indptr[i], indptr[i + 1]):
-            data[k] = (own[i] if k == d else neighbour) + data[k]
-        data[d] += reciprocal
-        diagonal_out[i] = data[d]
-
-
-@jit
 def biofilm_sources(rhs: np.ndarray, phi: np.ndarray, alpha: np.ndarray, k_alpha: float, dt: float, start: int,
                     stop: int) -> float:
     """rhs = max(phi / dt + k_alpha alpha, 0) for cells start .. stop - 1 (a sink, alpha < 0 in Table 1's expansion,
@@ -304,3 +282,80 @@ def biofilm_sources(rhs: np.ndarray, phi: np.ndarray, alpha: np.ndarray, k_alpha
         if largest == largest and (bound > largest or bound != bound):  # a NaN is kept, as by np.max
             largest = bound
     return largest
+
+
+@jit
+def add_inflow(rate: np.ndarray, scratch: np.ndarray, lower: np.ndarray, upper: np.ndarray, w: np.ndarray) -> None:
+    """rate += per cell the sum of |w_f| over the faces of one axis that flow into it (w_f > 0: into `upper`, else
+    into `lower`), that sum made in `scratch` first, face by face in order from 0 (numpy's bincount, added as
+    a whole to rate)."""
+    for i in range(scratch.size):
+        scratch[i] = 0.0
+    for f in range(w.size):
+        if w[f] > 0:
+            scratch[upper[f]] += abs(w[f])
+        else:
+            scratch[lower[f]] += abs(w[f])
+    for i in range(rate.size):
+        rate[i] = rate[i] + scratch[i]
+
+
+@jit
+def largest_quotient(values: np.ndarray, h: float) -> float:
+    """max(0, max_i values[i] / h), NaN if a quotient is (np.max(values / h, initial=0.0))."""
+    largest = 0.0
+    for i in range(values.size):
+        q = values[i] / h
+        if q != q:
+            return q
+        if q > largest:
+            largest = q
+    return largest
+
+
+@jit
+def extrapolated(c: np.ndarray, rate: np.ndarray, curvature: np.ndarray, dt: float, span: float) -> np.ndarray:
+    """c + dt * (rate + (dt + span) * curvature), entry by entry (the nutrient's parabola, `step.State`)."""
+    out = np.empty(c.size)
+    lever = dt + span
+    for i in range(c.size):
+        out[i] = c[i] + dt * (rate[i] + lever * curvature[i])
+    return out
+
+
+@jit
+def divided_difference(new: np.ndarray, old: np.ndarray, span: float) -> np.ndarray:
+    """(new - old) / span, entry by entry."""
+    out = np.empty(new.size)
+    for i in range(new.size):
+        out[i] = (new[i] - old[i]) / span
+    return out
+
+
+@jit
+def first_astray(values: np.ndarray, lower: float, upper: float) -> int:
+    """The first index of a value that is not finite or, if all are, of one outside [lower, upper]; -1 if none."""
+    astray = -1
+    for i in range(values.size):
+        v = values[i]
+        if not np.isfinite(v):
+            return i
+        if astray < 0 and (v < lower or v > upper):
+            astray = i
+    return astray
+
+
+@jit
+def clip_into(out: np.ndarray, values: np.ndarray, lower: float, upper: float, tally: np.ndarray) -> None:
+    """out = np.clip(values, lower, upper) bit for bit (a -0.0 kept, as numpy keeps it); tally[0] += how many values
+    moved, tally[1] = the largest |move| (values finite)."""
+    for i in range(values.size):
+        v = values[i]
+        clipped = lower if v < lower else v
+        clipped = upper if clipped > upper else clipped
+        out[i] = clipped
+        moved = abs(clipped - v)
+        if moved != 0.0:
+            tally[0] += 1.0
+            if moved > tally[1]:
+                tally[1] = moved
