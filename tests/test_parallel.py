@@ -85,6 +85,27 @@ def test_pipelined_sweeps_are_pyamgs(small_blocks, shape, size):
             assert np.array_equal(x, expected)
 
 
+@pytest.mark.parametrize("size", [1, 2, 3])
+def test_a_forward_sweep_from_zero_leaves_out_the_later_rows_to_the_same_bits(small_blocks, size):
+    """A forward sweep from x = 0 that leaves out the terms of the later rows (a_ij x_j = +-0 for j > i), pipelined
+    or serial, gives pyamg's full sweep from 0 bit for bit on the grid's matrix and its coarse levels; from another
+    x it would not (the test would see a sweep that left out nonzero terms)."""
+    levels, rng = grid_levels((9, 8, 7), seed=size)
+    for operator, (layer, lane) in levels:
+        b = rng.normal(size=operator.shape[0])
+        expected = np.zeros(operator.shape[0])
+        gauss_seidel(operator.indptr, operator.indices, operator.data, expected, b, 0, operator.shape[0], 1)
+        for adaptive in (False, True):  # the pipeline where the rows allow it, and the serial sweep
+            sweeps = Sweeps(operator, layer, lane, Team(size), adaptive=adaptive)
+            x = np.zeros(operator.shape[0])
+            sweeps.forward(operator, x, b, zero=True)
+            assert np.array_equal(x, expected)
+        Sweeps._serial(operator, x, b, True, zero=True)  # again from a nonzero x: not the full sweep
+        again = expected.copy()
+        gauss_seidel(operator.indptr, operator.indices, operator.data, again, b, 0, operator.shape[0], 1)
+        assert not np.array_equal(x, again)
+
+
 def lanes_far_ahead(sweeps, matrix, x, b, forward):
     """A sweep with its blocks in the order the pipeline's waits allow that runs each lane as far ahead of the
     lanes after it as they let it (lane 0 first, as many layers as it may, then lane 1, ...): the order a thread
