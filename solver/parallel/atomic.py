@@ -6,6 +6,8 @@ before the store is seen after the load (the C++ memory model's release/acquire,
 numba has no atomics on the CPU, so they are LLVM instructions emitted by numba intrinsics.  `relax` is the
 processor's spin-wait hint (x86 ``pause``), and every `YIELD_AFTER` spins the waiting thread gives its core
 away (``sched_yield``), so that a wait on a busy machine does not take the time of the thread waited for.
+A team (`team.py`) hands its parts over with the same counters, and with `store_and_load` (sequentially
+consistent) decides whether a helper that may be falling asleep has to be woken.
 """
 from __future__ import annotations
 
@@ -95,19 +97,12 @@ def mark_and_spin(done: np.ndarray, index: int, value: int, progress: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
-def flag_and_look(flags: np.ndarray, index: int, progress: np.ndarray, least: int) -> bool:
-    """Raise flags[index, 0] (sequentially consistent), then whether progress[index, 0] >= least: a thread about to
-    sleep until progress is made (another thread that makes it and then looks at the flag cannot miss both)."""
-    store_seq_cst(flags[index], 0, 1)
-    return load_seq_cst(progress[index], 0) >= least
-
-
-@numba.njit(cache=True, nogil=True)
-def publish(progress: np.ndarray, index: int, value: int, flags: np.ndarray) -> bool:
-    """progress[index, 0] = value (sequentially consistent), then whether flags[index, 0] is raised: the mirror of
-    `flag_and_look`."""
-    store_seq_cst(progress[index], 0, value)
-    return load_seq_cst(flags[index], 0) != 0
+def store_and_load(stored: np.ndarray, index: int, value: int, loaded: np.ndarray) -> int:
+    """stored[index, 0] = value, then loaded[index, 0], both sequentially consistent: of two threads that each
+    store one counter and then load the other's, at least one sees the other's store (a helper that raises its
+    flag before it sleeps, and the caller that hands it a part and then looks at that flag)."""
+    store_seq_cst(stored[index], 0, value)
+    return load_seq_cst(loaded[index], 0)
 
 
 @numba.njit(cache=True, nogil=True)

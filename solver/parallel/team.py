@@ -5,11 +5,12 @@ The compiled kernels release the GIL (numba's ``nogil``), so Python threads run 
 in the calling thread, then waits for every part and re-raises the first error.  All N parts run at the same
 time, which the pipelined Gauss-Seidel sweeps (`sweeps.py`) rely on: a part may wait for another.  A part is
 handed over through atomic counters (`atomic.py`): a helper that has finished one spins, without the GIL, for
-`SPINS` times (~0.1 ms, giving its core away every few µs as the sweeps' waits do) before it sleeps on a queue,
-and the caller spins likewise for the parts to be done.  A step at 40^3 hands parts over some 75 times, most
-within a fraction of a millisecond of the last: woken from a queue each time, a hand-over and back took 28 µs
-(measured on an idle machine, an empty part), and 60-110 µs at load 3 on 2 cores; spinning, 15-21 and 20-31
-(`benchmarks/threads.py --handoff` prints it).
+`SPINS` times (~50 µs, giving its core away every few µs as the sweeps' waits do) before it sleeps on a queue,
+and the caller spins likewise for the parts to be done.  A step at 40^3 calls the team some 80 times, 60 % of them
+within 50 µs of the call before (tens of µs of Python and whole-vector sums between them); a helper woken from a
+queue each time, and the caller from another, took 27 µs to hand an empty part over and hear it done, spinning
+21 µs, and a vector update of 64 000 entries took 60 µs on two threads against 40 (at load 2 on 2 cores:
+`benchmarks/threads.py --handoff --baseline DIR`).
 
 Not numba's own ``parallel=True``: its threading layer on Linux is GNU OpenMP, which aborts a process forked
 after it was used (a worker forked by a sweep, a test's fork), and its fork-safe alternative aborts when two
@@ -40,13 +41,13 @@ from typing import Callable
 
 import numpy as np
 
-from .atomic import flag_and_look, mark_and_spin, publish, wait_until
+from .atomic import mark_and_spin, store_and_load, wait_until
 
 PROBE = 16  # while parts run in turn, after this many times they run at once again, to see whether that pays ...
 PATIENCE = 1024  # ... and after twice as many each time it did not, up to this many
 WEIGHT = 0.1  # of a new ratio in the running mean
 SHORT = 2e-5  # seconds: a caller's part shorter than this says nothing about the threads
-SPINS = 4096  # a helper waits this many spins (~0.1 ms) for its next part before it sleeps
+SPINS = 2048  # a helper waits this many spins (~50 µs) for its next part before it sleeps
 LINE = 8  # int64 per helper's counter: one cache line each
 
 
@@ -89,7 +90,7 @@ class Team:
             board.handed += 1
             for slot in range(self.size - 1):
                 board.tasks[slot] = (work, slot + 1)
-                if publish(board.tickets, slot, board.handed, board.asleep):
+                if store_and_load(board.tickets, slot, board.handed, board.asleep):  # it sleeps: wake it
                     board.wakes[slot].put(None)
             began = time.perf_counter()
             failure: BaseException | None = None
@@ -163,7 +164,7 @@ def _serve(board: _Board, slot: int, seconds: list[float]) -> None:
     seen = 0
     while True:
         if not mark_and_spin(board.done, slot, seen, board.tickets, seen + 1, SPINS):
-            while not flag_and_look(board.asleep, slot, board.tickets, seen + 1):  # asleep until a part comes
+            while store_and_load(board.asleep, slot, 1, board.tickets) <= seen:  # asleep until a part comes
                 board.wakes[slot].get()  # (a wake left over from a part found before sleeping: look again)
             board.asleep[slot, 0] = 0
         seen += 1
@@ -185,7 +186,7 @@ def _stop(board: _Board) -> None:
     board.handed += 1
     for slot in range(len(board.tasks)):
         board.tasks[slot] = None
-        publish(board.tickets, slot, board.handed, board.asleep)
+        store_and_load(board.tickets, slot, board.handed, board.asleep)
         board.wakes[slot].put(None)
 
 

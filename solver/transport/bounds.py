@@ -31,7 +31,6 @@ import numpy as np
 
 from ..counters import Counters
 from ..errors import StepFailure
-from .kernels import clip_into, first_astray
 
 ROUNDOFF = 1e-8  # relative distance to a bound that counts as round-off
 CEILING = 1.0 / ROUNDOFF  # beyond it a check's round-off exceeds phi's own scale (module docstring)
@@ -86,22 +85,24 @@ class Projection:
                 f"projected_{name}_largest": self.largest}
 
     def onto(self, values: np.ndarray, lower: float, upper: float) -> np.ndarray:
-        """`values` (finite) clipped to [lower, upper]; the correction is tallied."""
-        clipped, tally = np.empty_like(values, dtype=float), np.zeros(2)
-        clip_into(clipped, np.asarray(values, dtype=float), lower, upper, tally)
-        if tally[0]:
-            self.count += int(tally[0])
-            self.largest = max(self.largest, float(tally[1]))
+        """`values` clipped to [lower, upper]; the correction is tallied."""
+        clipped = np.clip(values, lower, upper)
+        moved = np.abs(clipped - values)
+        count = int(np.count_nonzero(moved))
+        if count:
+            self.count += count
+            self.largest = max(self.largest, float(moved.max()))
         return clipped
 
     def checked(self, values: np.ndarray, upper: float, name: str, describe: Callable[[int], str]) -> np.ndarray:
         """`values` (of the field `name`) projected onto [0, upper] when within round-off of it; a NaN, or a
-        value beyond ROUNDOFF (relative to max(upper, 1)), fails the step with the cell `describe(index)` (of the
-        first NaN, else of the first value beyond)."""
+        value beyond ROUNDOFF (relative to max(upper, 1)), fails the step with the cell `describe(index)`."""
+        bad = ~np.isfinite(values)
+        if bad.any():
+            raise StepFailure(f"{name} is not finite", describe(int(np.argmax(bad))))
         tolerance = ROUNDOFF * max(upper, 1.0)
-        where = int(first_astray(np.asarray(values, dtype=float), -tolerance, upper + tolerance))
-        if where >= 0 and not np.isfinite(values[where]):
-            raise StepFailure(f"{name} is not finite", describe(where))
-        if where >= 0:
+        outside = (values < -tolerance) | (values > upper + tolerance)
+        if outside.any():
+            where = int(np.argmax(outside))
             raise StepFailure(f"{name} = {values[where]:.6g} outside [0, {upper:.6g}]", describe(where))
         return self.onto(values, 0.0, upper)

@@ -30,7 +30,6 @@ from .bounds import CEILING, Expansion, model_bound
 from .courant import courant_rate
 from .expansion import grow, table1
 from .finite_volume import FiniteVolumeGrid
-from .kernels import divided_difference, extrapolated
 from .nutrient import Nutrient
 
 
@@ -57,15 +56,15 @@ class State:
             return self.c
         if self.c_curvature is None:
             return self.c + dt * self.c_rate
-        return extrapolated(self.c, self.c_rate, self.c_curvature, dt, self.c_span)
+        return self.c + dt * (self.c_rate + (dt + self.c_span) * self.c_curvature)
 
     def after(self, dt: float, phi: np.ndarray, alpha: np.ndarray, c: np.ndarray, courant: float = 0.0,
               expansion: Expansion | None = None) -> State:
         """The state dt later with these fields, its c's rate and curvature updated."""
         if self.c is None:
             return State(self.t + dt, phi, alpha, c, courant=courant, expansion=expansion)
-        rate = divided_difference(c, self.c, dt)
-        curvature = None if self.c_rate is None else divided_difference(rate, self.c_rate, dt + self.c_span)
+        rate = (c - self.c) / dt
+        curvature = None if self.c_rate is None else (rate - self.c_rate) / (dt + self.c_span)
         return State(self.t + dt, phi, alpha, c, rate, dt, curvature, courant, expansion)
 
 
