@@ -167,8 +167,8 @@ def _serve(board: _Board, slot: int, seconds: list[float]) -> None:
             while store_and_load(board.asleep, slot, 1, board.tickets) <= seen:  # asleep until a part comes
                 board.wakes[slot].get()  # (a wake left over from a part found before sleeping: look again)
             board.asleep[slot, 0] = 0
-        seen += 1
-        task = board.tasks[slot]
+        seen = int(board.tickets[slot, 0])  # (beyond seen + 1 if a caller was interrupted while handing parts out:
+        task = board.tasks[slot]  # the task is the last one handed, and its count is the one the caller waits for)
         if task is None:
             return
         work, part = task
