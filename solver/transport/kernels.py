@@ -19,6 +19,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .assembly import face_coefficients
+
 jit = numba.njit(cache=True, nogil=True)
 
 
@@ -40,26 +42,8 @@ def advection_into(out: np.ndarray, faces: np.ndarray, offsets: np.ndarray, indp
     last = w.size if last < 0 else last
     row_stop = phi.size if row_stop < 0 else row_stop
     m = last - first
-    inflow = np.empty(m)
-    outflow = np.zeros(m)
-    for k in range(m):
-        f = first + k
-        a = abs(w[f]) / h
-        if not tvd:
-            inflow[k] = a
-            continue
-        forward = w[f] > 0
-        up, down, far = (faces[0, f], faces[1, f], faces[2, f]) if forward else (faces[1, f], faces[0, f],
-                                                                                   faces[3, f])
-        num = phi[up] - phi[far] if far >= 0 else 0.0
-        den = phi[down] - phi[up]
-        if num * den > 0:
-            total = num + den
-            psi, psi_over_r = 2.0 * num / total, 2.0 * den / total
-        else:
-            psi, psi_over_r = 0.0, 0.0
-        inflow[k] = a * (1.0 - 0.5 * psi)
-        outflow[k] = a * 0.5 * psi_over_r
+    inflow, outflow, forward = np.empty(m), np.empty(m), np.empty(m, np.bool_)
+    face_coefficients(inflow, outflow, forward, -first, faces, w, phi, h, tvd, first, last)
     # row `down` gets inflow * (phi_down - phi_up), row `up` outflow * (phi_up - phi_far): all of one kind of entry
     # over the faces before the next kind, as the numpy form added them
     _add(out, faces, offsets, indptr, w, inflow, 1.0, 1, 1, 0, first, row_start, row_stop)
