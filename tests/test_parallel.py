@@ -357,35 +357,6 @@ def test_a_team_runs_every_part_at_once_and_reraises_a_failure():
     team.close()
 
 
-def test_a_team_interrupted_while_handing_parts_out_serves_the_next_call(monkeypatch):
-    """An exception (a signal's) between handing part 1 and part 2 over: the next call still runs every part once and
-    returns, the helper that missed a part included (it takes the count of the last part handed to it)."""
-    import threading
-
-    from solver.parallel import team as module
-
-    team = Team(3)
-    team.run(lambda part: None, together=True)  # the helpers started
-    real, calls = module.store_and_load, []
-
-    def interrupted(*arguments):
-        calls.append(arguments)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        return real(*arguments)
-
-    monkeypatch.setattr(module, "store_and_load", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        team.run(lambda part: None, together=True)
-    monkeypatch.setattr(module, "store_and_load", real)
-    seen: list[int] = []
-    call = threading.Thread(target=team.run, args=(seen.append,), kwargs={"together": True}, daemon=True)
-    call.start()
-    call.join(timeout=10)
-    assert not call.is_alive() and sorted(seen) == [0, 1, 2]
-    team.close()
-
-
 @pytest.mark.parametrize("nodes_shape", [(7, 6, 5), (9, 8)])
 @pytest.mark.parametrize("size", [2, 3])
 def test_stencil_products_are_the_serial_pass(small_blocks, nodes_shape, size):

@@ -1,16 +1,9 @@
 """A team of threads that run one piece of work on N parts at once: the threads of one run.
 
 The compiled kernels release the GIL (numba's ``nogil``), so Python threads run them truly in parallel.  A
-`Team` of N keeps N - 1 helper threads waiting for parts; `run(work)` hands part p to helper p and runs part 0
-in the calling thread, then waits for every part and re-raises the first error.  All N parts run at the same
-time, which the pipelined Gauss-Seidel sweeps (`sweeps.py`) rely on: a part may wait for another.  A part is
-handed over through atomic counters (`atomic.py`): a helper that has finished one spins, without the GIL, for
-`SPINS` times (~50 µs, giving its core away every few µs as the sweeps' waits do) before it sleeps on a queue,
-and the caller spins likewise for the parts to be done.  A step at 40^3 calls the team some 80 times, 60 % of them
-within 50 µs of the call before (tens of µs of Python and whole-vector sums between them); a helper woken from a
-queue each time, and the caller from another, took 27 µs to hand an empty part over and hear it done, spinning
-21 µs, and a vector update of 64 000 entries took 60 µs on two threads against 40 (at load 2 on 2 cores:
-`benchmarks/threads.py --handoff --baseline DIR`).
+`Team` of N keeps N - 1 helper threads waiting on their inboxes; `run(work)` hands part p to helper p and
+runs part 0 in the calling thread, then waits for every part and re-raises the first error.  All N parts run
+at the same time, which the pipelined Gauss-Seidel sweeps (`sweeps.py`) rely on: a part may wait for another.
 
 Not numba's own ``parallel=True``: its threading layer on Linux is GNU OpenMP, which aborts a process forked
 after it was used (a worker forked by a sweep, a test's fork), and its fork-safe alternative aborts when two
@@ -39,16 +32,10 @@ import time
 import weakref
 from typing import Callable
 
-import numpy as np
-
-from .atomic import mark_and_spin, store_and_load, wait_until
-
 PROBE = 16  # while parts run in turn, after this many times they run at once again, to see whether that pays ...
 PATIENCE = 1024  # ... and after twice as many each time it did not, up to this many
 WEIGHT = 0.1  # of a new ratio in the running mean
 SHORT = 2e-5  # seconds: a caller's part shorter than this says nothing about the threads
-SPINS = 2048  # a helper waits this many spins (~50 µs) for its next part before it sleeps
-LINE = 8  # int64 per helper's counter: one cache line each
 
 
 class Team:
@@ -59,7 +46,8 @@ class Team:
             raise ValueError(f"a team needs at least one thread, got {size}")
         self.size = int(size)
         self._lock = threading.Lock()
-        self._board: _Board | None = None
+        self._inboxes: list[queue.SimpleQueue] = []
+        self._done: queue.SimpleQueue = queue.SimpleQueue()
         self._pid = -1
         self._finalizer: weakref.finalize | None = None
         self._seconds = [0.0] * self.size  # CPU seconds each helper spent in work (slot 0 unused: the caller's)
@@ -86,23 +74,19 @@ class Team:
                 work(part)
             return
         with self._lock:
-            board = self._start()
-            board.handed += 1
-            for slot in range(self.size - 1):
-                board.tasks[slot] = (work, slot + 1)
-                if store_and_load(board.tickets, slot, board.handed, board.asleep):  # it sleeps: wake it
-                    board.wakes[slot].put(None)
+            self._start()
             began = time.perf_counter()
+            for part, inbox in enumerate(self._inboxes, start=1):
+                inbox.put((work, part))
             failure: BaseException | None = None
             try:
                 work(0)
             except BaseException as error:  # noqa: B036 - the helpers are waited for before it is re-raised
                 failure = error
             own = time.perf_counter() - began
-            for slot in range(self.size - 1):
-                wait_until(board.done, slot, board.handed)
-                failure = failure or board.failures[slot]
-                board.failures[slot] = None
+            for _ in self._inboxes:
+                error = self._done.get()
+                failure = failure or error
             if not together and own > SHORT:
                 now = (time.perf_counter() - began) / (self.size * own)
                 self.ratios[site] = now if in_turn or not ratio else (1 - WEIGHT) * ratio + WEIGHT * now
@@ -114,17 +98,17 @@ class Team:
             if failure is not None:
                 raise failure
 
-    def _start(self) -> _Board:
+    def _start(self) -> None:
         """The helpers, started on first use and again in a forked child (threads do not survive a fork)."""
-        if self._pid == os.getpid() and self._board is not None:
-            return self._board
+        if self._pid == os.getpid():
+            return
         self._pid = os.getpid()
-        self._board = board = _Board(self.size - 1)
-        for slot in range(self.size - 1):
-            threading.Thread(target=_serve, args=(board, slot, self._seconds), daemon=True,
+        self._inboxes = [queue.SimpleQueue() for _ in range(self.size - 1)]
+        self._done = queue.SimpleQueue()
+        for part, inbox in enumerate(self._inboxes, start=1):
+            threading.Thread(target=_serve, args=(inbox, self._done, self._seconds, part), daemon=True,
                              name="biostudy-team").start()
-        self._finalizer = weakref.finalize(self, _stop, board)
-        return board
+        self._finalizer = weakref.finalize(self, _stop, self._inboxes)
 
     def helper_seconds(self) -> float:
         """CPU seconds the helper threads have spent in work so far (the calling thread's are its own)."""
@@ -142,33 +126,11 @@ def kind(work: Callable) -> str:
     return code.co_qualname if code is not None else type(work).__qualname__
 
 
-class _Board:
-    """What the caller and its helpers share: per helper (slot) the parts handed to it (`tickets`), the parts it
-    has done (`done`) and whether it sleeps or is about to (`asleep`), each an int64 on a cache line of its own
-    (atomic loads and stores, `atomic.py`); the part itself (`tasks`: (work, part), None to end), its failure,
-    and the queue a sleeping helper is woken through."""
-
-    def __init__(self, helpers: int):
-        self.tickets = np.zeros((helpers, LINE), np.int64)
-        self.done = np.zeros((helpers, LINE), np.int64)
-        self.asleep = np.zeros((helpers, LINE), np.int64)
-        self.handed = 0  # parts handed to each helper so far
-        self.tasks: list[tuple[Callable[[int], None], int] | None] = [None] * helpers
-        self.failures: list[BaseException | None] = [None] * helpers
-        self.wakes = [queue.SimpleQueue() for _ in range(helpers)]
-
-
-def _serve(board: _Board, slot: int, seconds: list[float]) -> None:
-    """A helper's loop: say the last part done and wait for the next (spinning `SPINS` times, then asleep), run it,
-    add its CPU time to seconds[slot + 1] and keep the exception it raised; a task None ends it."""
-    seen = 0
+def _serve(inbox: queue.SimpleQueue, done: queue.SimpleQueue, seconds: list[float], slot: int) -> None:
+    """A helper's loop: take (work, part), run it, add its CPU time to seconds[slot], report None or the exception;
+    None in the inbox ends it."""
     while True:
-        if not mark_and_spin(board.done, slot, seen, board.tickets, seen + 1, SPINS):
-            while store_and_load(board.asleep, slot, 1, board.tickets) <= seen:  # asleep until a part comes
-                board.wakes[slot].get()  # (a wake left over from a part found before sleeping: look again)
-            board.asleep[slot, 0] = 0
-        seen = int(board.tickets[slot, 0])  # (beyond seen + 1 if a caller was interrupted while handing parts out:
-        task = board.tasks[slot]  # the task is the last one handed, and its count is the one the caller waits for)
+        task = inbox.get()
         if task is None:
             return
         work, part = task
@@ -178,16 +140,13 @@ def _serve(board: _Board, slot: int, seconds: list[float]) -> None:
             work(part)
         except BaseException as error:  # noqa: B036 - handed to the caller, which re-raises it
             failure = error
-        seconds[slot + 1] += time.thread_time() - began  # before the caller hears that the work is done
-        board.failures[slot] = failure
+        seconds[slot] += time.thread_time() - began  # before the caller hears that the work is done
+        done.put(failure)
 
 
-def _stop(board: _Board) -> None:
-    board.handed += 1
-    for slot in range(len(board.tasks)):
-        board.tasks[slot] = None
-        store_and_load(board.tickets, slot, board.handed, board.asleep)
-        board.wakes[slot].put(None)
+def _stop(inboxes: list[queue.SimpleQueue]) -> None:
+    for inbox in inboxes:
+        inbox.put(None)
 
 
 def cores() -> int:
