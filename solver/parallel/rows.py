@@ -52,6 +52,23 @@ def split(team: Team, n: int, work: Callable[[int, int], None], entries: int = 0
     team.run(part, site=kind(work))
 
 
+def split_each(team: Team, sizes: list[int], work: Callable[[int, int, int], None]) -> None:
+    """work(k, start, stop) over blocks of range(sizes[k]) for every k (the faces of each axis), in one call of
+    the team: thread p takes block p of every k (one hand-over instead of one per k)."""
+    if team.size == 1 or max(sizes, default=0) < 2 * MIN_ROWS:
+        for k, n in enumerate(sizes):
+            work(k, 0, n)
+        return
+    bounds = [blocks(n, team) for n in sizes]
+
+    def part(p: int) -> None:
+        for k, edges in enumerate(bounds):
+            if p + 1 < edges.size:
+                work(k, int(edges[p]), int(edges[p + 1]))
+
+    team.run(part, site=kind(work))
+
+
 def compiled(matrix) -> bool:
     """Whether the products here take `matrix` (float64 CSR); anything else is left to its own `@`."""
     return sp.issparse(matrix) and matrix.format == "csr" and matrix.dtype == np.float64

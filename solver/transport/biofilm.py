@@ -37,7 +37,7 @@ import scipy.sparse as sp
 
 from ..counters import Counters
 from ..parallel import SERIAL, Team
-from ..parallel.rows import blocks, split
+from ..parallel.rows import blocks, split, split_each
 from ..problem import Numerics, Parameters
 from .assembly import face_coefficients, face_maps, matrix_rows
 from .bounds import ROUNDOFF, Projection
@@ -106,17 +106,17 @@ class Velocity:
         cell_grad = self.cell_gradient(c)
         normal = [np.empty(f.lower.size) for f in fv.faces]
         magnitude = [np.empty(f.lower.size) for f in fv.faces]
-        for f, dn, m in zip(fv.faces, normal, magnitude):
-            split(self.team, dn.size, lambda a, b, f=f, dn=dn, m=m: face_gradient(dn, m, c, f.lower, f.upper, f.axis,
-                                                                                   cell_grad, h, a, b))
+        faces, sizes = fv.faces, [dn.size for dn in normal]
+        split_each(self.team, sizes, lambda k, a, b: face_gradient(normal[k], magnitude[k], c, faces[k].lower,
+                                                                   faces[k].upper, faces[k].axis, cell_grad, h, a, b))
         largest = max((m.max(initial=0.0) for m in magnitude), default=0.0)
         if largest * h <= ROUNDOFF * float(c.max(initial=0.0)):  # flat to round-off: no direction
             return [np.zeros_like(dn) for dn in normal], cell_grad, 0.0
         floor = self.floor * largest
         velocities = [np.empty(f.lower.size) for f in fv.faces]
-        for f, w, dn, m in zip(fv.faces, velocities, normal, magnitude):
-            split(self.team, w.size, lambda a, b, f=f, w=w, dn=dn, m=m: face_velocity(w, c, f.lower, f.upper, dn, m,
-                                                                                       self.r, self.k, floor, a, b))
+        split_each(self.team, sizes, lambda k, a, b: face_velocity(velocities[k], c, faces[k].lower, faces[k].upper,
+                                                                   normal[k], magnitude[k], self.r, self.k, floor, a,
+                                                                   b))
         return velocities, cell_grad, floor
 
 

@@ -51,7 +51,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from ..parallel import SERIAL, Team
-from ..parallel.rows import blocks, split
+from ..parallel.rows import blocks, split_each
 from .finite_volume import FiniteVolumeGrid
 from .kernels import extended_faces, front_crossings, nearest_rows, subgraph, within_reach
 
@@ -83,9 +83,9 @@ class FrontVelocity:
         nearest = self._nearest(front, phi >= LEVEL)
         # a face beside a covered cell: the mean of its cells' normal components (one of them where only one is)
         extended = [np.empty(wf.size) for wf in w]
-        for f, wf, out in zip(self.fv.faces, w, extended):
-            split(self.team, wf.size, lambda a, b, f=f, wf=wf, out=out: extended_faces(
-                out, wf, f.lower, f.upper, f.axis, nearest, vectors, a, b))
+        faces = self.fv.faces
+        split_each(self.team, [wf.size for wf in w], lambda k, a, b: extended_faces(
+            extended[k], w[k], faces[k].lower, faces[k].upper, faces[k].axis, nearest, vectors, a, b))
         return extended
 
     def _front(self, c: np.ndarray, phi: np.ndarray, gradient: np.ndarray, floor: float):
