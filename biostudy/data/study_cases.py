@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -61,6 +62,11 @@ class Template:
     usable: bool
     lazy: dict  # its `Case.lazy`
 
+    @functools.cached_property
+    def small(self) -> dict[str, tuple]:
+        """{name: (dtype, shape)} of its small variables and coordinates, as a case of its layout is read."""
+        return {name: (var.dtype, var.shape) for name, var in self.run.variables.items() if name not in self.lazy}
+
 
 @dataclass
 class Reader:
@@ -84,8 +90,9 @@ class Reader:
             status, message = str(attrs.get("status", "missing")), str(attrs.get("message", ""))
             if status != "done":
                 return Case(status, message, attrs)
-            if self._fits(layout, attrs, now):
-                return Case(status, message, attrs, None, False, path, self.template.lazy, self._values(nc), now)
+            fits = self._fits(layout, attrs, now)
+        if fits:  # netCDF4 closed it: its small variables through h5py
+            return Case(status, message, attrs, None, False, path, self.template.lazy, self._values(path, layout), now)
         case = read(path, self.coords, now)
         if self.template is None and case.run is not None:
             fine = set(case.run.data_vars) - set(_lazy_names(case.run))
@@ -99,18 +106,20 @@ class Reader:
         return (self.template is not None and self.template.usable and layout == self.template.layout
                 and not observables.remeasured(attrs, now))
 
-    def _values(self, nc) -> dict[str, np.ndarray]:
-        """A case file of the template's layout: its small variables and coordinates as stored, in the template's
-        types and shapes."""
-        template = self.template.run
+    def _values(self, path: Path, layout: dict) -> dict[str, np.ndarray]:
+        """A case file of the template's layout: its small variables and coordinates as stored (read through h5py,
+        which opens a file 25 times faster than netCDF4; `layout`: their stored shapes and types), in the
+        template's types and shapes."""
+        from h5py import h5d, h5s
+
         values = {}
-        for name in [*template.data_vars, *template.coords]:
-            if name in self.template.lazy:
-                continue
-            var = template.variables[name]
-            stored = nc.variables[SOURCE[name] if SOURCE.get(name) in nc.variables else name]
-            stored.set_auto_maskandscale(False)
-            values[name] = np.asarray(stored[...], dtype=var.dtype).reshape(var.shape)
+        with netcdf_io.opened_hdf5(path) as file:
+            for name, (dtype, shape) in self.template.small.items():
+                stored = SOURCE[name] if SOURCE.get(name) in layout else name
+                data = np.empty(layout[stored][1], np.dtype(layout[stored][2]).newbyteorder("="))
+                if data.size:
+                    h5d.open(file.id, stored.encode("utf-8")).read(h5s.ALL, h5s.ALL, data)
+                values[name] = np.asarray(data, dtype=dtype).reshape(shape)
         return values
 
     def dataset(self, case: Case) -> Case:
