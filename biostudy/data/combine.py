@@ -247,7 +247,14 @@ def _common_attrs(attrs: list[dict]) -> dict:
     for name, value in attrs[0].items():
         if name in PER_CASE or name.startswith("wall_time_"):
             continue
-        if all(name in a and np.array_equal(np.asarray(a[name], dtype=object), np.asarray(value, dtype=object))
-               for a in attrs[1:]):
+        if all(name in a and _equal(a[name], value) for a in attrs[1:]):
             common[name] = value
     return common
+
+
+def _equal(a, b) -> bool:
+    """Two attribute values equal, element by element (NaN is not); text and single numbers of one type compared
+    at once (most of a thousand cases' attributes)."""
+    if type(a) is type(b) and isinstance(a, (str, int, float, np.integer, np.floating)):
+        return bool(a == b)
+    return bool(np.array_equal(np.asarray(a, dtype=object), np.asarray(b, dtype=object)))

@@ -76,7 +76,8 @@ def stacked(reader: Reader, cases: list[tuple[str, Case]], dims: list[str], size
             found.values is None for found in done[1:]):
         return None
     first = template.run
-    if any(not np.array_equal(found.values[name], first[name].values) for found in done[1:] for name in first.coords):
+    coords = {name: first[name].values for name in first.coords}
+    if any(not np.array_equal(found.values[name], values) for found in done[1:] for name, values in coords.items()):
         return None
     shared = [name for name in first.data_vars if name not in once]
     model = part(done[0], cases[0][0], shared, None)  # each variable's type, attributes and encoding in the study
@@ -90,7 +91,7 @@ def stacked(reader: Reader, cases: list[tuple[str, Case]], dims: list[str], size
             {**found.attrs, **found.now} if found.values is not None else found.attrs
         scalars = case_scalars(found.status, found.message, attrs)
         values = found.values if found.values is not None else \
-            {name: first[name].values for name in shared} if found.run is not None else {}
+            {name: first[name].values for name in shared if name in small} if found.run is not None else {}
         lazily = {} if unread else lazy_fields(found.path, {name: first[name] for name in lazy}) \
             if found.status == "done" else {name: empty.variables[name] for name in lazy}
         for name, array in small.items():

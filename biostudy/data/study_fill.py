@@ -39,6 +39,7 @@ def fill(path: Path, names: list[str], cases: list[tuple[tuple, study_cases.Case
     study's dimensions, Case), every case of the study)."""
     with netcdf_io.opened_hdf5(path, "r+") as study:
         targets = {name: study[name] for name in names}
+        layouts = {name: _layout(target) for name, target in targets.items()}
         for at, found in cases:
             if found.path is None:  # failed or missing
                 for target in targets.values():
@@ -46,7 +47,8 @@ def fill(path: Path, names: list[str], cases: list[tuple[tuple, study_cases.Case
                 continue
             with netcdf_io.opened_hdf5(found.path) as file:
                 sources = {name: file[stored_name(file, name)] for name in names}
-                copied = [name for name in names if found.lazy[name][2] and copyable(sources[name], targets[name], at)
+                copied = [name for name in names if found.lazy[name][2]
+                          and copyable(sources[name], layouts[name], len(at))
                           and copy_chunks(sources[name], targets[name], at)]
             rest = {name: found.lazy[name] for name in names if name not in copied}
             for name, values in (study_cases.read_fields(found.path, rest) if rest else {}).items():
@@ -59,24 +61,26 @@ def stored_name(file: h5py.Group, name: str) -> str:
     return old if old is not None and old in file else name
 
 
-def _filters(dataset: h5py.Dataset) -> list[tuple]:
+def _layout(dataset: h5py.Dataset) -> tuple:
+    """What a field's chunks are made of: type, shape, chunks and filters (id, flags, parameters), in that order."""
     plist = dataset.id.get_create_plist()
-    return [plist.get_filter(i)[:3] for i in range(plist.get_nfilters())]
+    return (dataset.dtype, dataset.shape, dataset.chunks,
+            [plist.get_filter(i)[:3] for i in range(plist.get_nfilters())])
 
 
-def copyable(source: h5py.Dataset, target: h5py.Dataset, at: tuple) -> bool:
+def copyable(source: h5py.Dataset, target: tuple, lead: int) -> bool:
     """Whether `source` (a case's field; its study dimensions, of length 1, lead) can be copied chunk by chunk into
-    `target` at the index `at` of its leading dimensions: the same type, trailing shape, chunks and filters (zlib
-    the last applied, so that each chunk is a zlib stream), and every chunk stored."""
-    lead = source.ndim - (target.ndim - len(at))
-    if (lead < 0 or source.dtype != target.dtype or source.chunks is None or target.chunks is None
-            or any(n != 1 for n in source.shape[:lead]) or source.shape[lead:] != target.shape[len(at):]
-            or source.chunks[lead:] != target.chunks[len(at):] or any(c != 1 for c in target.chunks[:len(at)])):
+    a field of study.nc of `target` `_layout` whose first `lead` dimensions are the study's: the same type, trailing
+    shape, chunks and filters (zlib the last applied, so that each chunk is a zlib stream), every chunk stored."""
+    dtype, shape, chunks, filters = _layout(source)
+    extra = len(shape) - (len(target[1]) - lead)
+    if (extra < 0 or dtype != target[0] or chunks is None or target[2] is None or any(n != 1 for n in shape[:extra])
+            or shape[extra:] != target[1][lead:] or chunks[extra:] != target[2][lead:]
+            or any(c != 1 for c in target[2][:lead])):
         return False
-    filters = _filters(source)
-    if filters != _filters(target) or not filters or filters[-1][0] != DEFLATE:
+    if filters != target[3] or not filters or filters[-1][0] != DEFLATE:
         return False
-    return source.id.get_num_chunks() == math.prod(math.ceil(n / c) for n, c in zip(source.shape, source.chunks))
+    return source.id.get_num_chunks() == math.prod(math.ceil(n / c) for n, c in zip(shape, chunks))
 
 
 def copy_chunks(source: h5py.Dataset, target: h5py.Dataset, at: tuple) -> bool:
