@@ -124,7 +124,7 @@ def write_study(plan: Plan, out_dir: str | Path) -> Path:
     """Combine the case files under DIR/cases/ into DIR/study.nc (atomically); the fields stacked along the study
     are written case by case once the rest is (not through dask: its store of thousands of lazy reads costs time
     that grows with their square), each case's compressed chunks copied as they are (`study_fill`)."""
-    combined, cases = _combined(plan, out_dir, unread=True)
+    combined, cases = _combined(plan, out_dir, True)  # its fields unread: `study_fill` copies them
     dims, _ = _study_coordinates(plan)
     stacked = [name for name, var in combined.data_vars.items()
                if var.chunks is not None and tuple(var.dims[:len(dims)]) == tuple(dims)]
