@@ -88,7 +88,7 @@ def stacked(reader: Reader, cases: list[tuple[str, Case]], dims: list[str], size
             {**found.attrs, **found.now} if found.values is not None else found.attrs
         scalars = case_scalars(found.status, found.message, attrs)
         values = found.values if found.values is not None else \
-            {name: first[name].values for name in shared} if found.run is not None else {}
+            {name: first[name].values for name in shared if name in small} if found.run is not None else {}
         lazily = lazy_fields(found.path, {name: first[name] for name in lazy}) if found.status == "done" else \
             {name: empty.variables[name] for name in lazy}
         for name, array in small.items():
