@@ -110,12 +110,14 @@ def write(ds: xr.Dataset, path: str | Path, encoding: dict, deferred: Deferred |
     then written by fill(path) once netCDF4 has closed the file, under `HDF5` still (a study's fields, case by
     case, through h5py: `combine.write_study`)."""
     import dask
+    import dask.local
     import netCDF4
     from xarray.backends.common import ArrayWriter
 
     # the whole file under HDF5 (xarray writes metadata outside its store's lock); lazy data (a study's case
     # files) are computed chunk by chunk in this thread, as a thread pool's reads would wait for the lock forever
-    with HDF5, dask.config.set(scheduler="synchronous"):
+    # (the scheduler itself, not its name: named, dask imports `distributed` to look for a client, 0.23 s)
+    with HDF5, dask.config.set(scheduler=dask.local.get_sync):
         nc = netCDF4.Dataset(path, "w", format="NETCDF4")
         store = _store(nc)
         try:
