@@ -4,7 +4,7 @@
     python benchmarks/sweep.py --only service --repeats 3
     python benchmarks/sweep.py --only speedup --repeats 3
     python benchmarks/sweep.py --only calibration
-    python benchmarks/sweep.py --only combine --cases 1000
+    python benchmarks/sweep.py --only combine --cases 1000 --repeats 3
 
 Every sweep and calibration runs as a user runs it: a fresh `biostudy` process (`python -m biostudy ... -q`), its
 start included, into a fresh directory; a figure of several repeats is their median.  The cases are small 2-D ones:
@@ -18,11 +18,16 @@ g x r (4 cases: 2 x 2; 36 cases: 6 x 6).
    which a busy machine skews less; and the CPU seconds of the sweep's own process on 2 workers (what it does
    beyond scheduling).
 2. speedup: the 36-case study serially and with `--workers 2` (the workers' start included).  Bar: >= 1.7x.
+   Beside it, the 4-case study the same two ways, and the speed-up of the 32 cases between them: what workers
+   gain per case, with what is paid once per study (the process's start, each process's first case, study.nc)
+   differenced away; and what that once costs serially (Amdahl: it bounds the whole study's speed-up).
 3. calibration: `biostudy calibrate calibrate-agar` (least squares from 4 starts with profiles) serially and with
    `--workers 2`: wall time, simulations, and whether the estimates, standard errors and profile intervals are
    identical.  Bar: >= 1.6x, identical.
 4. combine: study.nc of `--cases` cases (40 x 40, 11 outputs, 2 steps each: the sweep that makes them is not
-   timed) written from the case files, in this process (`combine.write_study`).  Bar: seconds, not minutes.
+   timed) written from the case files, in this process (`combine.write_study`; of `--repeats` runs, the one of
+   median wall time), and where it goes: the case files read (`study_cases.Reader.read`), their fields copied
+   into study.nc (`study_fill.fill`), the rest.  Bar: seconds, not minutes (issue 35: at most ~10 s for 1000).
 
 "other processes" counts the CPU seconds the rest of the machine took meanwhile: a speed-up measured while they ran
 is not the sweep's own.  With workers it includes the workers' own: they are children of multiprocessing's fork
@@ -32,6 +37,7 @@ rough figure of the rest).  Asserts nothing.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shutil
@@ -176,15 +182,23 @@ def service(directory: Path, repeats: int) -> list[tuple[str, float]]:
 
 def speedup(directory: Path, repeats: int) -> list[tuple[str, float]]:
     rows = []
-    walls = {}
+    walls, fours = {}, {}
     for label, workers in (("serial", None), ("2 workers", 2)):
         runs = sweeps(directory, 36, workers, repeats)
         walls[label] = median(runs, "wall")
+        fours[label] = median(sweeps(directory, 4, workers, repeats), "wall")
         rows += [(f"36 cases, {label}: wall time (s)", walls[label]),
                  (f"36 cases, {label}: the cases' own wall time (s)", median(runs, "simulated")),
                  (f"36 cases, {label}: CPU s of the sweep's own process", median(runs, "cpu")),
-                 (f"36 cases, {label}: CPU s used by other processes", median(runs, "others"))]
+                 (f"36 cases, {label}: CPU s used by other processes", median(runs, "others")),
+                 (f"4 cases, {label}: wall time (s)", fours[label])]
     rows.append(("speed-up on 2 workers  [bar >= 1.7]", walls["serial"] / walls["2 workers"]))
+    per_case = {label: (walls[label] - fours[label]) / 32 for label in walls}
+    rows += [(f"per case beyond the 4-case study's, {label} (s)", per_case[label]) for label in walls]
+    rows += [("  speed-up of the 32 cases beyond (the start, first cases and study.nc's own cancel)",
+              per_case["serial"] / per_case["2 workers"]),
+             ("  what is not shared: the serial study's wall time beyond 36 of its cases (s)",
+              walls["serial"] - 36 * per_case["serial"])]
     return rows
 
 
@@ -219,20 +233,48 @@ def calibration(directory: Path, repeats: int) -> list[tuple[str, float]]:
     return rows
 
 
-def combine(directory: Path, cases: int) -> list[tuple[str, float]]:
+def combine(directory: Path, cases: int, repeats: int) -> list[tuple[str, float]]:
     from biostudy.data import combine as combining
+    from biostudy.data import study_cases, study_fill
     from biostudy.plans.study import load_study
 
     study = write_study(directory, cases, {**SETTINGS, "time.steps": "2", "time.t_end": "0.002"})
     out = directory / "combine"
     command(directory, "sweep", str(study), "-o", str(out), "--workers", "2")
     plan = load_study(study)
-    began, cpu = time.perf_counter(), time.process_time()
-    combining.write_study(plan, out)
-    wall = time.perf_counter() - began
+    runs = []
+    for _ in range(repeats):
+        spent = {"read": 0.0, "fill": 0.0}
+        with timed(study_cases.Reader, "read", spent), timed(study_fill, "fill", spent):
+            began, cpu = time.perf_counter(), time.process_time()
+            combining.write_study(plan, out)
+            runs.append((time.perf_counter() - began, time.process_time() - cpu, spent["read"], spent["fill"]))
+    wall, cpu, read, fill = sorted(runs)[len(runs) // 2]  # the run of median wall time
     return [("cases", cases), ("study.nc written: wall time (s)", wall),
-            ("study.nc written: CPU s", time.process_time() - cpu), ("per case (ms)", 1000 * wall / cases),
+            ("  case files' attributes, small variables read (s)", read),
+            ("  fields copied into study.nc (s)", fill),
+            ("  the rest: stacking, small variables written (s)", wall - read - fill),
+            ("study.nc written: CPU s", cpu), ("per case (ms)", 1000 * wall / cases),
             ("study.nc (MB)", (out / "study.nc").stat().st_size / 1e6)]
+
+
+@contextlib.contextmanager
+def timed(owner, name: str, spent: dict):
+    """Within the block, the wall time spent in `owner.name` is added to spent[name]."""
+    original = getattr(owner, name)
+
+    def measured(*args, **kwargs):
+        began = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            spent[name] += time.perf_counter() - began
+
+    setattr(owner, name, measured)
+    try:
+        yield
+    finally:
+        setattr(owner, name, original)
 
 
 def table(title: str, rows: list[tuple[str, float]]) -> str:
@@ -262,7 +304,7 @@ def main():
             rows = {"service": lambda: service(directory, args.repeats),
                     "speedup": lambda: speedup(directory, args.repeats),
                     "calibration": lambda: calibration(directory, args.repeats),
-                    "combine": lambda: combine(directory, args.cases)}[part]()
+                    "combine": lambda: combine(directory, args.cases, args.repeats)}[part]()
             print(table(title, rows))
             print(f"(load average now: {load_average()})\n", flush=True)
     print(json.dumps({"load_average_after": load_average()}))

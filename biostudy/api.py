@@ -125,9 +125,10 @@ def _job(command: Command) -> Body:
     failed warned of; its summary dataset (study.nc, convergence.nc, ...) returned."""
     def job(values: dict[str, Any]) -> xr.Dataset:
         from .commands.jobs import started  # lazily, as in `run`
+
+        loaded, where = started(command, values)  # first: it starts the workers' fork server before the imports below
         from .execution.jobs import Execution
 
-        loaded, where = started(command, values)
         finished = loaded.run(Execution(**where))
         log.info(finished.summary)
         for said in [*finished.warnings, *([finished.failure_line()] if finished.failures else [])]:

@@ -33,11 +33,11 @@ from dataclasses import dataclass, replace
 from typing import Callable, Iterator
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from .counters import Counters, declared
 from .errors import Runaway, SimulationError, StepFailure
 from .parallel import SERIAL, Team, cores
+from .parallel.blas import blas_threads
 from .problem import Problem
 from .sink import Held, OutputSink
 from .snapshot import Snapshot
@@ -244,7 +244,7 @@ class Simulation:
         self.team = Team(problem.numerics.threads or cores())
         setup = CpuTime(self.team)  # the operators built for this grid: part of what a run costs
         with setup.spent():
-            with threadpool_limits(limits=1, user_api="blas"):  # one BLAS thread throughout: the same bits anywhere
+            with blas_threads(1):  # one BLAS thread throughout: the same bits anywhere
                 self.transport = Transport(problem, self.team)
             self.clock = Clock(self.transport, progress, self.team)
             self.mechanics = _mechanics(problem, self.team)
@@ -257,7 +257,7 @@ class Simulation:
     def __iter__(self) -> Iterator[Snapshot]:
         problem, transport, clock = self.problem, self.transport, self.clock
         setup = time.thread_time()
-        with threadpool_limits(limits=1, user_api="blas"):  # the first hierarchy's coarse pseudo-inverse too
+        with blas_threads(1):  # the first hierarchy's coarse pseudo-inverse too
             state = transport.initial()
         self.setup_cpu += time.thread_time() - setup
         last = len(problem.output_times) - 1
@@ -272,7 +272,7 @@ class Simulation:
                 continue
             clock.mechanics_left = sum(i >= index for i in solved_at)
             try:
-                with threadpool_limits(limits=1, user_api="blas"):
+                with blas_threads(1):
                     state = clock.advance(state, float(when))
             except SimulationError as error:  # the last state accepted is kept (errors.SimulationError)
                 if error.last is not None and error.last.t > state.t and error.last.c is not None:

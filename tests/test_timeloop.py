@@ -164,3 +164,17 @@ def test_the_transport_solves_on_one_blas_thread_from_its_first_step(monkeypatch
     with threadpool_limits(limits=2, user_api="blas"):  # what a 2-core machine gives by default
         simulate(sphere_problem(n=8, steps=4, t_end=0.04, outputs=(0.0, 0.04)))
     assert threads and set(threads) == {1}, threads
+
+
+def test_the_blas_libraries_are_looked_for_again_only_after_an_import(monkeypatch):
+    """`blas_threads` keeps the libraries it found (a look costs milliseconds, at every output) until a module is
+    imported, which is how a BLAS library comes to be loaded."""
+    import sys
+
+    from solver.parallel import blas
+
+    first = blas._controller()
+    assert blas._controller() is first
+    monkeypatch.setitem(sys.modules, "biostudy_test_newly_imported", object())
+    again = blas._controller()
+    assert again is not first and blas._controller() is again

@@ -17,9 +17,9 @@ def job_command(declared: Command, options: dict[str, Any], quiet: bool, as_json
     """
     with guarded():
         from ..commands.jobs import started  # lazily: --version and -h pay for no execution machinery
-        from ..execution.jobs import Execution  # lazily
 
-        job, where = started(declared, options)
+        job, where = started(declared, options)  # first: it starts the workers' fork server before the imports below
+        from ..execution.jobs import Execution
         with progress.jobs(job.title, quiet, job.noun) as notify:
             finished = job.run(Execution(notify=notify, **where))
         if as_json:

@@ -9,17 +9,20 @@ own way of telling progress.
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..execution import worker
 from .declared import EXECUTION
-from .finished import JobCommand
-from .options import Command
+
+if TYPE_CHECKING:
+    from .finished import JobCommand
+    from .options import Command
 
 
 def started(command: Command, values: dict[str, Any]) -> tuple[JobCommand, dict[str, Any]]:
     """The job of `command` (`biostudy.commands.<name>.load`) loaded from its options' `values`, and where it runs
-    (`Execution`'s keywords among them)."""
+    (`Execution`'s keywords among them).  The local workers' fork server is started first, before this process
+    imports the job machinery (a second): its imports and this process's run at once."""
     from ..execution.dask import check_choice, runs_here  # lazily: -h pays for no execution machinery
 
     values = dict(values)

@@ -30,7 +30,7 @@ from solver.output import cf_units
 
 from ..inputs.keys import dimension, id_text
 from ..inputs.scene import key_info, overrides_text
-from . import case_files, netcdf, provenance, study_arrays, study_cases, writing
+from . import case_files, netcdf, provenance, study_arrays, study_cases, study_fill, writing
 from .case_files import CASE_ATTRS, CaseLayout, static
 from .study_arrays import nest, stack
 
@@ -122,23 +122,17 @@ def case_layouts(plan: Plan) -> dict[str, CaseLayout]:
 
 def write_study(plan: Plan, out_dir: str | Path) -> Path:
     """Combine the case files under DIR/cases/ into DIR/study.nc (atomically); the fields stacked along the study
-    are written case by case, each case file opened once for them (not through dask: its store of thousands of
-    lazy reads costs time that grows with their square)."""
-    combined, cases = _combined(plan, out_dir)
+    are written case by case once the rest is (not through dask: its store of thousands of lazy reads costs time
+    that grows with their square), each case's compressed chunks copied as they are (`study_fill`)."""
+    combined, cases = _combined(plan, out_dir, True)  # its fields unread: `study_fill` copies them
     dims, _ = _study_coordinates(plan)
     stacked = [name for name, var in combined.data_vars.items()
                if var.chunks is not None and tuple(var.dims[:len(dims)]) == tuple(dims)]
 
-    def fill(nc) -> None:
-        for number, case in enumerate(plan.cases):
-            at = tuple(case.index) if plan.mode == "grid" else (number,)
-            found = cases[case.id]
-            values = study_cases.read_fields(found.path, {n: found.lazy[n] for n in stacked}) \
-                if found.path is not None else {}
-            for name in stacked:
-                nc.variables[name][at] = values.get(name, np.nan)
-
-    return writing.write_atomic(combined, Path(out_dir) / "study.nc", deferred=(stacked, fill))
+    places = [(tuple(case.index) if plan.mode == "grid" else (number,), cases[case.id])
+              for number, case in enumerate(plan.cases)]
+    return writing.write_atomic(combined, Path(out_dir) / "study.nc",
+                                deferred=(stacked, lambda path: study_fill.fill(path, stacked, places)))
 
 
 def combine(plan: Plan, out_dir: str | Path) -> xr.Dataset:
@@ -150,7 +144,9 @@ def combine(plan: Plan, out_dir: str | Path) -> xr.Dataset:
     return _combined(plan, out_dir)[0]
 
 
-def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, study_cases.Case]]:
+def _combined(plan: Plan, out_dir: str | Path, unread: bool = False) -> tuple[xr.Dataset, dict[str, study_cases.Case]]:
+    """study.nc's dataset and the cases read; `unread`: its fields stacked from the common study's cases read
+    nothing (`study_arrays.stacked`: `write_study` fills them case by case)."""
     dims, coords = _study_coordinates(plan)
     reader = study_cases.Reader(coords)
     cases = {case.id: reader.read(case_files.case_file(out_dir, case.id), plan.scenes[case.id].substratum_attrs())
@@ -159,7 +155,7 @@ def _combined(plan: Plan, out_dir: str | Path) -> tuple[xr.Dataset, dict[str, st
     sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys] if plan.mode == "grid" else [len(plan.cases)]
     first = reader.template.run if reader.template is not None else None
     once = [n for n in first.data_vars if static(first[n]) and statics_shared] if first is not None else []
-    combined = _arrays(reader, list(cases.items()), dims, sizes, once)
+    combined = _arrays(reader, list(cases.items()), dims, sizes, once, unread)
     if combined is None:  # cases of different layouts or coordinates: a dataset per case
         cases = {case_id: reader.dataset(found) for case_id, found in cases.items()}
         done = [case.run for case in cases.values() if case.run is not None]
@@ -251,7 +247,14 @@ def _common_attrs(attrs: list[dict]) -> dict:
     for name, value in attrs[0].items():
         if name in PER_CASE or name.startswith("wall_time_"):
             continue
-        if all(name in a and np.array_equal(np.asarray(a[name], dtype=object), np.asarray(value, dtype=object))
-               for a in attrs[1:]):
+        if all(name in a and _equal(a[name], value) for a in attrs[1:]):
             common[name] = value
     return common
+
+
+def _equal(a, b) -> bool:
+    """Two attribute values equal, element by element (NaN is not); text and single numbers of one type compared
+    at once (most of a thousand cases' attributes)."""
+    if type(a) is type(b) and isinstance(a, (str, int, float, np.integer, np.floating)):
+        return bool(a == b)
+    return bool(np.array_equal(np.asarray(a, dtype=object), np.asarray(b, dtype=object)))

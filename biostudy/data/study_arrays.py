@@ -64,17 +64,20 @@ def stack(nested: list):
 
 
 def stacked(reader: Reader, cases: list[tuple[str, Case]], dims: list[str], sizes: list[int],
-            once: list[str]) -> xr.Dataset | None:
+            once: list[str], unread: bool = False) -> xr.Dataset | None:
     """The cases (case id, Case in the plan's order; the study's `dims` of `sizes`, the last fastest) stacked, every
     variable of the first finished case's but those written `once`: None unless each finished case but the first
-    was read as the template says and has its coordinates."""
+    was read as the template says and has its coordinates.  `unread`: the fields are dask arrays of their shape
+    and type that read nothing, one chunk per case (study.nc's writer fills them itself, `study_fill`), not
+    reads of the case files (a thousand cases' dask graphs cost a second)."""
     template = reader.template
     done = [found for _, found in cases if found.status == "done"]
     if template is None or not done or done[0].run is not template.run or any(
             found.values is None for found in done[1:]):
         return None
     first = template.run
-    if any(not np.array_equal(found.values[name], first[name].values) for found in done[1:] for name in first.coords):
+    coords = {name: first[name].values for name in first.coords}
+    if any(not np.array_equal(found.values[name], values) for found in done[1:] for name, values in coords.items()):
         return None
     shared = [name for name in first.data_vars if name not in once]
     model = part(done[0], cases[0][0], shared, None)  # each variable's type, attributes and encoding in the study
@@ -88,9 +91,9 @@ def stacked(reader: Reader, cases: list[tuple[str, Case]], dims: list[str], size
             {**found.attrs, **found.now} if found.values is not None else found.attrs
         scalars = case_scalars(found.status, found.message, attrs)
         values = found.values if found.values is not None else \
-            {name: first[name].values for name in shared} if found.run is not None else {}
-        lazily = lazy_fields(found.path, {name: first[name] for name in lazy}) if found.status == "done" else \
-            {name: empty.variables[name] for name in lazy}
+            {name: first[name].values for name in shared if name in small} if found.run is not None else {}
+        lazily = {} if unread else lazy_fields(found.path, {name: first[name] for name in lazy}) \
+            if found.status == "done" else {name: empty.variables[name] for name in lazy}
         for name, array in small.items():
             if name in scalars:
                 array[number] = np.asarray(scalars[name][1])[()]
@@ -98,11 +101,19 @@ def stacked(reader: Reader, cases: list[tuple[str, Case]], dims: list[str], size
                 array[number] = case_id
             else:
                 array[number] = values[name] if name in values else np.nan
-        for name in lazy:  # integer fields (masks) as float, as `floats` makes them
+        for name in lazily:  # integer fields (masks) as float, as `floats` makes them
             data = lazily[name].data
             fields[name].append(data if data.dtype == model[name].dtype else data.astype(model[name].dtype))
     variables = {}
     for name, var in model.data_vars.items():
-        data = small[name].reshape((*sizes, *var.shape)) if name in small else stack(nest(fields[name], sizes))
+        data = small[name].reshape((*sizes, *var.shape)) if name in small else \
+            _unread((*sizes, *var.shape), var.dtype, len(sizes)) if unread else stack(nest(fields[name], sizes))
         variables[name] = xr.Variable([*dims, *var.dims], data, dict(var.variable.attrs), dict(var.encoding))
     return xr.Dataset(variables, model.coords)
+
+
+def _unread(shape: tuple, dtype, lead: int):
+    """A dask array of `shape` and `dtype` in one chunk per case (its first `lead` dimensions) that reads nothing."""
+    import dask.array as da
+
+    return da.empty(shape, dtype=dtype, chunks=(1,) * lead + shape[lead:])

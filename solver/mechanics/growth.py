@@ -20,10 +20,10 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..errors import MechanicsError, describe_cell
 from ..parallel import SERIAL, Team
+from ..parallel.blas import blas_threads
 from ..problem import Grid, MechanicsSetup, Parameters
 from . import constraints, material, preconditioners
 from .assembly import Assembler
@@ -104,7 +104,7 @@ class GrowthMechanics:
     # -- the solve -----------------------------------------------------------------
     def solve(self, phi: np.ndarray, alpha: np.ndarray, time: float) -> MechanicsResult:
         """Equilibrium for (phi, alpha) per cell, starting from the previous call's state."""
-        with threadpool_limits(limits=self.settings.blas_threads, user_api="blas"):
+        with blas_threads(self.settings.blas_threads):
             return self._solve(phi, alpha, time)
 
     def _solve(self, phi: np.ndarray, alpha: np.ndarray, time: float) -> MechanicsResult:

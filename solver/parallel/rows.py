@@ -69,9 +69,13 @@ def split_each(team: Team, sizes: list[int], work: Callable[[int, int, int], Non
     team.run(part, site=kind(work))
 
 
+CSR = (sp.csr_matrix, sp.csr_array)
+
+
 def compiled(matrix) -> bool:
-    """Whether the products here take `matrix` (float64 CSR); anything else is left to its own `@`."""
-    return sp.issparse(matrix) and matrix.format == "csr" and matrix.dtype == np.float64
+    """Whether the products here take `matrix` (float64 CSR); anything else is left to its own `@`.  Asked at
+    every product (thousands a second in a small run): a type test, not `sp.issparse` and the `format` property."""
+    return isinstance(matrix, CSR) and matrix.data.dtype == np.float64
 
 
 def product(team: Team, matrix: sp.csr_matrix, x: np.ndarray) -> np.ndarray:

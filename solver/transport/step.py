@@ -20,10 +20,10 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from ..counters import Counters
 from ..parallel import SERIAL, Team
+from ..parallel.blas import blas_threads
 from ..problem import Parameters, Problem
 from .biofilm import Biofilm
 from .bounds import CEILING, Expansion, model_bound
@@ -80,7 +80,7 @@ class Transport:
                                  team)
         self.transient = problem.laws.nutrient == "transient"
         if problem.c0 is None and not self.transient:  # the first solve's hierarchy before the biofilm's operators
-            with threadpool_limits(limits=1, user_api="blas"):  # exist (peak memory); its coarsest pseudo-inverse:
+            with blas_threads(1):  # exist (peak memory); its coarsest pseudo-inverse:
                 self.nutrient.prepare(self.fv.to_active(problem.phi0))  # one BLAS thread
         self.biofilm = Biofilm(self.fv, problem.params, problem.numerics, self.nutrient.faces, team)
         self.fv.release_laplacian()  # the operators made from it hold what they need of it
