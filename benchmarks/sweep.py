@@ -14,7 +14,7 @@ g x r (4 cases: 2 x 2; 36 cases: 6 x 6).
 1. service: the service's own cost per case: a serial sweep's wall time beyond the cases' own (the sum of the
    simulations' wall times that study.nc records), differenced between the 36-case and the 4-case study so that
    the process's start and the first case's imports cancel: ((W36 - S36) - (W4 - S4)) / 32.  Bar: <= 0.1 s.
-   The same in CPU seconds (the process's own beyond those of its simulations, counted around `solver.simulate`),
+   The same in CPU seconds (the process's own beyond those of its simulations, counted around `worker.solve`),
    which a busy machine skews less; and the CPU seconds of the sweep's own process on 2 workers (what it does
    beyond scheduling).
 2. speedup: the 36-case study serially and with `--workers 2` (the workers' start included).  Bar: >= 1.7x.
@@ -59,22 +59,22 @@ SETTINGS = {"grid.shape": "[40, 40]", "grid.spacing": "0.5", "time.steps": "100"
 MEASURED = """\
 import json, os, resource, sys, time
 os.environ.setdefault("FIPY_SOLVERS", "scipy")
-import solver
 from biostudy.cli import app
+from biostudy.execution import worker  # light: the solver is imported when a case is first solved, as in `biostudy`
 
-simulate, spent = solver.simulate, [0.0]
+solve, spent = worker.solve, [0.0]
 
 
 def timed(*args, **kwargs):
     began = time.process_time()
     try:
-        return simulate(*args, **kwargs)
+        return solve(*args, **kwargs)
     finally:
         spent[0] += time.process_time() - began
 
 
 if __name__ == "__main__":
-    solver.simulate = timed  # the simulations run in this process (serially) are counted apart
+    worker.solve = timed  # the simulations run in this process (serially) are counted apart
     try:
         app(sys.argv[1:])
     finally:

@@ -59,10 +59,11 @@ def main() -> None:
     summary = done.stdout.strip().splitlines()[-1]
     count = sum(int(n) for n in re.findall(r"(\d+) (?:passed|xfailed|failed|skipped)", summary))
     slowest = [line for line in done.stdout.splitlines() if re.match(r"^\d+\.\d+s (call|setup|teardown)", line)]
+    failed = [line for line in done.stdout.splitlines() if line.startswith(("FAILED ", "ERROR "))]
     OUT.write_text("\n".join([
         "# The test suite's time (scripts/suite_time.py)", "",
         f"tests: {count}", f"wall time: {minutes(wall)}", f"load average: {before:.1f} before, {after:.1f} after",
-        f"measured: {datetime.date.today().isoformat()}", f"result: {summary}", "",
+        f"measured: {datetime.date.today().isoformat()}", f"result: {summary}", *failed, "",
         HOW, "Slowest (pytest --durations):", "", "```", *slowest[:12], "```", "",
         "Per file (seconds summed over its tests):", "", "```",
         *(f"{seconds:7.1f}s {name}" for seconds, name in per_file(slowest)), "```", ""]), encoding="utf-8")
