@@ -178,3 +178,42 @@ def test_the_blas_libraries_are_looked_for_again_only_after_an_import(monkeypatc
     monkeypatch.setitem(sys.modules, "biostudy_test_newly_imported", object())
     again = blas._controller()
     assert again is not first and blas._controller() is again
+
+
+def test_a_process_forked_while_another_thread_looks_for_the_blas_libraries_can_look_too():
+    """The look's lock, held by another thread at the fork, is not held in the child (no thread there releases it)."""
+    import os
+    import threading
+
+    from solver.parallel import blas
+
+    held = threading.Event()
+    release = threading.Event()
+
+    def looking():
+        with blas._looking:
+            held.set()
+            release.wait(10)
+
+    other = threading.Thread(target=looking)
+    other.start()
+    held.wait(10)
+    pid = os.fork()
+    if pid == 0:  # the child: one look, then out at once (a lock left held would block here; the parent kills it)
+        try:
+            with blas.blas_threads(1):
+                pass
+        finally:
+            os._exit(0)
+    release.set()
+    other.join()
+    for _ in range(200):
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        threading.Event().wait(0.05)
+    else:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        raise AssertionError("the child waited for a lock its parent's thread held at the fork")
+    assert os.waitstatus_to_exitcode(status) == 0

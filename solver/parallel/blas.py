@@ -9,6 +9,7 @@ imported since (`sys.modules` grew): a BLAS is loaded by importing its module (n
 """
 from __future__ import annotations
 
+import os
 import sys
 import threading
 
@@ -16,6 +17,16 @@ from threadpoolctl import ThreadpoolController
 
 _found: tuple[int, ThreadpoolController] | None = None
 _looking = threading.Lock()
+
+
+def _unlocked_in_child() -> None:
+    """A process forked while another thread looked has the lock held by nobody: a new one (what was found stays:
+    the libraries are the parent's)."""
+    global _looking
+    _looking = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_unlocked_in_child)
 
 
 def _controller() -> ThreadpoolController:
