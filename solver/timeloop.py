@@ -244,8 +244,7 @@ class Simulation:
         self.team = Team(problem.numerics.threads or cores())
         setup = CpuTime(self.team)  # the operators built for this grid: part of what a run costs
         with setup.spent():
-            with blas_threads(1):  # one BLAS thread throughout: the same bits anywhere
-                self.transport = Transport(problem, self.team)
+            self.transport = Transport(problem, self.team)  # its first hierarchy on one BLAS thread (`Transport`)
             self.clock = Clock(self.transport, progress, self.team)
             self.mechanics = _mechanics(problem, self.team)
         self.setup_cpu = setup.first or 0.0
