@@ -83,9 +83,9 @@ class ReusedAMG:
         if not np.any(rhs):
             return np.zeros_like(rhs)
         target = self.tolerance * float(np.linalg.norm(rhs))
-        if self.cycle is None or self.prepared:
-            if not self.prepared:
-                self._rebuild(matrix)
+        if self.cycle is None:
+            self.prepare(matrix)
+        if self.prepared:  # a hierarchy built for this very matrix: its iterations are the fresh ones
             self.prepared = False
             x, residual, its, info = self._cg(matrix, rhs, x0)
             self.fresh_iterations = its
