@@ -1,7 +1,7 @@
 """study.nc made two ways from the same case files, and two netCDF files compared variable by variable."""
 import numpy as np
 
-from biostudy.data import combine
+from biostudy.data import combine, study_arrays
 
 
 def same_files(a, b):
@@ -35,6 +35,9 @@ def both_ways(plan, out, monkeypatch):
     """study.nc of `plan`'s case files in `out` made with study-wide arrays (`study_arrays`) and with a dataset per
     case (`combine._stacked`, as before them): the two files' paths."""
     arrays = combine.write_study(plan, out).rename(out / "study-arrays.nc")
+    declined = []  # the study-wide arrays asked for and declined: the other way was taken
     with monkeypatch.context() as patched:
-        patched.setattr(combine, "_arrays", lambda *args: None)
-        return arrays, combine.write_study(plan, out).rename(out / "study-datasets.nc")
+        patched.setattr(study_arrays, "stacked", lambda *args: declined.append(True))
+        datasets = combine.write_study(plan, out).rename(out / "study-datasets.nc")
+    assert declined
+    return arrays, datasets

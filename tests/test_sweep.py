@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from biostudy.cli import app
 from biostudy.commands.sweep import run_study
-from biostudy.data import combine, writing
+from biostudy.data import combine, study_arrays, writing
 from biostudy.data.case_files import CASE_VARIABLES, recorded
 from biostudy.execution import dask, worker
 from biostudy.execution.jobs import Execution, fingerprint
@@ -76,7 +76,7 @@ def test_grid_sweep_writes_cases_and_study_nc_with_one_dimension_per_key(tiny_st
     # the cases in study-wide arrays, stacked variable by variable, are what xarray's combine_nested makes of them
     plan = load_study(tiny_study)
     arrays = combine.combine(plan, out).drop_attrs(deep=False)
-    monkeypatch.setattr(combine, "_arrays", lambda *args: None)
+    monkeypatch.setattr(study_arrays, "stacked", lambda *args: None)
     stacked = combine.combine(plan, out).drop_attrs(deep=False)
     monkeypatch.setattr(combine, "_stacked", lambda *args: None)
     nested = combine.combine(plan, out).drop_attrs(deep=False)

@@ -37,8 +37,6 @@ from .study_arrays import nest, stack
 if TYPE_CHECKING:
     from ..plans.cases import Plan
 
-_arrays = study_arrays.stacked  # the common study's cases stacked without a dataset per case (None: another study)
-
 # Per-case attributes that are not shared by a study (they stay in cases/*.nc).
 PER_CASE = {"case_id", "status", "message", "error", "created", "scene", "overrides", "fingerprint", "title",
             "wall_time", "steps_taken", "steps_bisected", "steps_rejected", "history", netcdf.CASE_DIMENSIONS}
@@ -155,7 +153,7 @@ def _combined(plan: Plan, out_dir: str | Path, unread: bool = False) -> tuple[xr
     sizes = [len(plan.spec.sweep.values[k]) for k in plan.keys] if plan.mode == "grid" else [len(plan.cases)]
     first = reader.template.run if reader.template is not None else None
     once = [n for n in first.data_vars if static(first[n]) and statics_shared] if first is not None else []
-    combined = _arrays(reader, list(cases.items()), dims, sizes, once, unread)
+    combined = study_arrays.stacked(reader, list(cases.items()), dims, sizes, once, unread)
     if combined is None:  # cases of different layouts or coordinates: a dataset per case
         cases = {case_id: reader.dataset(found) for case_id, found in cases.items()}
         done = [case.run for case in cases.values() if case.run is not None]
