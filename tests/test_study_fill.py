@@ -108,7 +108,8 @@ def test_small_variables_read_through_h5py_are_netcdf4s_as_stored(swept):
 
 def test_a_damaged_chunk_stops_the_write_as_before(varied):
     """A case file whose compressed field is damaged (bytes inside a chunk changed) fails study.nc's write,
-    naming it, and leaves no study.nc: its checksum is verified before its chunks are copied."""
+    naming it, and leaves no study.nc: the chunk's zlib stream fails before it is copied, and the
+    field read instead fails its checksum."""
     plan, out = varied
     path = _case(out, 60.0)
     with h5py.File(path, "r") as file:

@@ -7,8 +7,10 @@ that compress to ~0.7 of their size), and opening each case file a second time t
 variable's metadata, 3.4 ms more.  Here study.nc, once netCDF4 has written and closed it, is opened with h5py, and
 so is each case file (0.13 ms: h5py reads only what is asked); a field whose chunks and filters are study.nc's
 (`copyable`) has its chunks written into study.nc as they are (`copy_chunks`): the same bytes, so the same values.
-HDF5 first reads the field (in slabs of at most `study_cases.AT_ONCE` bytes), which verifies its checksums: a
-damaged case file stops the write as it did when its fields were read to be compressed again.  Any other field
+Each chunk's zlib stream is decompressed before it is written, which checks its own checksum (Adler-32; the
+fletcher32 checksum, the first filter, covers the data before compression and is checked when data are read): a
+damaged chunk sends its field the other way, where HDF5 reads it, finds the damage and stops the write, as when
+every field was read to be compressed again.  Any other field
 (another layout, type or filters; packed or with a fill value that is not NaN) is read as before
 (`study_cases.read_fields`) and written through h5py, compressed by study.nc's own filters.  A case that did not
 finish is NaN.
